@@ -3,6 +3,7 @@
 from typing import Callable, Sequence
 
 import flax.linen as nn
+import jax
 import jax.numpy as jnp
 
 
@@ -16,7 +17,7 @@ class MLP(nn.Module):
   """
   features: Sequence[int]
   activate_final: bool = False
-  activation: Callable[[jnp.ndarray], jnp.ndarray] = nn.mish
+  activation: Callable[[jnp.ndarray], jnp.ndarray] = jax.nn.mish
 
   @nn.compact
   def __call__(self, x: jnp.ndarray) -> jnp.ndarray:

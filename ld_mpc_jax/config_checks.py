@@ -1,0 +1,59 @@
+"""Checks that a config makes sense, so bad values fail with a message naming the field."""
+
+import ml_collections
+
+_POSITIVE_INTS = (
+    'obs_dim', 'action_dim', 'horizon',
+    'model.latent_dim', 'model.encoder_hidden', 'model.width', 'model.num_heads',
+    'model.mlp_ratio', 'model.proposal_blocks', 'model.dynamics_blocks', 'model.objective_blocks',
+    'plan.num_candidates', 'plan.action_steps', 'plan.dynamics_steps',
+    'train.batch_size', 'train.num_steps',
+)
+
+
+def _get(config, dotted: str):
+  node = config
+  for part in dotted.split('.'):
+    if part not in node:
+      raise ValueError(f'config is missing field `{dotted}`')
+    node = node[part]
+  return node
+
+
+def validate_config(config: ml_collections.ConfigDict) -> None:
+  """Raises ValueError naming the first field whose value cannot work."""
+  for name in _POSITIVE_INTS:
+    v = _get(config, name)
+    if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+      raise ValueError(f'config.{name} must be an integer >= 1, got {v!r}')
+  m, p = config.model, config.plan
+  if m.width % m.num_heads:
+    raise ValueError(f'config.model.width ({m.width}) must be divisible by '
+                     f'config.model.num_heads ({m.num_heads})')
+  if m.width % 2:
+    raise ValueError(f'config.model.width must be even for Fourier embeddings, got {m.width}')
+  if m.num_bins < 2 or not m.vmin < m.vmax:
+    raise ValueError(f'config.model.num_bins must be >= 2 and vmin < vmax, got '
+                     f'{m.num_bins}, [{m.vmin}, {m.vmax}]')
+  if not 0.0 <= m.dropout < 1.0:
+    raise ValueError(f'config.model.dropout must be in [0, 1), got {m.dropout}')
+  if not 0.0 < config.gamma <= 1.0:
+    raise ValueError(f'config.gamma must be in (0, 1], got {config.gamma}')
+  if config.diffusion.prediction not in ('x0', 'eps'):
+    raise ValueError(f"config.diffusion.prediction must be 'x0' or 'eps', "
+                     f'got {config.diffusion.prediction!r}')
+  for name in ('action_eta', 'dynamics_eta'):
+    if not 0.0 <= p[name] <= 1.0:
+      raise ValueError(f'config.plan.{name} must be in [0, 1], got {p[name]}')
+  if not 0 <= p.num_prior_candidates <= p.num_candidates:
+    raise ValueError(f'config.plan.num_prior_candidates must be in [0, num_candidates='
+                     f'{p.num_candidates}], got {p.num_prior_candidates}')
+  for name in ('prior_noise_std', 'action_noise_std'):
+    if p[name] < 0:
+      raise ValueError(f'config.plan.{name} must be >= 0, got {p[name]}')
+  t = config.train
+  if not 0.0 <= t.ema_decay < 1.0:
+    raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
+  if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
+    raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
+                     f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')

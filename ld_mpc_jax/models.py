@@ -1,0 +1,219 @@
+"""The LD-MPC networks: encoder, action proposal, latent dynamics, sequence objective, actor.
+
+All are plain flax modules. `build_networks(config)` instantiates them from a config;
+`init_params(config, key)` returns a dict of their parameters, one entry per network.
+"""
+
+from typing import NamedTuple
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import ml_collections
+
+from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.networks import MLP, TimeEmbedding, Transformer, position_embedding
+
+
+def rms_normalize(x: jnp.ndarray, eps: float = 1e-6) -> jnp.ndarray:
+  """Scales each vector to unit root-mean-square: the latent then matches N(0, I)'s scale."""
+  return x * jax.lax.rsqrt(jnp.mean(x ** 2, axis=-1, keepdims=True) + eps)
+
+
+class Encoder(nn.Module):
+  """MLP encoder o [..., obs_dim] -> z [..., latent_dim] (39 -> 256 -> 512 in the reference).
+
+  The output is RMS-normalised: diffusion over z assumes unit-scale data, and a fixed norm keeps
+  the jointly trained latent from collapsing to zero.
+  """
+  hidden: int
+  latent_dim: int
+
+  @nn.compact
+  def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
+    return rms_normalize(MLP((self.hidden, self.latent_dim), name='mlp')(obs))
+
+
+class ActionProposal(nn.Module):
+  """Diffusion transformer over an action sequence, conditioned on the latent state.
+
+  Tokens: [z, a_0, ..., a_{H-1}] with Fourier position embeddings; the Fourier embedding of the
+  diffusion time is added to every token. Predicts x0 (or eps) for the H action tokens.
+  """
+  horizon: int
+  action_dim: int
+  width: int
+  num_blocks: int
+  num_heads: int
+  mlp_ratio: int = 4
+  dropout: float = 0.0
+
+  def setup(self):
+    self.cond_proj = nn.Dense(self.width)
+    self.action_proj = nn.Dense(self.width)
+    self.time_embed = TimeEmbedding(self.width)
+    self.backbone = Transformer(self.num_blocks, self.num_heads, self.mlp_ratio, self.dropout)
+    self.out = nn.Dense(self.action_dim)
+
+  def embed_cond(self, z: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D] -> conditioning token [..., 1, W]; computed once per plan, not per step."""
+    return self.cond_proj(z)[..., None, :]
+
+  def denoise(self, a_t: jnp.ndarray, t: jnp.ndarray, cond: jnp.ndarray,
+              deterministic: bool = True) -> jnp.ndarray:
+    """a_t [..., H, A], t [] or [...], cond [..., 1, W] -> prediction [..., H, A]."""
+    temb = self.time_embed(t)[..., None, :]
+    pos = position_embedding(self.horizon + 1, self.width)
+    tokens = jnp.concatenate([cond, self.action_proj(a_t)], axis=-2) + pos + temb
+    h = self.backbone(tokens, deterministic=deterministic)
+    return self.out(h[..., 1:, :])
+
+  def __call__(self, a_t, t, z, deterministic: bool = True):
+    return self.denoise(a_t, t, self.embed_cond(z), deterministic)
+
+
+class LatentDynamics(nn.Module):
+  """Diffusion transformer for one transition p(z_{t+1} | z_t, a_t).
+
+  Tokens: [z_t, a_t, noisy z_{t+1}] with Fourier position embeddings plus the diffusion-time
+  embedding; the prediction of z_{t+1} is read from the last token. Applied autoregressively over
+  the horizon by the planner.
+  """
+  latent_dim: int
+  width: int
+  num_blocks: int
+  num_heads: int
+  mlp_ratio: int = 4
+  dropout: float = 0.0
+
+  def setup(self):
+    self.z_proj = nn.Dense(self.width)
+    self.a_proj = nn.Dense(self.width)
+    self.x_proj = nn.Dense(self.width)
+    self.time_embed = TimeEmbedding(self.width)
+    self.backbone = Transformer(self.num_blocks, self.num_heads, self.mlp_ratio, self.dropout)
+    self.out = nn.Dense(self.latent_dim)
+
+  def embed_cond(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D], a [..., A] -> conditioning tokens [..., 2, W]; once per transition."""
+    return jnp.stack([self.z_proj(z), self.a_proj(a)], axis=-2)
+
+  def denoise(self, x_t: jnp.ndarray, t: jnp.ndarray, cond: jnp.ndarray,
+              deterministic: bool = True) -> jnp.ndarray:
+    """x_t [..., D] noisy next latent, t [] or [...], cond [..., 2, W] -> prediction [..., D]."""
+    temb = self.time_embed(t)[..., None, :]
+    pos = position_embedding(3, self.width)
+    tokens = jnp.concatenate([cond, self.x_proj(x_t)[..., None, :]], axis=-2) + pos + temb
+    h = self.backbone(tokens, deterministic=deterministic)
+    return self.out(h[..., -1, :])
+
+  def __call__(self, x_t, t, z, a, deterministic: bool = True):
+    return self.denoise(x_t, t, self.embed_cond(z, a), deterministic)
+
+
+class SequenceObjective(nn.Module):
+  """Causal transformer over (z_0, a_0, z_1, ..., a_{H-1}, z_H) -> reward and value logits.
+
+  The reward r_i is read at token a_i and the value V_i at token z_i; causal attention makes each
+  depend only on the prefix, so V_i is a value of the state reached after i steps.
+  """
+  width: int
+  num_blocks: int
+  num_heads: int
+  num_bins: int
+  mlp_ratio: int = 4
+  dropout: float = 0.0
+
+  @nn.compact
+  def __call__(self, z: jnp.ndarray, a: jnp.ndarray, deterministic: bool = True):
+    """z [..., H+1, D], a [..., H, A] -> (reward logits [..., H, bins], value [..., H+1, bins])."""
+    horizon = a.shape[-2]
+    if z.shape[-2] != horizon + 1:
+      raise ValueError(f'need H+1 latents for H actions, got {z.shape[-2]} and {horizon}')
+    zt = nn.Dense(self.width, name='z_proj')(z)
+    at = nn.Dense(self.width, name='a_proj')(a)
+    # Interleave: [z_0, a_0, z_1, a_1, ..., a_{H-1}, z_H].
+    pairs = jnp.stack([zt[..., :-1, :], at], axis=-2)
+    pairs = pairs.reshape(pairs.shape[:-3] + (2 * horizon, self.width))
+    tokens = jnp.concatenate([pairs, zt[..., -1:, :]], axis=-2)
+    tokens = tokens + position_embedding(2 * horizon + 1, self.width)
+    mask = nn.make_causal_mask(jnp.ones(tokens.shape[:-1], jnp.int32))
+    h = Transformer(self.num_blocks, self.num_heads, self.mlp_ratio, self.dropout,
+                    name='backbone')(tokens, mask, deterministic)
+    reward_logits = nn.Dense(self.num_bins, name='reward_head')(h[..., 1::2, :])
+    value_logits = nn.Dense(self.num_bins, name='value_head')(h[..., 0::2, :])
+    return reward_logits, value_logits
+
+
+class Actor(nn.Module):
+  """Policy prior a = tanh(MLP(z)) in [-1, 1]^A."""
+  hidden: tuple
+  action_dim: int
+
+  @nn.compact
+  def __call__(self, z: jnp.ndarray) -> jnp.ndarray:
+    return jnp.tanh(MLP(tuple(self.hidden) + (self.action_dim,), name='mlp')(z))
+
+
+class Networks(NamedTuple):
+  encoder: Encoder
+  proposal: ActionProposal
+  dynamics: LatentDynamics
+  objective: SequenceObjective
+  actor: Actor
+
+
+def build_networks(config: ml_collections.ConfigDict) -> Networks:
+  """Instantiates the five networks from `config.model` (no parameters yet)."""
+  m = config.model
+  common = dict(width=m.width, num_heads=m.num_heads, mlp_ratio=m.mlp_ratio, dropout=m.dropout)
+  return Networks(
+      encoder=Encoder(m.encoder_hidden, m.latent_dim),
+      proposal=ActionProposal(config.horizon, config.action_dim,
+                              num_blocks=m.proposal_blocks, **common),
+      dynamics=LatentDynamics(m.latent_dim, num_blocks=m.dynamics_blocks, **common),
+      objective=SequenceObjective(num_blocks=m.objective_blocks, num_bins=m.num_bins, **common),
+      actor=Actor(tuple(m.actor_hidden), config.action_dim),
+  )
+
+
+def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
+  """Initial parameters: {'encoder', 'proposal', 'dynamics', 'objective', 'actor'} -> pytree."""
+  validate_config(config)
+  nets = build_networks(config)
+  h, d, a = config.horizon, config.model.latent_dim, config.action_dim
+  keys = dict(zip(Networks._fields, jax.random.split(key, len(Networks._fields))))
+  obs = jnp.zeros((1, config.obs_dim))
+  z, t = jnp.zeros((1, d)), jnp.zeros((1,))
+  return {
+      'encoder': nets.encoder.init(keys['encoder'], obs)['params'],
+      'proposal': nets.proposal.init(keys['proposal'], jnp.zeros((1, h, a)), t, z)['params'],
+      'dynamics': nets.dynamics.init(keys['dynamics'], z, t, z, jnp.zeros((1, a)))['params'],
+      'objective': nets.objective.init(keys['objective'], jnp.zeros((1, h + 1, d)),
+                                       jnp.zeros((1, h, a)))['params'],
+      'actor': nets.actor.init(keys['actor'], z)['params'],
+  }
+
+
+def count_params(params) -> int:
+  """Number of scalars in a parameter pytree."""
+  return int(sum(x.size for x in jax.tree_util.tree_leaves(params)))
+
+
+def encode(params: dict, obs: jnp.ndarray) -> jnp.ndarray:
+  """Latent of one observation [obs_dim] or a batch [..., obs_dim] -> [..., latent_dim].
+
+  The encoder's sizes are read off its parameters, so no config is needed.
+  """
+  obs_dim = params['encoder']['mlp']['dense_0']['kernel'].shape[0]
+  obs = jnp.asarray(obs, jnp.float32)
+  if obs.ndim == 0 or obs.shape[-1] != obs_dim:
+    raise ValueError(f'encode expects observations of shape [..., {obs_dim}], got {obs.shape}')
+  return _apply_encoder(params['encoder'], obs)
+
+
+@jax.jit
+def _apply_encoder(enc_params: dict, obs: jnp.ndarray) -> jnp.ndarray:
+  hidden = enc_params['mlp']['dense_0']['kernel'].shape[1]
+  latent = enc_params['mlp']['dense_1']['kernel'].shape[1]
+  return Encoder(hidden, latent).apply({'params': enc_params}, obs)

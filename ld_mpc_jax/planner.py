@@ -1,0 +1,146 @@
+"""Receding-horizon planning in latent space: `make_plan(config) -> plan(params, z, key)`.
+
+One call of `plan`:
+  1. samples K - P action sequences [H, A] from the diffusion proposal given z (lax.scan over the
+     denoising steps, all candidates batched);
+  2. rolls every candidate out with the latent diffusion dynamics, autoregressively over H
+     (outer lax.scan) with a full denoising loop per transition (inner lax.scan); the P
+     actor-prior candidates take a_i = Actor(z_hat_i) along their own rollout;
+  3. scores each with J = sum_{i<H} gamma^i r_i + gamma^H V(z_H) from the sequence objective model;
+  4. returns the first action of the argmax candidate, clipped to [-1, 1].
+"""
+
+from typing import Callable, Optional
+
+import flax
+import jax
+import jax.numpy as jnp
+import ml_collections
+
+from ld_mpc_jax import diffusion
+from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.losses import discounted_return, two_hot_decode
+from ld_mpc_jax.models import ActionProposal, LatentDynamics, Networks, build_networks
+
+# score_fn(params, latents [K, H+1, D], actions [K, H, A]) -> returns [K].
+ScoreFn = Callable[[dict, jnp.ndarray, jnp.ndarray], jnp.ndarray]
+
+
+@flax.struct.dataclass
+class PlanOutput:
+  """What `plan` returns. K candidates, horizon H, action size A."""
+  action: jnp.ndarray  # [A] first action of the best candidate, in [-1, 1].
+  sequence: jnp.ndarray  # [H, A] the best candidate (for warm starts and inspection).
+  scores: jnp.ndarray  # [K] J of every candidate.
+  candidates: jnp.ndarray  # [K, H, A] every candidate action sequence.
+  index: jnp.ndarray  # [] argmax of scores.
+
+
+def make_objective_score(config: ml_collections.ConfigDict, nets: Networks) -> ScoreFn:
+  """J from the learned sequence objective: two-hot rewards and terminal value, decoded."""
+  m, gamma = config.model, config.gamma
+
+  def score(params, latents, actions):
+    r_logits, v_logits = nets.objective.apply({'params': params['objective']}, latents, actions)
+    rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [K, H]
+    value = two_hot_decode(v_logits[..., -1, :], m.vmin, m.vmax)  # [K]
+    return discounted_return(rewards, value, gamma)
+
+  return score
+
+
+def make_propose(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+  """Returns propose(params, z [D], key, num) -> [num, H, A] sampled action sequences."""
+  p, d = config.plan, config.diffusion
+  h, a = config.horizon, config.action_dim
+
+  def propose(params, z, key, num):
+    variables = {'params': params['proposal']}
+    cond = nets.proposal.apply(variables, z, method=ActionProposal.embed_cond)  # [1, W]
+    cond = jnp.broadcast_to(cond, (num,) + cond.shape)
+    model_fn = lambda a_t, t: nets.proposal.apply(variables, a_t, t, cond,
+                                                  method=ActionProposal.denoise)
+    init_key, sample_key = jax.random.split(key)
+    x_init = jax.random.normal(init_key, (num, h, a))
+    return diffusion.sample(model_fn, x_init, sample_key, p.action_steps, p.action_eta,
+                            d.prediction, clip_x0=d.clip_actions)
+
+  return propose
+
+
+def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+  """Returns rollout(params, z [D], actions [K-P, H, A], key) -> (actions, latents).
+
+  actions out: [K, H, A] (proposals then P actor-prior candidates); latents: [K, H+1, D] with
+  latents[:, 0] = z.
+  """
+  p, d = config.plan, config.diffusion
+  k, num_prior, h = p.num_candidates, p.num_prior_candidates, config.horizon
+
+  def rollout(params, z, proposals, key):
+    dyn_vars = {'params': params['dynamics']}
+    actions_t = jnp.swapaxes(proposals, 0, 1)  # [H, K-P, A]
+
+    def transition(z_cur, inputs):
+      a_prop, i = inputs
+      step_key = jax.random.fold_in(key, i)
+      if num_prior:
+        a_pi = nets.actor.apply({'params': params['actor']}, z_cur[k - num_prior:])
+        if p.prior_noise_std > 0:
+          noise = jax.random.normal(jax.random.fold_in(step_key, 2), a_pi.shape)
+          a_pi = jnp.clip(a_pi + p.prior_noise_std * noise, -1.0, 1.0)
+        a_cur = jnp.concatenate([a_prop, a_pi], axis=0)
+      else:
+        a_cur = a_prop
+      cond = nets.dynamics.apply(dyn_vars, z_cur, a_cur, method=LatentDynamics.embed_cond)
+      model_fn = lambda x_t, t: nets.dynamics.apply(dyn_vars, x_t, t, cond,
+                                                    method=LatentDynamics.denoise)
+      x_init = jax.random.normal(jax.random.fold_in(step_key, 0), z_cur.shape)
+      z_next = diffusion.sample(model_fn, x_init, jax.random.fold_in(step_key, 1),
+                                p.dynamics_steps, p.dynamics_eta, d.prediction)
+      return z_next, (a_cur, z_next)
+
+    z0 = jnp.broadcast_to(z, (k,) + z.shape)
+    _, (acts, zs) = jax.lax.scan(transition, z0, (actions_t, jnp.arange(h)))
+    latents = jnp.concatenate([z0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
+    return jnp.swapaxes(acts, 0, 1), latents
+
+  return rollout
+
+
+def make_plan(config: ml_collections.ConfigDict,
+              score_fn: Optional[ScoreFn] = None) -> Callable:
+  """Builds the jit-compiled planner.
+
+  Args:
+    config: an LD-MPC config (see experiments/configs/base.py).
+    score_fn: optional replacement for the learned objective,
+      (params, latents [K, H+1, D], actions [K, H, A]) -> [K]; for tests and custom objectives.
+  Returns:
+    plan(params, z [latent_dim], key) -> PlanOutput, one jitted pure function.
+  """
+  validate_config(config)
+  nets = build_networks(config)
+  p = config.plan
+  k, num_prior, d = p.num_candidates, p.num_prior_candidates, config.model.latent_dim
+  score_fn = score_fn or make_objective_score(config, nets)
+  propose = make_propose(config, nets)
+  rollout = make_rollout(config, nets)
+
+  def plan(params, z, key) -> PlanOutput:
+    if z.shape != (d,):
+      raise ValueError(f'plan expects one latent of shape ({d},), got {z.shape}; '
+                       'use encode(params, obs) first, and jax.vmap for a batch')
+    prop_key, noise_key, dyn_key = jax.random.split(key, 3)
+    proposals = propose(params, z, prop_key, k - num_prior)
+    if p.action_noise_std > 0:
+      noise = jax.random.normal(noise_key, proposals.shape)
+      proposals = jnp.clip(proposals + p.action_noise_std * noise, -1.0, 1.0)
+    actions, latents = rollout(params, z, proposals, dyn_key)
+    scores = score_fn(params, latents, actions)
+    index = jnp.argmax(scores)
+    sequence = actions[index]
+    return PlanOutput(action=jnp.clip(sequence[0], -1.0, 1.0), sequence=sequence,
+                      scores=scores, candidates=actions, index=index)
+
+  return jax.jit(plan)

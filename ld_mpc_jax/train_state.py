@@ -1,0 +1,77 @@
+"""Train state and the jitted update step."""
+
+from typing import Any, Callable
+
+import flax
+import jax
+import jax.numpy as jnp
+import ml_collections
+import optax
+
+from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.losses import make_loss_fn
+from ld_mpc_jax.models import build_networks, init_params
+
+
+@flax.struct.dataclass
+class TrainState:
+  """Everything an update changes. Static hyperparameters live in the closures, not here."""
+  params: Any
+  opt_state: Any
+  ema_params: Any
+  step: jnp.ndarray
+
+
+def make_optimizer(config: ml_collections.ConfigDict) -> optax.GradientTransformation:
+  """Adam with linear warmup to a constant rate, after global-norm gradient clipping."""
+  t = config.train
+  schedule = optax.join_schedules(
+      [optax.linear_schedule(0.0, t.learning_rate, max(t.warmup_steps, 1)),
+       optax.constant_schedule(t.learning_rate)], [max(t.warmup_steps, 1)])
+  return optax.chain(optax.clip_by_global_norm(t.grad_clip), optax.adam(schedule))
+
+
+def create_train_state(config: ml_collections.ConfigDict, key: jax.Array) -> TrainState:
+  """Fresh parameters; the EMA starts as a copy of them."""
+  params = init_params(config, key)
+  return TrainState(params=params, opt_state=make_optimizer(config).init(params),
+                    ema_params=jax.tree_util.tree_map(jnp.copy, params),
+                    step=jnp.zeros((), jnp.int32))
+
+
+def ema_update(ema_params, params, decay: float):
+  """ema <- decay * ema + (1 - decay) * params, leaf by leaf."""
+  return optax.incremental_update(params, ema_params, step_size=1.0 - decay)
+
+
+def make_update(config: ml_collections.ConfigDict) -> Callable:
+  """Returns jitted update(state, batch, key) -> (state, metrics); `state` is donated.
+
+  batch: obs [B, H+1, obs_dim], action [B, H, A], reward [B, H] (float32).
+  Metrics are a dict of scalars, including the gradient norm before clipping.
+  """
+  validate_config(config)
+  nets = build_networks(config)
+  loss_fn = make_loss_fn(config, nets)
+  tx = make_optimizer(config)
+  decay = config.train.ema_decay
+  h, obs_dim, act_dim = config.horizon, config.obs_dim, config.action_dim
+
+  def update(state: TrainState, batch: dict, key: jax.Array):
+    b = batch['obs'].shape[0]
+    expected = {'obs': (b, h + 1, obs_dim), 'action': (b, h, act_dim), 'reward': (b, h)}
+    for name, shape in expected.items():
+      if name not in batch or tuple(batch[name].shape) != shape:
+        got = tuple(batch[name].shape) if name in batch else 'missing'
+        raise ValueError(f'batch[{name!r}] must have shape {shape} (horizon={h}), got {got}')
+    (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(
+        state.params, state.ema_params, batch, key)
+    updates, opt_state = tx.update(grads, state.opt_state, state.params)
+    params = optax.apply_updates(state.params, updates)
+    metrics['grad_norm'] = optax.global_norm(grads)
+    new_state = TrainState(params=params, opt_state=opt_state,
+                           ema_params=ema_update(state.ema_params, params, decay),
+                           step=state.step + 1)
+    return new_state, metrics
+
+  return jax.jit(update, donate_argnums=0)
