@@ -1,0 +1,179 @@
+"""Mixed-quality offline data from Meta-World's scripted policies.
+
+Each episode runs a task's scripted expert (`metaworld.policies`) with one
+noise level: the expert's action gets Gaussian noise of std `noise_std`, and
+with probability `random_prob` per decision it is replaced by a uniform random
+action in [-1, 1]^4; the result is clipped to [-1, 1]. Episodes run the full
+length (`max_episode_steps` environment steps; success does not end them) with
+the env factory's action repeat, and record per-step success flags.
+
+Presets (D4RL-like; the levels are data, see PRESETS):
+  expert: the scripted policy with a little noise.
+  medium: heavier noise and many random actions.
+  mixed:  a quarter each of four levels, from expert-like to mostly random.
+"""
+
+import os
+import time
+import warnings
+from typing import Any, Callable, Dict, Optional, Sequence
+
+import numpy as np
+import tqdm
+
+from ld_mpc_jax.data import dataset as dataset_lib
+from ld_mpc_jax.envs import metaworld_env
+
+# Each level: Gaussian action-noise std, per-decision probability of a uniform
+# random action, and the fraction of the preset's episodes at that level.
+PRESETS: Dict[str, Sequence[Dict[str, float]]] = {
+    'expert': (dict(noise_std=0.1, random_prob=0.0, fraction=1.0),),
+    'medium': (dict(noise_std=0.5, random_prob=0.65, fraction=1.0),),
+    'mixed': (
+        dict(noise_std=0.1, random_prob=0.0, fraction=0.25),
+        dict(noise_std=0.5, random_prob=0.5, fraction=0.25),
+        dict(noise_std=1.0, random_prob=0.75, fraction=0.25),
+        dict(noise_std=1.0, random_prob=0.9, fraction=0.25),  # mostly random
+    ),
+}
+
+
+def level_assignment(preset: str, episodes: int, seed: int) -> np.ndarray:
+  """int64 [episodes]: the PRESETS level index of each episode (shuffled)."""
+  if preset not in PRESETS:
+    raise ValueError(f'Unknown preset {preset!r}; valid: {sorted(PRESETS)}.')
+  fractions = np.array([lvl['fraction'] for lvl in PRESETS[preset]])
+  counts = np.floor(fractions * episodes).astype(np.int64)
+  remainder = fractions * episodes - counts
+  counts[np.argsort(-remainder)[:episodes - counts.sum()]] += 1
+  levels = np.repeat(np.arange(len(counts)), counts)
+  return np.random.default_rng([int(seed), 7]).permutation(levels)
+
+
+def run_episode(env, policy: Callable[[np.ndarray], np.ndarray],
+                noise_std: float, random_prob: float, seed: int
+                ) -> Dict[str, np.ndarray]:
+  """One noisy scripted episode until termination or truncation.
+
+  Returns:
+    dict(obs [L+1, obs_dim], action [L, act_dim], reward [L], success [L]).
+  """
+  rng = np.random.default_rng(int(seed))
+  obs, _ = env.reset(seed=int(seed))
+  act_dim = env.action_space.shape[0]
+  observations, actions, rewards, successes = [obs], [], [], []
+  done = False
+  while not done:
+    action = np.asarray(policy(obs), np.float64)
+    action = action + noise_std * rng.standard_normal(act_dim)
+    if rng.random() < random_prob:
+      action = rng.uniform(-1.0, 1.0, act_dim)
+    action = np.clip(action, -1.0, 1.0).astype(np.float32)
+    obs, reward, terminated, truncated, info = env.step(action)
+    observations.append(obs)
+    actions.append(action)
+    rewards.append(reward)
+    successes.append(bool(info['success']))
+    done = terminated or truncated
+  return dict(obs=np.stack(observations), action=np.stack(actions),
+              reward=np.asarray(rewards, np.float32),
+              success=np.asarray(successes, bool))
+
+
+def collect(task: str, preset: str, episodes: int, seed: int = 0,
+            action_repeat: int = 2,
+            max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH,
+            progress: bool = True) -> dataset_lib.Dataset:
+  """Collects `episodes` noisy scripted episodes of `task` at `preset`.
+
+  Args:
+    task: Meta-World v3 task name.
+    preset: key of PRESETS ('expert', 'medium', 'mixed').
+    episodes: number of episodes.
+    seed: MT1 seed of the environment (its 50 goal configurations) and base of
+      the per-episode seeds (stream 'collect' of `episode_seeds`).
+    action_repeat: as in `make_env`; recorded in the metadata.
+    max_episode_steps: episode length in environment steps.
+    progress: show a tqdm progress bar.
+
+  Returns:
+    A validated Dataset; metadata and per-episode noise/seed in episode_data.
+  """
+  metaworld_env.check_task(task)
+  if episodes < 1:
+    raise ValueError(f'episodes must be >= 1, got {episodes}')
+  levels = level_assignment(preset, episodes, seed)
+  seeds = metaworld_env.episode_seeds(seed, episodes, 'collect')
+  env = metaworld_env.make_env(task, seed=seed, action_repeat=action_repeat,
+                               max_episode_steps=max_episode_steps)
+  policy = metaworld_env.scripted_policy(task)
+  spec = PRESETS[preset]
+  out, start = [], time.time()
+  bar = tqdm.tqdm(range(episodes), desc=f'collect {task}/{preset}',
+                  disable=not progress)
+  with warnings.catch_warnings():
+    # The scripted policies warn that their gains exceed the action range.
+    warnings.simplefilter('ignore', UserWarning)
+    for i in bar:
+      lvl = spec[levels[i]]
+      out.append(run_episode(env, policy, lvl['noise_std'],
+                             lvl['random_prob'], seeds[i]))
+      bar.set_postfix(success=np.mean([ep['success'].any() for ep in out]))
+  env.close()
+  episode_data = dict(
+      level=levels.astype(np.int64),
+      noise_std=np.array([spec[l]['noise_std'] for l in levels]),
+      random_prob=np.array([spec[l]['random_prob'] for l in levels]),
+      seed=seeds)
+  metadata: Dict[str, Any] = dict(
+      source='metaworld-scripted', task=task, tasks=[task], preset=preset,
+      levels=[dict(l) for l in spec], episodes=int(episodes), seed=int(seed),
+      action_repeat=int(action_repeat),
+      max_episode_steps=int(max_episode_steps),
+      obs_dim=metaworld_env.OBS_DIM, act_dim=metaworld_env.ACT_DIM,
+      versions=dataset_lib.package_versions(),
+      collection_seconds=round(time.time() - start, 2))
+  return dataset_lib.Dataset.from_episodes(
+      out, metadata=metadata, episode_data=episode_data)
+
+
+def dataset_path(data_dir: str, task: str, preset: str, episodes: int,
+                 seed: int, action_repeat: int) -> str:
+  """Cache file name of a collected dataset."""
+  return os.path.join(
+      data_dir, f'{task}_{preset}_{episodes}ep_seed{seed}_ar{action_repeat}.npz')
+
+
+def get_or_collect(task: str, preset: str, episodes: int, seed: int,
+                   data_dir: str, action_repeat: int = 2,
+                   max_episode_steps: int = (
+                       metaworld_env.METAWORLD_MAX_PATH_LENGTH),
+                   progress: bool = True) -> dataset_lib.Dataset:
+  """Loads the cached dataset if present and valid, else collects and saves it.
+
+  A cached file that fails validation, or whose metadata does not match the
+  request, is replaced (with a warning).
+  """
+  path = dataset_path(data_dir, task, preset, episodes, seed, action_repeat)
+  want = dict(task=task, preset=preset, episodes=episodes, seed=seed,
+              action_repeat=action_repeat, max_episode_steps=max_episode_steps)
+  if os.path.exists(path):
+    try:
+      ds = dataset_lib.load(path)
+      got = {k: ds.metadata.get(k) for k in want}
+      if got == want:
+        return ds
+      warnings.warn(f'{path} holds {got}, not {want}; collecting again.')
+    except dataset_lib.DatasetError as err:
+      warnings.warn(f'Ignoring invalid cached dataset: {err}')
+  ds = collect(task, preset, episodes, seed=seed, action_repeat=action_repeat,
+               max_episode_steps=max_episode_steps, progress=progress)
+  dataset_lib.save(ds, path)
+  return ds
+
+
+def summary(ds: dataset_lib.Dataset) -> Dict[str, Optional[float]]:
+  """Episode/transition counts, success rate and mean return of a dataset."""
+  return dict(episodes=ds.num_episodes, transitions=ds.num_transitions,
+              success_rate=float(ds.episode_success().mean()),
+              mean_return=float(ds.episode_returns().mean()))

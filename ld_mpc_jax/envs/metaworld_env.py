@@ -1,0 +1,213 @@
+"""Meta-World v3 environments behind one gymnasium factory.
+
+`make_env(task, seed)` builds Meta-World's own MT1 environment for one task
+(`gym.make('Meta-World/MT1', env_name=task, seed=seed)`), whose 50 goal
+configurations are fixed by `seed`, and wraps it in `MetaWorldWrapper`, which adds
+
+* action repeat: one decision = `action_repeat` environment steps, rewards summed;
+* an episode limit counted in ENVIRONMENT steps (`max_episode_steps`);
+* optional termination on success (Meta-World's evaluation protocol);
+* seeded Gaussian observation noise;
+* seeded episodes: `reset(seed=s)` reseeds the goal choice and the noise, so the
+  same `s` always gives the same episode start.
+
+Observations are float64 [39] and actions float32 [4] in [-1, 1], as in
+Meta-World.
+"""
+
+from typing import Any, Dict, List, Optional, Tuple
+
+import gymnasium as gym
+import numpy as np
+
+# Meta-World's observation and action sizes (state observations, v3).
+OBS_DIM = 39
+ACT_DIM = 4
+# Meta-World's own per-episode limit (SawyerXYZEnv.max_path_length).
+METAWORLD_MAX_PATH_LENGTH = 500
+
+
+def task_names() -> List[str]:
+  """All Meta-World v3 task names, sorted (e.g. 'door-open-v3')."""
+  from metaworld.env_dict import ALL_V3_ENVIRONMENTS  # pylint: disable=g-import-not-at-top
+  return sorted(ALL_V3_ENVIRONMENTS.keys())
+
+
+def check_task(task: str) -> str:
+  """Returns `task` if it is a Meta-World v3 task name, else raises ValueError."""
+  names = task_names()
+  if task not in names:
+    raise ValueError(
+        f'Unknown Meta-World task {task!r}. Valid v3 task names are: '
+        + ', '.join(names))
+  return task
+
+
+class MetaWorldWrapper(gym.Wrapper):
+  """Action repeat, episode limit, success termination and observation noise.
+
+  `step(action)` repeats `action` for up to `action_repeat` environment steps.
+  It stops repeating early when a sub-step terminates (with
+  `terminate_on_success`, reaching success terminates) or the episode limit is
+  hit. The returned reward is the sum over the sub-steps taken, and
+  `info['success']` is True if success was reached at ANY sub-step of this
+  decision. `info['env_steps']` is the number of environment steps so far in
+  the episode and `info['substeps']` those taken by this decision.
+
+  Attributes:
+    action_repeat: environment steps per decision.
+    max_episode_steps: episode limit in environment steps.
+    obs_noise_std: std of Gaussian noise added to every returned observation.
+    terminate_on_success: end the episode at the first successful sub-step.
+  """
+
+  def __init__(self, env: gym.Env, seed: int, action_repeat: int = 2,
+               max_episode_steps: int = METAWORLD_MAX_PATH_LENGTH,
+               obs_noise_std: float = 0.0,
+               terminate_on_success: bool = False):
+    super().__init__(env)
+    if action_repeat < 1:
+      raise ValueError(f'action_repeat must be >= 1, got {action_repeat}')
+    if max_episode_steps < 1:
+      raise ValueError(
+          f'max_episode_steps must be >= 1, got {max_episode_steps}')
+    if obs_noise_std < 0:
+      raise ValueError(f'obs_noise_std must be >= 0, got {obs_noise_std}')
+    self.action_repeat = int(action_repeat)
+    self.max_episode_steps = int(max_episode_steps)
+    self.obs_noise_std = float(obs_noise_std)
+    self.terminate_on_success = bool(terminate_on_success)
+    self._noise_rng = np.random.default_rng(seed)
+    self._env_steps = 0
+    self._needs_reset = True
+    # Meta-World raises if stepped past its own max_path_length, and wraps
+    # itself in a TimeLimit of that length: lift both to our limit.
+    self.env.unwrapped.max_path_length = max(
+        self.max_episode_steps, METAWORLD_MAX_PATH_LENGTH)
+    inner = self.env
+    while isinstance(inner, gym.Wrapper):
+      if isinstance(inner, gym.wrappers.TimeLimit):
+        inner._max_episode_steps = self.env.unwrapped.max_path_length  # pylint: disable=protected-access
+      if hasattr(inner, 'toggle_terminate_on_success'):
+        # Success termination is handled here, per sub-step.
+        inner.toggle_terminate_on_success(False)
+      inner = inner.env
+
+  def _noisy(self, obs: np.ndarray) -> np.ndarray:
+    obs = np.asarray(obs, dtype=np.float64)
+    if self.obs_noise_std > 0:
+      obs = obs + self.obs_noise_std * self._noise_rng.standard_normal(
+          obs.shape)
+    return obs
+
+  def reset(self, *, seed: Optional[int] = None,
+            options: Optional[Dict[str, Any]] = None
+            ) -> Tuple[np.ndarray, Dict[str, Any]]:
+    """Starts an episode; a given `seed` fixes the goal choice and the noise."""
+    if seed is not None:
+      # SawyerXYZEnv.reset ignores its seed; its np_random picks the goal.
+      self.env.unwrapped.seed(int(seed))
+      self._noise_rng = np.random.default_rng(int(seed))
+    obs, info = self.env.reset(options=options)
+    self._env_steps = 0
+    self._needs_reset = False
+    info = dict(info)
+    info['env_steps'] = 0
+    return self._noisy(obs), info
+
+  def step(self, action: np.ndarray
+           ) -> Tuple[np.ndarray, float, bool, bool, Dict[str, Any]]:
+    """action: [act_dim] -> (obs [obs_dim], reward, terminated, truncated, info)."""
+    if self._needs_reset:
+      raise RuntimeError('Call reset() before step() (episode has ended).')
+    action = np.clip(np.asarray(action, dtype=np.float32).reshape(-1),
+                     -1.0, 1.0)
+    total_reward, success = 0.0, False
+    terminated = truncated = False
+    info: Dict[str, Any] = {}
+    substeps = 0
+    for _ in range(self.action_repeat):
+      obs, reward, term, trunc, info = self.env.step(action)
+      substeps += 1
+      self._env_steps += 1
+      total_reward += float(reward)
+      success = success or bool(info.get('success', 0.0) >= 1.0)
+      terminated = bool(term) or (self.terminate_on_success and success)
+      truncated = bool(trunc) or self._env_steps >= self.max_episode_steps
+      if terminated or truncated:
+        break
+    info = dict(info)
+    info['success'] = success
+    info['env_steps'] = self._env_steps
+    info['substeps'] = substeps
+    self._needs_reset = terminated or truncated
+    return self._noisy(obs), total_reward, terminated, truncated, info
+
+
+def make_env(task: str, seed: int, action_repeat: int = 2,
+             max_episode_steps: int = METAWORLD_MAX_PATH_LENGTH,
+             obs_noise_std: float = 0.0,
+             terminate_on_success: bool = False,
+             render_mode: Optional[str] = None,
+             camera_name: str = 'corner',
+             image_size: int = 480) -> MetaWorldWrapper:
+  """Builds a wrapped Meta-World v3 environment for one task.
+
+  Args:
+    task: Meta-World v3 task name, e.g. 'door-open-v3'.
+    seed: seeds the task's 50 goal configurations (Meta-World's MT1 seed), the
+      goal choice at unseeded resets and the observation noise.
+    action_repeat: environment steps per decision (TD-MPC2 uses 2).
+    max_episode_steps: episode limit in ENVIRONMENT steps; with action_repeat=2
+      and 500 steps an episode has at most 250 decisions.
+    obs_noise_std: std of Gaussian noise added to observations (seeded).
+    terminate_on_success: end episodes at the first success (evaluation).
+    render_mode: None or 'rgb_array' (offscreen MuJoCo rendering; on a machine
+      without a display set MUJOCO_GL=osmesa, needs libosmesa6).
+    camera_name: MuJoCo camera used when rendering.
+    image_size: rendered frames are [image_size, image_size, 3] uint8.
+
+  Returns:
+    A gymnasium environment: obs float64 [39], action float32 [4] in [-1, 1].
+
+  Raises:
+    ValueError: unknown task name (the message lists the valid names).
+  """
+  check_task(task)
+  import metaworld  # pylint: disable=g-import-not-at-top,unused-import
+  kwargs = {}
+  if render_mode is not None:
+    kwargs = dict(render_mode=render_mode, camera_name=camera_name,
+                  width=image_size, height=image_size)
+  env = gym.make('Meta-World/MT1', env_name=task, seed=int(seed),
+                 disable_env_checker=True, **kwargs)
+  return MetaWorldWrapper(env, seed=int(seed), action_repeat=action_repeat,
+                          max_episode_steps=max_episode_steps,
+                          obs_noise_std=obs_noise_std,
+                          terminate_on_success=terminate_on_success)
+
+
+# Independent seed streams, so evaluation never replays a collected episode.
+SEED_STREAMS = {'eval': 0, 'collect': 1}
+
+
+def episode_seeds(seed: int, num_episodes: int, stream: str) -> np.ndarray:
+  """int64 [num_episodes]: per-episode reset seeds for `stream` ('eval'/'collect').
+
+  Episode i's seed is drawn from np.random.SeedSequence([seed, stream, i]), so
+  different base seeds and streams give unrelated episodes.
+  """
+  key = SEED_STREAMS[stream]
+  return np.array([
+      np.random.SeedSequence([int(seed), key, i]).generate_state(1)[0]
+      for i in range(num_episodes)], dtype=np.int64)
+
+
+def scripted_policy(task: str):
+  """Meta-World's scripted expert for `task`: obs [39] -> action [4]."""
+  check_task(task)
+  from metaworld.policies import ENV_POLICY_MAP  # pylint: disable=g-import-not-at-top
+  if task not in ENV_POLICY_MAP:
+    raise ValueError(f'Meta-World has no scripted policy for {task!r}.')
+  policy = ENV_POLICY_MAP[task]()
+  return lambda obs: np.asarray(policy.get_action(obs), dtype=np.float32)
