@@ -1,0 +1,122 @@
+"""Tests for the evaluation protocol on a tiny fake env, plus one real check."""
+
+import ctypes.util
+import os
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from ld_mpc_jax import evaluation
+from ld_mpc_jax.envs import metaworld_env
+
+
+class _FakeEnv(gym.Env):
+  """Succeeds at decision `seed % 4 + 2` if seed is even, never if odd.
+
+  It never truncates by itself, so the evaluator's step limit is exercised.
+  Observations are [decision index]; reward is 1 per decision.
+  """
+  action_space = gym.spaces.Box(-1, 1, (1,), np.float32)
+
+  def __init__(self, **kwargs):
+    self.kwargs = kwargs
+    self.episode_seeds = []
+
+  def reset(self, *, seed=None, options=None):
+    self.t, self.seed_ = 0, seed
+    self.episode_seeds.append(seed)
+    return np.zeros(1), {}
+
+  def step(self, action):
+    self.t += 1
+    success = self.seed_ % 2 == 0 and self.t >= self.seed_ % 4 + 2
+    return np.array([self.t]), 1.0, False, False, {'success': success}
+
+  def render(self):
+    return np.full((8, 8, 3), 10 * self.t, np.uint8)
+
+
+def _expected(seed, n, max_decisions):
+  seeds = metaworld_env.episode_seeds(seed, n, 'eval')
+  lengths = [s % 4 + 2 if s % 2 == 0 else max_decisions for s in seeds]
+  return np.array([s % 2 == 0 for s in seeds]), np.array(lengths)
+
+
+def test_wilson_interval_hand_values():
+  lo, hi = evaluation.wilson_interval(5, 10)
+  assert lo == pytest.approx(0.2366, abs=1e-4)
+  assert hi == pytest.approx(0.7634, abs=1e-4)
+  assert evaluation.wilson_interval(0, 50)[0] == 0.0
+  assert evaluation.wilson_interval(0, 50)[1] == pytest.approx(0.0713, abs=1e-4)
+  assert evaluation.wilson_interval(50, 50)[1] == 1.0
+
+
+def test_protocol_counts_on_fake_env():
+  envs, resets, calls = [], [], []
+
+  def factory(**kwargs):
+    envs.append(_FakeEnv(**kwargs))
+    return envs[-1]
+
+  def policy(obs):
+    calls.append(obs)
+    return np.zeros(1)
+
+  res = evaluation.evaluate(policy, 'door-open-v3', num_episodes=20, seed=3,
+                            action_repeat=2, max_episode_steps=20,
+                            reset=lambda: resets.append(1),
+                            env_factory=factory, progress=False)
+  success, lengths = _expected(3, 20, max_decisions=10)
+  assert 0 < success.sum() < 20  # The seeds give both outcomes.
+  assert res['success_rate'] == pytest.approx(success.mean())
+  assert res['successes'] == success.astype(int).tolist()
+  assert res['mean_length'] == pytest.approx(lengths.mean())
+  assert res['mean_return'] == pytest.approx(lengths.mean())
+  assert len(calls) == lengths.sum() and len(resets) == 20
+  assert res['num_episodes'] == 20 and res['decisions_per_s'] > 0
+  lo, hi = res['success_ci95']
+  assert lo <= res['success_rate'] <= hi
+  assert envs[0].kwargs['terminate_on_success']
+  assert envs[0].kwargs['max_episode_steps'] == 20
+  # Seeded: the same seed replays the same episodes.
+  again = evaluation.evaluate(policy, 'door-open-v3', num_episodes=20, seed=3,
+                              max_episode_steps=20, env_factory=factory,
+                              progress=False)
+  assert envs[-1].episode_seeds == envs[0].episode_seeds
+  assert again['successes'] == res['successes']
+
+
+def test_noise_sweep_and_fake_video(tmp_path):
+  path = str(tmp_path / 'v.gif')
+  results = evaluation.noise_sweep(
+      lambda o: np.zeros(1), 'door-open-v3', [0.0, 0.05], num_episodes=3,
+      max_episode_steps=8, env_factory=_FakeEnv, video_path=path,
+      video_episodes=2, progress=False)
+  assert [r['obs_noise_std'] for r in results] == [0.0, 0.05]
+  assert results[0]['video_path'] == path and os.path.getsize(path) > 0
+
+
+def test_scripted_policy_on_real_env_is_deterministic():
+  policy = evaluation.scripted_policy_with_noise('door-open-v3', 0.0)
+  a = evaluation.evaluate(policy, 'door-open-v3', num_episodes=2, seed=0,
+                          progress=False)
+  b = evaluation.evaluate(policy, 'door-open-v3', num_episodes=2, seed=0,
+                          progress=False)
+  assert a['successes'] == b['successes']
+  assert a['mean_return'] == pytest.approx(b['mean_return'])
+  assert 0 < a['mean_length'] <= 250
+  assert a['mean_env_steps'] <= 500
+
+
+@pytest.mark.skipif(
+    os.environ.get('MUJOCO_GL') != 'osmesa'
+    or ctypes.util.find_library('OSMesa') is None,
+    reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the '
+    'tests start and libosmesa6 (apt-get install -y libosmesa6)')
+def test_real_video(tmp_path):
+  res = evaluation.evaluate(
+      lambda o: np.zeros(4, np.float32), 'door-open-v3', num_episodes=1,
+      max_episode_steps=6, video_path=str(tmp_path / 'v.gif'), image_size=64,
+      progress=False)
+  assert os.path.getsize(res['video_path']) > 0

@@ -1,0 +1,113 @@
+"""Tests for the TD-MPC2 offline-data loader (chunks need the [tdmpc2] extra)."""
+
+import importlib.util
+import sys
+
+import numpy as np
+import pytest
+
+from ld_mpc_jax.data import tdmpc2
+from ld_mpc_jax.data.dataset import DatasetError
+
+HAVE_EXTRA = all(importlib.util.find_spec(m) is not None
+                 for m in ('torch', 'tensordict'))
+needs_extra = pytest.mark.skipif(
+    not HAVE_EXTRA, reason='torch/tensordict not installed (optional extra: '
+    'pip install torch==2.13.0 && pip install -e .[tdmpc2])')
+
+L, D_PAD, A_PAD = 6, 45, 7  # Steps per episode; padded obs/action sizes.
+# (task name, true obs dim, true act dim) of the episodes in the chunk.
+EPISODES = [('walker-walk', 24, 6), ('mw-door-open', 39, 4), ('mw-reach', 39, 4),
+            ('mw-door-open', 39, 4), ('cheetah-run', 17, 6)]
+
+
+def _chunk_arrays(seed=0):
+  """Arrays in TD-MPC2's chunk layout: [N, L, ...], zero-padded, NaN at t=0."""
+  rng = np.random.default_rng(seed)
+  n = len(EPISODES)
+  obs = np.zeros((n, L, D_PAD), np.float32)
+  act = np.zeros((n, L, A_PAD), np.float32)
+  for i, (_, d, a) in enumerate(EPISODES):
+    obs[i, :, :d] = rng.normal(size=(L, d))
+    act[i, :, :a] = rng.uniform(-1, 1, (L, a))
+  act[:, 0] = np.nan
+  rew = rng.normal(size=(n, L)).astype(np.float32)
+  rew[:, 0] = np.nan
+  task = np.array([tdmpc2.task_index('mt80', t) for t, _, _ in EPISODES])
+  return obs, act, rew, np.repeat(task[:, None], L, axis=1)
+
+
+def _write_chunk(path, obs, act, rew, task):
+  import torch  # pylint: disable=g-import-not-at-top
+  from tensordict import TensorDict  # pylint: disable=g-import-not-at-top
+  td = TensorDict(dict(obs=torch.from_numpy(obs), action=torch.from_numpy(act),
+                       reward=torch.from_numpy(rew),
+                       task=torch.from_numpy(task)), batch_size=obs.shape[:2])
+  torch.save(td, path)
+  return str(path)
+
+
+def test_task_lists():
+  assert len(tdmpc2.TASK_SETS['mt30']) == 30
+  assert len(tdmpc2.TASK_SETS['mt80']) == 80
+  assert len(set(tdmpc2.TASK_SETS['mt80'])) == 80
+  assert tdmpc2.task_index('mt80', 'mw-door-open') == 41
+  assert tdmpc2.task_index('mt80', 'walker-stand') == 0
+  assert tdmpc2.task_index('mt80', 'mw-hand-insert') == 79
+  assert tdmpc2.TASK_SETS['mt80'][:30] == tdmpc2.TASK_SETS['mt30']
+  with pytest.raises(ValueError, match='not in TD-MPC2 mt30'):
+    tdmpc2.task_index('mt30', 'mw-door-open')
+  with pytest.raises(ValueError, match='task set'):
+    tdmpc2.task_index('mt50', 'mw-door-open')
+  assert tdmpc2.true_dims('mw-door-open') == (39, 4)
+  with pytest.raises(ValueError, match='dims='):
+    tdmpc2.true_dims('walker-walk')
+
+
+def test_missing_extra_gives_install_hint(monkeypatch, tmp_path):
+  monkeypatch.setitem(sys.modules, 'torch', None)
+  with pytest.raises(ImportError, match=r'pip install -e \.\[tdmpc2\]'):
+    tdmpc2.load_tdmpc2(str(tmp_path), 'mt80', ['mw-door-open'])
+
+
+@needs_extra
+def test_selects_unpads_reindexes_and_realigns(tmp_path):
+  obs, act, rew, task = _chunk_arrays()
+  _write_chunk(tmp_path / 'chunk_0.pt', obs, act, rew, task)
+  ds = tdmpc2.load_tdmpc2(str(tmp_path), 'mt80', ['mw-reach', 'mw-door-open'])
+  kept = [2, 1, 3]  # Rows of the chunk with the selected tasks, file order.
+  assert ds.num_episodes == 3 and ds.obs_dim == 39 and ds.act_dim == 4
+  np.testing.assert_array_equal(ds.task_ids, [1, 0, 1])  # door=1, reach=0.
+  assert ds.metadata['original_task_ids'] == [
+      tdmpc2.task_index('mt80', 'mw-reach'), 41]
+  np.testing.assert_array_equal(ds.episode_lengths, [L - 1] * 3)
+  for e, row in enumerate(sorted(kept)):
+    ep = ds.episode(e)
+    np.testing.assert_array_equal(ep['obs'], obs[row, :, :39])
+    # Our action[t] is TD-MPC2's action[t + 1] (the one that led to obs[t+1]).
+    np.testing.assert_array_equal(ep['action'], act[row, 1:, :4])
+    np.testing.assert_array_equal(ep['reward'], rew[row, 1:])
+  assert not ds.successes.any() and not ds.metadata['successes_recorded']
+
+
+@needs_extra
+def test_mixed_dims_and_errors(tmp_path):
+  obs, act, rew, task = _chunk_arrays()
+  path = _write_chunk(tmp_path / 'c.pt', obs, act, rew, task)
+  ds = tdmpc2.load_tdmpc2(path, 'mt80', ['cheetah-run', 'walker-walk'],
+                          dims={'cheetah-run': (17, 6), 'walker-walk': (24, 6)})
+  assert ds.obs_dim == 24 and ds.act_dim == 6
+  np.testing.assert_array_equal(ds.task_ids, [1, 0])
+  with pytest.raises(DatasetError, match='non-zero values beyond'):
+    tdmpc2.load_tdmpc2(path, 'mt80', ['walker-walk'],
+                       dims={'walker-walk': (20, 6)})
+  with pytest.raises(DatasetError, match='No episodes'):
+    tdmpc2.load_tdmpc2(path, 'mt80', ['mw-sweep'])
+  obs[1, 3, 5] = np.nan
+  path = _write_chunk(tmp_path / 'c.pt', obs, act, rew, task)
+  with pytest.raises(DatasetError, match='NaN'):
+    tdmpc2.load_tdmpc2(path, 'mt80', ['mw-door-open'])
+  with open(tmp_path / 'bad.pt', 'wb') as f:
+    f.write(b'garbage')
+  with pytest.raises(DatasetError, match='Cannot read'):
+    tdmpc2.load_tdmpc2(str(tmp_path / 'bad.pt'), 'mt80', ['mw-door-open'])
