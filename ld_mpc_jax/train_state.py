@@ -25,9 +25,9 @@ class TrainState:
 def make_optimizer(config: ml_collections.ConfigDict) -> optax.GradientTransformation:
   """Adam with linear warmup to a constant rate, after global-norm gradient clipping."""
   t = config.train
-  schedule = optax.join_schedules(
-      [optax.linear_schedule(0.0, t.learning_rate, max(t.warmup_steps, 1)),
-       optax.constant_schedule(t.learning_rate)], [max(t.warmup_steps, 1)])
+  warmup = max(t.warmup_steps, 1)
+  # Step 0 already uses lr / warmup (optax.linear_schedule from 0 would waste the first step).
+  schedule = lambda count: t.learning_rate * jnp.minimum(1.0, (count + 1) / warmup)
   return optax.chain(optax.clip_by_global_norm(t.grad_clip), optax.adam(schedule))
 
 

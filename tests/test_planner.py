@@ -1,0 +1,99 @@
+"""plan(): shapes, bounds, determinism, no recompilation, argmax selection, prior mixing."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from ld_mpc_jax import encode, init_params, make_plan, validate_config
+from ld_mpc_jax.models import build_networks
+
+
+@pytest.fixture
+def z(smoke_params):
+  return encode(smoke_params, np.linspace(-1, 1, 39).astype(np.float32))
+
+
+def test_plan_shapes_and_bounds(smoke_config, smoke_params, z):
+  c = smoke_config
+  out = make_plan(c)(smoke_params, z, jax.random.key(0))
+  k, h, a = c.plan.num_candidates, c.horizon, c.action_dim
+  assert out.action.shape == (a,) and out.sequence.shape == (h, a)
+  assert out.scores.shape == (k,) and out.candidates.shape == (k, h, a)
+  assert bool(jnp.all(jnp.abs(out.action) <= 1.0))
+  assert bool(jnp.all(jnp.abs(out.candidates) <= 1.0))
+  assert bool(jnp.all(jnp.isfinite(out.scores)))
+  assert int(out.index) == int(jnp.argmax(out.scores))
+  np.testing.assert_array_equal(out.sequence, out.candidates[out.index])
+
+
+def test_plan_same_key_same_action_and_no_recompile(smoke_config, smoke_params, z):
+  plan = make_plan(smoke_config)
+  a = plan(smoke_params, z, jax.random.key(7))
+  b = plan(smoke_params, z, jax.random.key(7))
+  c = plan(smoke_params, z + 0.1, jax.random.key(8))
+  np.testing.assert_array_equal(a.action, b.action)
+  np.testing.assert_array_equal(a.scores, b.scores)
+  assert not np.array_equal(a.candidates, c.candidates)
+  assert plan._cache_size() == 1
+
+
+def test_plan_returns_argmax_of_hand_made_objective(smoke_config, smoke_params, z):
+  smoke_config.plan.num_candidates = 16
+  # J = second coordinate of the first action: the planner must pick the largest one.
+  score_fn = lambda params, latents, actions: actions[:, 0, 1]
+  out = make_plan(smoke_config, score_fn=score_fn)(smoke_params, z, jax.random.key(3))
+  best = int(np.argmax(np.asarray(out.candidates[:, 0, 1])))
+  assert int(out.index) == best
+  np.testing.assert_allclose(out.action, out.candidates[best, 0])
+  np.testing.assert_allclose(out.scores, out.candidates[:, 0, 1])
+
+
+def test_plan_scores_use_rolled_out_latents(smoke_config, smoke_params, z):
+  """A score of the final latent sees the dynamics rollout, not just the first latent."""
+  smoke_config.plan.num_candidates = 8
+  seen = {}
+  def score_fn(params, latents, actions):
+    seen['shape'] = latents.shape
+    return -jnp.sum((latents[:, -1] - latents[:, 0]) ** 2, axis=-1)
+  out = make_plan(smoke_config, score_fn=score_fn)(smoke_params, z, jax.random.key(3))
+  c = smoke_config
+  assert seen['shape'] == (8, c.horizon + 1, c.model.latent_dim)
+  assert len(set(np.round(np.asarray(out.scores), 5))) > 1  # Rollouts differ per candidate.
+
+
+def test_actor_prior_candidates_follow_the_actor(smoke_config, smoke_params, z):
+  smoke_config.plan.num_candidates = 6
+  smoke_config.plan.num_prior_candidates = 2
+  out = make_plan(smoke_config)(smoke_params, z, jax.random.key(0))
+  nets = build_networks(smoke_config)
+  a_pi = nets.actor.apply({'params': smoke_params['actor']}, z)
+  np.testing.assert_allclose(out.candidates[-1, 0], a_pi, rtol=1e-5, atol=1e-6)
+  np.testing.assert_allclose(out.candidates[-2, 0], a_pi, rtol=1e-5, atol=1e-6)
+  assert not np.allclose(out.candidates[0, 0], a_pi)
+
+
+def test_plan_rejects_wrong_latent(smoke_config, smoke_params):
+  plan = make_plan(smoke_config)
+  with pytest.raises(ValueError, match='latent of shape'):
+    plan(smoke_params, jnp.zeros(smoke_config.model.latent_dim + 1), jax.random.key(0))
+  with pytest.raises(ValueError, match='latent of shape'):
+    plan(smoke_params, jnp.zeros((2, smoke_config.model.latent_dim)), jax.random.key(0))
+
+
+@pytest.mark.parametrize('field,value', [
+    ('plan.num_candidates', 0), ('horizon', 0), ('plan.action_steps', -1),
+    ('plan.dynamics_steps', 0), ('train.batch_size', 0), ('model.num_heads', 3),
+    ('plan.num_prior_candidates', 5), ('plan.action_eta', 2.0), ('gamma', 1.5)])
+def test_bad_config_values_name_the_field(smoke_config, field, value):
+  node = smoke_config
+  *parents, leaf = field.split('.')
+  for p in parents:
+    node = node[p]
+  node[leaf] = value
+  with pytest.raises(ValueError, match=leaf):
+    validate_config(smoke_config)
+  with pytest.raises(ValueError, match=leaf):
+    make_plan(smoke_config)
+  with pytest.raises(ValueError, match=leaf):
+    init_params(smoke_config, jax.random.key(0))
