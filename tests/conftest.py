@@ -1,8 +1,12 @@
 """Shared fixtures: the smoke-sized config (tiny widths, 2 diffusion steps)."""
 
+import ctypes.util
 import os
 
-os.environ.setdefault('XLA_FLAGS', '--xla_force_host_platform_device_count=1')
+# Offscreen MuJoCo rendering: use OSMesa where the library is installed (rendering tests skip
+# with a reason otherwise). Must be set before mujoco is imported.
+if ctypes.util.find_library('OSMesa'):
+  os.environ.setdefault('MUJOCO_GL', 'osmesa')
 
 import jax
 import pytest

@@ -83,7 +83,8 @@ def get_config() -> ml_collections.ConfigDict:
   c.data.dir = 'data_cache'
 
   c.eval = e = ml_collections.ConfigDict()
-  e.episodes = 50
+  e.episodes = 50  # Final evaluation (Meta-World protocol).
+  e.periodic_episodes = 10  # Cheaper evaluations during training.
   e.action_repeat = 2  # TD-MPC2's setting for Meta-World.
   e.max_episode_steps = 500
   e.noise_stds = (0.0, 0.01, 0.05, 0.1)

@@ -53,6 +53,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.train.checkpoint_every = 2
     c.data.episodes = 2
     c.eval.episodes = 1
+    c.eval.periodic_episodes = 1
     c.eval.max_episode_steps = 20
     c.eval.noise_stds = (0.0,)
     return c

@@ -1,0 +1,67 @@
+"""Orbax checkpoints of the TrainState, with the config saved beside them."""
+
+import json
+import os
+from typing import Optional
+
+import jax
+import ml_collections
+import orbax.checkpoint as ocp
+
+from ld_mpc_jax.train_state import TrainState, create_train_state
+
+CONFIG_FILE = 'config.json'
+
+
+def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointManager:
+  """Synchronous manager under <workdir>/checkpoints (a step is visible only once complete)."""
+  options = ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,
+                                         enable_async_checkpointing=False)
+  return ocp.CheckpointManager(os.path.abspath(os.path.join(workdir, 'checkpoints')),
+                               options=options)
+
+
+def save_config(config: ml_collections.ConfigDict, workdir: str) -> str:
+  os.makedirs(workdir, exist_ok=True)
+  path = os.path.join(workdir, CONFIG_FILE)
+  tmp = path + '.tmp'
+  with open(tmp, 'w') as f:
+    f.write(config.to_json_best_effort(indent=2))
+  os.replace(tmp, path)
+  return path
+
+
+def load_config(workdir: str) -> ml_collections.ConfigDict:
+  path = os.path.join(workdir, CONFIG_FILE)
+  if not os.path.exists(path):
+    raise FileNotFoundError(f'no {CONFIG_FILE} in {workdir}: is it a training workdir?')
+  with open(path) as f:
+    raw = json.load(f)
+  config = ml_collections.ConfigDict(raw)
+  config.model.actor_hidden = tuple(config.model.actor_hidden)
+  config.eval.noise_stds = tuple(config.eval.noise_stds)
+  return config
+
+
+def abstract_state(config: ml_collections.ConfigDict) -> TrainState:
+  """Shapes and dtypes of a TrainState, without allocating it (restore target)."""
+  return jax.eval_shape(lambda: create_train_state(config, jax.random.key(0)))
+
+
+def restore_latest(manager: ocp.CheckpointManager,
+                   config: ml_collections.ConfigDict) -> Optional[TrainState]:
+  """The latest complete checkpoint, or None if there is none."""
+  step = manager.latest_step()
+  if step is None:
+    return None
+  return manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
+
+
+def load_for_evaluation(workdir: str):
+  """(config, ema_params, step) from a training workdir's config and latest checkpoint."""
+  config = load_config(workdir)
+  manager = checkpoint_manager(workdir)
+  state = restore_latest(manager, config)
+  if state is None:
+    raise FileNotFoundError(f'no checkpoint under {workdir}/checkpoints')
+  return config, state.ema_params, int(state.step)

@@ -1,0 +1,265 @@
+"""The main job: data, training, checkpoints, evaluation, metrics, plots and a report."""
+
+import csv
+import json
+import os
+import subprocess
+import time
+from importlib import metadata as importlib_metadata
+from typing import Any, Dict
+
+import jax
+import jax.numpy as jnp
+import ml_collections
+import numpy as np
+import tqdm
+
+from ld_mpc_jax import checkpointing, data, envs, evaluation
+from ld_mpc_jax.agent import make_policy
+from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.models import count_params
+from ld_mpc_jax.train_state import create_train_state, make_update
+
+PROGRESS_FILE = 'progress.json'
+
+
+def check_config_for_data(config: ml_collections.ConfigDict, dataset: data.Dataset) -> None:
+  """Errors that need the data: windows of H + 1 observations, batch vs. dataset size."""
+  longest = int(dataset.episode_lengths.max())
+  if config.horizon > longest:
+    raise ValueError(f'config.horizon ({config.horizon}) is larger than the longest episode '
+                     f'({longest} transitions): no training window of H + 1 observations fits')
+  windows = data.ReplayBuffer(dataset, config.horizon + 1).num_windows
+  if config.train.batch_size > windows:
+    raise ValueError(f'config.train.batch_size ({config.train.batch_size}) is larger than the '
+                     f'dataset ({windows} windows of length {config.horizon + 1})')
+  if dataset.obs_dim != config.obs_dim or dataset.act_dim != config.action_dim:
+    raise ValueError(f'config.obs_dim/action_dim ({config.obs_dim}, {config.action_dim}) do not '
+                     f'match the dataset ({dataset.obs_dim}, {dataset.act_dim})')
+
+
+def versions() -> Dict[str, str]:
+  out = {}
+  for name in ('jax', 'jaxlib', 'flax', 'optax', 'orbax-checkpoint', 'metaworld', 'mujoco',
+               'numpy'):
+    try:
+      out[name] = importlib_metadata.version(name)
+    except importlib_metadata.PackageNotFoundError:
+      out[name] = None
+  out['device'] = str(jax.devices()[0].device_kind)
+  return out
+
+
+def git_commit() -> str | None:
+  try:
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=root, capture_output=True,
+                          text=True, check=True).stdout.strip()
+  except (OSError, subprocess.CalledProcessError):
+    return None
+
+
+def _append_csv(path: str, row: Dict[str, Any]) -> None:
+  new = not os.path.exists(path)
+  with open(path, 'a', newline='') as f:
+    writer = csv.DictWriter(f, fieldnames=list(row))
+    if new:
+      writer.writeheader()
+    writer.writerow(row)
+
+
+def _read_csv(path: str):
+  if not os.path.exists(path):
+    return []
+  with open(path) as f:
+    return list(csv.DictReader(f))
+
+
+def write_plots(workdir: str) -> None:
+  """losses.png and success.png from metrics.csv and eval.csv."""
+  import matplotlib
+  matplotlib.use('Agg')
+  import matplotlib.pyplot as plt
+  rows = _read_csv(os.path.join(workdir, 'metrics.csv'))
+  if rows:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    steps = [int(r['step']) for r in rows]
+    for name in rows[0]:
+      if name.startswith('loss'):
+        ax.plot(steps, [float(r[name]) for r in rows], label=name)
+    ax.set_xlabel('update step'); ax.set_ylabel('loss'); ax.set_yscale('log'); ax.legend()
+    fig.tight_layout(); fig.savefig(os.path.join(workdir, 'losses.png'), dpi=100)
+    plt.close(fig)
+  rows = _read_csv(os.path.join(workdir, 'eval.csv'))
+  if rows:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    steps = np.array([int(r['step']) for r in rows])
+    rate = np.array([float(r['success_rate']) for r in rows])
+    lo, hi = np.array([float(r['ci_lo']) for r in rows]), np.array([float(r['ci_hi']) for r in rows])
+    ax.plot(steps, rate, 'o-', label='planner (EMA params)')
+    ax.fill_between(steps, lo, hi, alpha=0.2, label='95% Wilson interval')
+    ax.set_xlabel('update step'); ax.set_ylabel('success rate'); ax.set_ylim(-0.02, 1.02)
+    ax.legend(); fig.tight_layout(); fig.savefig(os.path.join(workdir, 'success.png'), dpi=100)
+    plt.close(fig)
+
+
+def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
+                   obs_noise_std: float = 0.0, video_path: str | None = None) -> Dict[str, Any]:
+  """Meta-World protocol for one policy mode ('plan', 'actor', 'proposal')."""
+  policy = make_policy(config, params, mode, seed=seed)
+  return evaluation.evaluate(policy, config.task, num_episodes=num_episodes, seed=seed,
+                             action_repeat=config.eval.action_repeat,
+                             max_episode_steps=config.eval.max_episode_steps,
+                             obs_noise_std=obs_noise_std, video_path=video_path,
+                             progress=False)
+
+
+def _summary_md(report: Dict[str, Any]) -> str:
+  lines = [f"# LD-MPC on {report['task']}", '',
+           f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
+           f"({report['steps_per_s']:.2f} steps/s without compilation); "
+           f"{report['num_params']:,} parameters.", '',
+           '| policy (EMA params) | success | 95% CI | mean return | decisions/s |',
+           '| --- | --- | --- | --- | --- |']
+  for name, r in [('planner', report)] + list(report['baselines'].items()):
+    lo, hi = r['success_ci95']
+    lines.append(f"| {name} | {r['success_rate']:.2f} | [{lo:.2f}, {hi:.2f}] | "
+                 f"{r['mean_return']:.1f} | {r['decisions_per_s']:.1f} |")
+  lines += ['', f"Episodes per policy: {report['eval_episodes']}; git commit "
+            f"{report['git_commit']}."]
+  return '\n'.join(lines) + '\n'
+
+
+def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
+  """Trains LD-MPC on the task's offline dataset and evaluates it; returns the report.
+
+  Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json,
+  metrics.csv, eval.csv, tb/ (TensorBoard), losses.png, success.png, report.json, report.md.
+  """
+  validate_config(config)
+  envs.check_task(config.task)
+  os.makedirs(workdir, exist_ok=True)
+  dataset = data.get_or_collect(config.task, config.data.preset, config.data.episodes,
+                                config.data.seed, config.data.dir,
+                                action_repeat=config.eval.action_repeat)
+  check_config_for_data(config, dataset)
+  checkpointing.save_config(config, workdir)
+
+  manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
+  state = checkpointing.restore_latest(manager, config)
+  if state is None:
+    state = create_train_state(config, jax.random.key(config.seed))
+  start = int(state.step)
+  progress_path = os.path.join(workdir, PROGRESS_FILE)
+  prior_seconds = 0.0
+  if start and os.path.exists(progress_path):
+    with open(progress_path) as f:
+      prior_seconds = json.load(f).get('train_seconds', 0.0)
+
+  update = make_update(config)
+  # A resumed run draws fresh windows rather than replaying the first run's.
+  buffer = data.ReplayBuffer(dataset, config.horizon + 1, seed=config.seed * 1_000_003 + start)
+  train_key = jax.random.key(config.seed + 1)
+  writer = _summary_writer(workdir)
+  t_cfg = config.train
+  num_steps = t_cfg.num_steps
+  timed_steps, timed_seconds, last_time = 0, 0.0, None
+  bar = tqdm.tqdm(range(start, num_steps), initial=start, total=num_steps, desc='train',
+                  dynamic_ncols=True)
+  for step in bar:
+    batch = buffer.sample(t_cfg.batch_size)
+    state, metrics = update(state, batch, jax.random.fold_in(train_key, step))
+    done = step + 1
+    if done % t_cfg.log_every == 0 or done % t_cfg.checkpoint_every == 0 or done == num_steps:
+      metrics = jax.device_get(metrics)
+      now = time.perf_counter()
+      if last_time is not None:  # The first interval includes compilation: not timed.
+        timed_steps += done - last_step
+        timed_seconds += now - last_time
+      last_time, last_step = now, done
+      if not np.isfinite(metrics['loss']):
+        raise FloatingPointError(
+            f'non-finite loss {metrics["loss"]} at step {done}; stopping. The last good '
+            f'checkpoint (step {manager.latest_step()}) is kept in {workdir}/checkpoints.')
+      steps_per_s = timed_steps / timed_seconds if timed_seconds else float('nan')
+      eta = (num_steps - done) / steps_per_s if timed_seconds else float('nan')
+      bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=f'{steps_per_s:.2f}',
+                      eta_min=f'{eta / 60:.1f}')
+      row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
+             'steps_per_s': steps_per_s}
+      _append_csv(os.path.join(workdir, 'metrics.csv'), row)
+      for k, v in row.items():
+        if k != 'step':
+          writer.add_scalar(f'train/{k}', v, done)
+    if done % t_cfg.checkpoint_every == 0 or done == num_steps:
+      if not all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree_util.tree_leaves(state.params)):
+        raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
+                                 f'good checkpoint is step {manager.latest_step()}.')
+      manager.save(done, args=_save_args(state))
+      with open(progress_path + '.tmp', 'w') as f:
+        json.dump({'step': done, 'train_seconds': prior_seconds + timed_seconds}, f)
+      os.replace(progress_path + '.tmp', progress_path)
+    if done % t_cfg.eval_every == 0 and done != num_steps:
+      _periodic_eval(config, state.ema_params, done, workdir, writer)
+  bar.close()
+  manager.wait_until_finished()
+
+  params = state.ema_params
+  final = _periodic_eval(config, params, num_steps, workdir, writer,
+                         episodes=config.eval.episodes)
+  baselines = {mode: run_evaluation(config, params, mode, config.eval.episodes, config.seed)
+               for mode in ('actor', 'proposal')}
+  writer.close()
+  train_seconds = prior_seconds + timed_seconds
+  report = {
+      'task': config.task,
+      'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
+      'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
+      'decisions_per_s': final['decisions_per_s'],
+      'eval_episodes': config.eval.episodes,
+      'baselines': {k: _brief(v) for k, v in baselines.items()},
+      'train_seconds': train_seconds, 'steps': int(state.step),
+      'steps_per_s': (timed_steps / timed_seconds) if timed_seconds else float('nan'),
+      'num_params': count_params(params),
+      'dataset': {'preset': config.data.preset, 'episodes': dataset.num_episodes,
+                  'transitions': dataset.num_transitions},
+      'config': json.loads(config.to_json_best_effort()),
+      'versions': versions(), 'git_commit': git_commit(),
+  }
+  with open(os.path.join(workdir, 'report.json'), 'w') as f:
+    json.dump(report, f, indent=2)
+  with open(os.path.join(workdir, 'report.md'), 'w') as f:
+    f.write(_summary_md(report))
+  write_plots(workdir)
+  return report
+
+
+def _brief(result: Dict[str, Any]) -> Dict[str, Any]:
+  keys = ('success_rate', 'success_ci95', 'mean_return', 'mean_length', 'decisions_per_s')
+  return {k: result[k] for k in keys}
+
+
+def _periodic_eval(config, params, step, workdir, writer, episodes=None):
+  episodes = episodes or config.eval.periodic_episodes
+  result = run_evaluation(config, params, 'plan', episodes, config.seed)
+  lo, hi = result['success_ci95']
+  _append_csv(os.path.join(workdir, 'eval.csv'),
+              {'step': step, 'episodes': episodes, 'success_rate': result['success_rate'],
+               'ci_lo': lo, 'ci_hi': hi, 'mean_return': result['mean_return'],
+               'decisions_per_s': result['decisions_per_s']})
+  writer.add_scalar('eval/success_rate', result['success_rate'], step)
+  writer.add_scalar('eval/mean_return', result['mean_return'], step)
+  tqdm.tqdm.write(f"step {step}: success {result['success_rate']:.2f} "
+                  f"[{lo:.2f}, {hi:.2f}] over {episodes} episodes")
+  write_plots(workdir)
+  return result
+
+
+def _save_args(state):
+  import orbax.checkpoint as ocp
+  return ocp.args.StandardSave(state)
+
+
+def _summary_writer(workdir: str):
+  from tensorboardX import SummaryWriter
+  return SummaryWriter(os.path.join(workdir, 'tb'))

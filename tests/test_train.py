@@ -1,0 +1,121 @@
+"""End to end at smoke size: train, checkpoint, resume after SIGKILL, evaluate, report; faults."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from experiments.configs import door_open
+from ld_mpc_jax import checkpointing, train
+from ld_mpc_jax.data import replay
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@pytest.fixture(scope='module')
+def data_dir(tmp_path_factory):
+  return str(tmp_path_factory.mktemp('data'))
+
+
+def smoke(data_dir, **train_overrides):
+  c = door_open.get_config('smoke')
+  c.data.dir = data_dir
+  for k, v in train_overrides.items():
+    c.train[k] = v
+  return c
+
+
+def test_smoke_run_end_to_end(tmp_path, data_dir):
+  workdir = str(tmp_path / 'run')
+  report = train.train_and_evaluate(smoke(data_dir), workdir)
+  for key in ('success_rate', 'success_ci95', 'mean_return', 'decisions_per_s',
+              'train_seconds', 'steps', 'config', 'versions', 'git_commit'):
+    assert key in report, key
+  assert report['steps'] == 4
+  assert 0.0 <= report['success_rate'] <= 1.0
+  lo, hi = report['success_ci95']
+  assert 0.0 <= lo <= report['success_rate'] <= hi <= 1.0
+  assert report['decisions_per_s'] > 0
+  assert set(report['baselines']) == {'actor', 'proposal'}
+  assert report['config']['task'] == 'door-open-v3'
+  with open(os.path.join(workdir, 'report.json')) as f:
+    assert json.load(f)['steps'] == 4
+  for name in ('report.md', 'metrics.csv', 'eval.csv', 'losses.png', 'config.json'):
+    assert os.path.getsize(os.path.join(workdir, name)) > 0, name
+  assert os.listdir(os.path.join(workdir, 'tb'))
+  # The evaluation entry point reloads the run.
+  config, params, step = checkpointing.load_for_evaluation(workdir)
+  assert step == 4 and config.model.width == 16
+  result = train.run_evaluation(config, params, 'actor', 1, seed=0)
+  assert result['num_episodes'] == 1
+
+
+def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
+  workdir = str(tmp_path / 'run')
+  cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open.py:smoke',
+         f'--workdir={workdir}', f'--config.data.dir={data_dir}',
+         '--config.train.num_steps=60', '--config.train.checkpoint_every=5',
+         '--config.train.log_every=5', '--config.train.eval_every=1000']
+  proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+  ckpt_dir = os.path.join(workdir, 'checkpoints')
+  deadline = time.time() + 240
+  while time.time() < deadline and proc.poll() is None:
+    if os.path.isdir(ckpt_dir) and any(d.isdigit() for d in os.listdir(ckpt_dir)):
+      break
+    time.sleep(0.05)
+  assert proc.poll() is None, 'the run ended before it could be killed'
+  os.kill(proc.pid, signal.SIGKILL)
+  proc.wait()
+  killed_at = max(int(d) for d in os.listdir(ckpt_dir) if d.isdigit())
+  assert killed_at < 60
+  assert not os.path.exists(os.path.join(workdir, 'report.json'))
+  done = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
+  assert done.returncode == 0, done.stderr[-2000:]
+  with open(os.path.join(workdir, 'report.json')) as f:
+    assert json.load(f)['steps'] == 60
+  steps = [int(r['step']) for r in train._read_csv(os.path.join(workdir, 'metrics.csv'))]
+  assert steps[-1] == 60 and min(steps) <= killed_at
+
+
+def test_non_finite_loss_stops_and_keeps_last_good_checkpoint(tmp_path, data_dir, monkeypatch):
+  original = replay.ReplayBuffer.sample
+  calls = [0]
+  def poisoned(self, batch_size):
+    batch = original(self, batch_size)
+    calls[0] += 1
+    if calls[0] >= 3:  # Steps 3 and 4 see NaN rewards.
+      batch['reward'] = np.full_like(batch['reward'], np.nan)
+    return batch
+  monkeypatch.setattr(replay.ReplayBuffer, 'sample', poisoned)
+  workdir = str(tmp_path / 'run')
+  with pytest.raises(FloatingPointError, match='non-finite loss'):
+    train.train_and_evaluate(smoke(data_dir), workdir)
+  manager = checkpointing.checkpoint_manager(workdir)
+  assert manager.latest_step() == 2
+  assert not os.path.exists(os.path.join(workdir, 'report.json'))
+
+
+@pytest.mark.parametrize('field,value,match', [
+    ('task', 'door-openn-v3', 'door-openn-v3'),
+    ('horizon', 400, 'horizon'),
+    ('train.batch_size', 10_000_000, 'batch_size'),
+    ('plan.num_candidates', 0, 'num_candidates'),
+])
+def test_bad_config_fails_before_compilation(tmp_path, data_dir, monkeypatch, field, value,
+                                             match):
+  def no_compile(*args, **kwargs):
+    raise AssertionError('compiled before the config was checked')
+  monkeypatch.setattr(train, 'make_update', no_compile)
+  c = smoke(data_dir)
+  node, *rest = field.split('.')
+  if rest:
+    c[node][rest[0]] = value
+  else:
+    c[node] = value
+  with pytest.raises(ValueError, match=match):
+    train.train_and_evaluate(c, str(tmp_path / 'run'))
