@@ -5,7 +5,7 @@ decision costs one dispatch; the per-step key is fold_in(key, t) inside jit. `ma
 one in the `policy(obs) -> action` interface of `ld_mpc_jax.evaluation.evaluate`.
 """
 
-from typing import Callable
+from typing import Callable, Tuple
 
 import jax
 import jax.numpy as jnp
@@ -19,38 +19,54 @@ MODES = ('plan', 'actor', 'proposal')
 
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
-  """Returns jitted act(params, obs [obs_dim], key, t []) -> action [A] in [-1, 1]."""
+  """Returns jitted act(params, obs [obs_dim], key, t [], prev) -> (action [A], sequence [H, A]).
+
+  `prev` is the previous decision's sequence (or None at the start of an episode); only the
+  planner with `plan.warm_start_steps` > 0 uses it. `sequence` is what to pass as the next `prev`.
+  """
   nets = build_networks(config)
   encode = lambda params, obs: nets.encoder.apply({'params': params['encoder']}, obs)
   if mode == 'plan':
     plan = make_plan(config)
-    act = lambda params, obs, key: plan(params, encode(params, obs), key).action
+    def act(params, obs, key, prev):
+      out = plan(params, encode(params, obs), key, prev)
+      return out.action, out.sequence
   elif mode == 'actor':
-    act = lambda params, obs, key: nets.actor.apply({'params': params['actor']},
-                                                    encode(params, obs))
+    def act(params, obs, key, prev):
+      a = nets.actor.apply({'params': params['actor']}, encode(params, obs))
+      return a, jnp.broadcast_to(a, (config.horizon,) + a.shape)
   elif mode == 'proposal':
     propose = make_propose(config, nets)
-    act = lambda params, obs, key: jnp.clip(propose(params, encode(params, obs), key, 1)[0, 0],
-                                            -1.0, 1.0)
+    def act(params, obs, key, prev):
+      seq = jnp.clip(propose(params, encode(params, obs), key, 1)[0], -1.0, 1.0)
+      return seq[0], seq
   else:
     raise ValueError(f'mode must be one of {MODES}, got {mode!r}')
-  return jax.jit(lambda params, obs, key, t: act(params, obs, jax.random.fold_in(key, t)))
+  return jax.jit(lambda params, obs, key, t, prev: act(params, obs, jax.random.fold_in(key, t),
+                                                       prev))
 
 
-def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan',
-                seed: int = 0) -> Callable[[np.ndarray], np.ndarray]:
-  """policy(obs [obs_dim]) -> action [A] for the evaluation loop.
+def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', seed: int = 0
+                ) -> Tuple[Callable[[np.ndarray], np.ndarray], Callable[[], None]]:
+  """(policy, reset) for the evaluation loop: policy(obs [obs_dim]) -> action [A].
 
-  The decision counter is the only host state; it keeps counting across episodes so that no
-  two decisions share a key.
+  Host state is a decision counter (it keeps counting across episodes, so no two decisions
+  share a key) and, with warm starts, the previous sequence, which stays on the device.
+  `reset()` forgets the previous sequence at the start of an episode.
   """
   act = make_act(config, mode)
   key = jax.random.key(seed)
-  counter = [0]
+  warm = mode == 'plan' and config.plan.warm_start_steps > 0
+  state = {'t': 0, 'prev': None}
 
   def policy(obs: np.ndarray) -> np.ndarray:
-    a = act(params, jnp.asarray(obs, jnp.float32), key, counter[0])
-    counter[0] += 1
-    return np.asarray(a)
+    action, sequence = act(params, jnp.asarray(obs, jnp.float32), key, state['t'], state['prev'])
+    state['t'] += 1
+    if warm:
+      state['prev'] = sequence
+    return np.asarray(action)
 
-  return policy
+  def reset() -> None:
+    state['prev'] = None
+
+  return policy, reset

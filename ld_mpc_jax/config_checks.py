@@ -51,6 +51,11 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   for name in ('prior_noise_std', 'action_noise_std'):
     if p[name] < 0:
       raise ValueError(f'config.plan.{name} must be >= 0, got {p[name]}')
+  if not isinstance(p.warm_start_steps, int) or p.warm_start_steps < 0:
+    raise ValueError(f'config.plan.warm_start_steps must be an integer >= 0, '
+                     f'got {p.warm_start_steps!r}')
+  if not 0.0 < p.warm_start_t <= 1.0:
+    raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
   t = config.train
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')

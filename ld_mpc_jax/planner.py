@@ -50,22 +50,38 @@ def make_objective_score(config: ml_collections.ConfigDict, nets: Networks) -> S
 
 
 def make_propose(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
-  """Returns propose(params, z [D], key, num) -> [num, H, A] sampled action sequences."""
+  """Returns propose(params, z [D], key, num, init=None) -> [num, H, A] action sequences.
+
+  Cold start: `plan.action_steps` denoising steps from pure noise at t = 1. Warm start (`init`
+  [H, A] given and `plan.warm_start_steps` > 0): `init` is noised to t = `plan.warm_start_t`
+  with independent noise per candidate and denoised in `warm_start_steps` steps (SDEdit-style),
+  so candidates stay near the previous plan but keep diversity, at a fraction of the cost.
+  """
   p, d = config.plan, config.diffusion
   h, a = config.horizon, config.action_dim
 
-  def propose(params, z, key, num):
+  def propose(params, z, key, num, init=None):
     variables = {'params': params['proposal']}
     cond = nets.proposal.apply(variables, z, method=ActionProposal.embed_cond)  # [1, W]
     cond = jnp.broadcast_to(cond, (num,) + cond.shape)
     model_fn = lambda a_t, t: nets.proposal.apply(variables, a_t, t, cond,
                                                   method=ActionProposal.denoise)
     init_key, sample_key = jax.random.split(key)
-    x_init = jax.random.normal(init_key, (num, h, a))
-    return diffusion.sample(model_fn, x_init, sample_key, p.action_steps, p.action_eta,
-                            d.prediction, clip_x0=d.clip_actions)
+    noise = jax.random.normal(init_key, (num, h, a))
+    if init is None or p.warm_start_steps == 0:
+      return diffusion.sample(model_fn, noise, sample_key, p.action_steps, p.action_eta,
+                              d.prediction, clip_x0=d.clip_actions)
+    x_init = diffusion.q_sample(jnp.broadcast_to(init, (num, h, a)),
+                                jnp.full((num,), p.warm_start_t), noise)
+    return diffusion.sample(model_fn, x_init, sample_key, p.warm_start_steps, p.action_eta,
+                            d.prediction, clip_x0=d.clip_actions, t_start=p.warm_start_t)
 
   return propose
+
+
+def shift_sequence(sequence: jnp.ndarray) -> jnp.ndarray:
+  """[H, A] plan from the previous step -> [H, A] starting one step later (last one repeated)."""
+  return jnp.concatenate([sequence[1:], sequence[-1:]], axis=0)
 
 
 def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
@@ -117,7 +133,9 @@ def make_plan(config: ml_collections.ConfigDict,
     score_fn: optional replacement for the learned objective,
       (params, latents [K, H+1, D], actions [K, H, A]) -> [K]; for tests and custom objectives.
   Returns:
-    plan(params, z [latent_dim], key) -> PlanOutput, one jitted pure function.
+    plan(params, z [latent_dim], key, prev_sequence=None) -> PlanOutput, one jitted pure
+    function. With `plan.warm_start_steps` > 0, passing the previous call's `sequence` as
+    `prev_sequence` warm-starts the proposal from it, shifted by one step.
   """
   validate_config(config)
   nets = build_networks(config)
@@ -127,12 +145,18 @@ def make_plan(config: ml_collections.ConfigDict,
   propose = make_propose(config, nets)
   rollout = make_rollout(config, nets)
 
-  def plan(params, z, key) -> PlanOutput:
+  def plan(params, z, key, prev_sequence=None) -> PlanOutput:
     if z.shape != (d,):
       raise ValueError(f'plan expects one latent of shape ({d},), got {z.shape}; '
                        'use encode(params, obs) first, and jax.vmap for a batch')
     prop_key, noise_key, dyn_key = jax.random.split(key, 3)
-    proposals = propose(params, z, prop_key, k - num_prior)
+    init = None
+    if prev_sequence is not None:
+      if prev_sequence.shape != (config.horizon, config.action_dim):
+        raise ValueError(f'prev_sequence must have shape ({config.horizon}, '
+                         f'{config.action_dim}), got {prev_sequence.shape}')
+      init = shift_sequence(prev_sequence)
+    proposals = propose(params, z, prop_key, k - num_prior, init)
     if p.action_noise_std > 0:
       noise = jax.random.normal(noise_key, proposals.shape)
       proposals = jnp.clip(proposals + p.action_noise_std * noise, -1.0, 1.0)

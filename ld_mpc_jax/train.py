@@ -106,8 +106,9 @@ def write_plots(workdir: str) -> None:
 def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
                    obs_noise_std: float = 0.0, video_path: str | None = None) -> Dict[str, Any]:
   """Meta-World protocol for one policy mode ('plan', 'actor', 'proposal')."""
-  policy = make_policy(config, params, mode, seed=seed)
+  policy, reset = make_policy(config, params, mode, seed=seed)
   return evaluation.evaluate(policy, config.task, num_episodes=num_episodes, seed=seed,
+                             reset=reset,
                              action_repeat=config.eval.action_repeat,
                              max_episode_steps=config.eval.max_episode_steps,
                              obs_noise_std=obs_noise_std, video_path=video_path,

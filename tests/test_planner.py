@@ -97,3 +97,29 @@ def test_bad_config_values_name_the_field(smoke_config, field, value):
     make_plan(smoke_config)
   with pytest.raises(ValueError, match=leaf):
     init_params(smoke_config, jax.random.key(0))
+
+
+def test_warm_start_is_deterministic_valid_and_stays_near_the_previous_plan(
+    smoke_config, smoke_params, z):
+  smoke_config.plan.num_candidates = 8
+  smoke_config.plan.warm_start_steps = 2
+  smoke_config.plan.warm_start_t = 0.05  # Little noise: candidates stay near the old plan.
+  # With eps-prediction an untrained denoiser changes x_t by only O(sigma_t), so the result
+  # must stay near the (shifted) warm start; an x0-predicting random network would not.
+  smoke_config.diffusion.prediction = 'eps'
+  plan = make_plan(smoke_config)
+  h, a = smoke_config.horizon, smoke_config.action_dim
+  prev = jnp.tile(jnp.linspace(-0.5, 0.5, h)[:, None], (1, a))
+  first = plan(smoke_params, z, jax.random.key(0), prev)
+  again = plan(smoke_params, z, jax.random.key(0), prev)
+  np.testing.assert_array_equal(first.action, again.action)
+  np.testing.assert_array_equal(first.candidates, again.candidates)
+  assert bool(jnp.all(jnp.abs(first.candidates) <= 1.0))
+  # The shifted previous plan is [prev[1], ..., prev[H-1], prev[H-1]].
+  shifted = jnp.concatenate([prev[1:], prev[-1:]])
+  cold = plan(smoke_params, z, jax.random.key(0))
+  warm_err = float(jnp.mean(jnp.abs(first.candidates - shifted)))
+  cold_err = float(jnp.mean(jnp.abs(cold.candidates - shifted)))
+  assert warm_err < 0.5 * cold_err, (warm_err, cold_err)
+  with pytest.raises(ValueError, match='prev_sequence'):
+    plan(smoke_params, z, jax.random.key(0), prev[:-1])

@@ -50,6 +50,10 @@ def get_config() -> ml_collections.ConfigDict:
   p.num_prior_candidates = 0
   p.prior_noise_std = 0.0  # Gaussian exploration noise on actor-prior candidates.
   p.action_noise_std = 0.0  # Gaussian exploration noise on proposal candidates (then clipped).
+  # Warm start (0 = off): re-noise the previous plan, shifted one step, to t = warm_start_t and
+  # denoise it in warm_start_steps steps instead of action_steps from pure noise.
+  p.warm_start_steps = 0
+  p.warm_start_t = 0.5
 
   c.loss = l = ml_collections.ConfigDict()
   l.w_dyn = 1.0  # Latent dynamics denoising loss.
