@@ -194,3 +194,47 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
 def matmul_flops(n: int) -> int:
   """FLOPs of an [n, n] x [n, n] matrix product (for the peak measurement)."""
   return 2 * n ** 3
+
+
+# ---------------------------------------------------------------------------------------------
+# The MPPI baseline (ld_mpc_jax.mppi with TD-MPC2's MLP world model).
+
+
+def tdmpc2_mppi_flops(mppi_cfg, model_cfg) -> dict:
+  """Hand count of one TD-MPC2 MPPI call (`mppi.make_tdmpc2_mppi`).
+
+  Per iteration every one of the N sequences is rolled out H steps (reward and dynamics MLP per
+  step), then pi and all Q heads run at z_H; the P prior trajectories cost H policy and H - 1
+  dynamics calls once per plan.
+
+  Returns:
+    {'prior', 'iterations', 'total'}: FLOPs (ints).
+  """
+  c, m = model_cfg, mppi_cfg
+  d, a, w = c.latent_dim, c.action_dim, c.mlp_dim
+  dynamics = mlp_flops((d + a, w, w, d))
+  reward = mlp_flops((d + a, w, w, c.num_bins))
+  policy = mlp_flops((d, w, w, 2 * a))
+  q = c.num_q * mlp_flops((d + a, w, w, c.num_bins))
+  per_sequence = m.horizon * (dynamics + reward) + policy + q
+  iterations = m.iterations * m.num_samples * per_sequence
+  prior = m.num_prior * (m.horizon * policy + (m.horizon - 1) * dynamics)
+  return dict(prior=prior, iterations=iterations, total=prior + iterations)
+
+
+def xla_mppi_flops(plan_fn: Callable, plan_args: tuple, value_fn: Callable, params,
+                   mppi_cfg) -> dict:
+  """Trip-count-corrected XLA FLOPs of one MPPI call.
+
+  The iteration loop is a lax.scan, counted once in C(plan); the missing (iterations - 1) are
+  added as the cost of value_fn on the [N, H, A] batch it sees (the elite update is a few
+  thousand FLOPs and left out). The horizon inside value_fn is unrolled, so it needs no correction.
+  """
+  plan_once = xla_flops(plan_fn, *plan_args)
+  z = plan_args[1]
+  actions = jax.ShapeDtypeStruct((mppi_cfg.num_samples, mppi_cfg.horizon, mppi_cfg.action_dim),
+                                 jnp.float32)
+  key = jax.eval_shape(lambda: jax.random.key(0))
+  value = xla_flops(value_fn, params, z, actions, key)
+  total = plan_once + (mppi_cfg.iterations - 1) * value
+  return dict(plan_once=plan_once, value=value, total=total)
