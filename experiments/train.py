@@ -39,10 +39,7 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
   from ld_mpc_jax.train import train_and_evaluate
   report = train_and_evaluate(_CONFIG.value, _WORKDIR.value)
-  print(f"success {report['success_rate']:.2f} {report['success_ci95']} "
-        f"(actor prior {report['baselines']['actor']['success_rate']:.2f}, proposal alone "
-        f"{report['baselines']['proposal']['success_rate']:.2f}); report in "
-        f"{os.path.join(_WORKDIR.value, 'report.md')}")
+  print(open(os.path.join(_WORKDIR.value, 'report.md')).read())
 
 
 if __name__ == '__main__':

@@ -56,6 +56,9 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      f'got {p.warm_start_steps!r}')
   if not 0.0 < p.warm_start_t <= 1.0:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
+  if 'eval' in config and config.eval.episodes < 0:
+    raise ValueError(f'config.eval.episodes must be >= 0 (0 skips evaluation), '
+                     f'got {config.eval.episodes}')
   t = config.train
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')

@@ -119,7 +119,12 @@ def xla_flops(fn: Callable, *args) -> float:
 
   args may be arrays or jax.ShapeDtypeStruct; nothing is executed.
   """
-  cost = jax.jit(fn).lower(*args).compile().cost_analysis()
+  return compiled_flops(jax.jit(fn).lower(*args).compile())
+
+
+def compiled_flops(compiled) -> float:
+  """FLOPs in the cost analysis of a compiled executable (`jit(f).lower(...).compile()`)."""
+  cost = compiled.cost_analysis()
   if isinstance(cost, (list, tuple)):  # Older JAX returned one dict per device.
     cost = cost[0]
   return float(cost['flops'])
@@ -140,13 +145,15 @@ def _with(config: ml_collections.ConfigDict, **plan_overrides) -> ml_collections
 
 
 def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None = None,
-                   plan_args: tuple | None = None) -> dict:
+                   plan_args: tuple | None = None, plan_once: float | None = None) -> dict:
   """Trip-count-corrected XLA FLOPs of one `plan` call (see the module docstring).
 
   Args:
     config: LD-MPC config.
     plan_fn: the jitted plan to analyse; default `make_plan(config)`.
-    plan_args: its arguments (arrays or ShapeDtypeStructs); default (params, z, key).
+    plan_args: its arguments (arrays or ShapeDtypeStructs); default (params, z, key). Pass
+      (params, z, key, prev_sequence) for a warm-started call.
+    plan_once: C(plan) if already known (from the caller's own compilation).
   Returns:
     {'plan_once': C(plan), 'proposal_step', 'transition', 'dynamics_step', 'total'} in FLOPs.
   """
@@ -156,9 +163,9 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
   h, a, w = config.horizon, config.action_dim, config.model.width
   k, n = p.num_candidates, p.num_candidates - p.num_prior_candidates
   params, z, key = _abstract_inputs(config)
-  if plan_fn is None:
-    plan_fn = planner.make_plan(config)
-  plan_once = xla_flops(plan_fn, *(plan_args or (params, z, key)))
+  if plan_once is None:
+    plan_fn = plan_fn or planner.make_plan(config)
+    plan_once = xla_flops(plan_fn, *(plan_args or (params, z, key)))
 
   def proposal_step(prop_params, x, cond, key):
     variables = {'params': prop_params}
@@ -223,14 +230,15 @@ def tdmpc2_mppi_flops(mppi_cfg, model_cfg) -> dict:
 
 
 def xla_mppi_flops(plan_fn: Callable, plan_args: tuple, value_fn: Callable, params,
-                   mppi_cfg) -> dict:
+                   mppi_cfg, plan_once: float | None = None) -> dict:
   """Trip-count-corrected XLA FLOPs of one MPPI call.
 
   The iteration loop is a lax.scan, counted once in C(plan); the missing (iterations - 1) are
   added as the cost of value_fn on the [N, H, A] batch it sees (the elite update is a few
   thousand FLOPs and left out). The horizon inside value_fn is unrolled, so it needs no correction.
   """
-  plan_once = xla_flops(plan_fn, *plan_args)
+  if plan_once is None:
+    plan_once = xla_flops(plan_fn, *plan_args)
   z = plan_args[1]
   actions = jax.ShapeDtypeStruct((mppi_cfg.num_samples, mppi_cfg.horizon, mppi_cfg.action_dim),
                                  jnp.float32)

@@ -123,6 +123,9 @@ def _summary_md(report: Dict[str, Any]) -> str:
            '| policy (EMA params) | success | 95% CI | mean return | decisions/s |',
            '| --- | --- | --- | --- | --- |']
   for name, r in [('planner', report)] + list(report['baselines'].items()):
+    if r['success_rate'] is None:
+      lines.append(f'| {name} | not evaluated (eval.episodes = 0) | | | |')
+      continue
     lo, hi = r['success_ci95']
     lines.append(f"| {name} | {r['success_rate']:.2f} | [{lo:.2f}, {hi:.2f}] | "
                  f"{r['mean_return']:.1f} | {r['decisions_per_s']:.1f} |")
@@ -164,6 +167,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   writer = _summary_writer(workdir)
   t_cfg = config.train
   num_steps = t_cfg.num_steps
+  evaluate = config.eval.episodes > 0  # eval.episodes = 0: train and checkpoint only.
   timed_steps, timed_seconds, last_time = 0, 0.0, None
   bar = tqdm.tqdm(range(start, num_steps), initial=start, total=num_steps, desc='train',
                   dynamic_ncols=True)
@@ -200,16 +204,22 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
       with open(progress_path + '.tmp', 'w') as f:
         json.dump({'step': done, 'train_seconds': prior_seconds + timed_seconds}, f)
       os.replace(progress_path + '.tmp', progress_path)
-    if done % t_cfg.eval_every == 0 and done != num_steps:
+    if evaluate and done % t_cfg.eval_every == 0 and done != num_steps:
       _periodic_eval(config, state.ema_params, done, workdir, writer)
   bar.close()
   manager.wait_until_finished()
 
   params = state.ema_params
-  final = _periodic_eval(config, params, num_steps, workdir, writer,
-                         episodes=config.eval.episodes)
-  baselines = {mode: run_evaluation(config, params, mode, config.eval.episodes, config.seed)
-               for mode in ('actor', 'proposal')}
+  if evaluate:
+    final = _periodic_eval(config, params, num_steps, workdir, writer,
+                           episodes=config.eval.episodes)
+    baselines = {mode: _brief(run_evaluation(config, params, mode, config.eval.episodes,
+                                             config.seed))
+                 for mode in ('actor', 'proposal')}
+  else:
+    final = dict.fromkeys(('success_rate', 'success_ci95', 'mean_return', 'mean_length',
+                           'decisions_per_s'))
+    baselines = {}
   writer.close()
   train_seconds = prior_seconds + timed_seconds
   report = {
@@ -218,7 +228,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
       'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
       'decisions_per_s': final['decisions_per_s'],
       'eval_episodes': config.eval.episodes,
-      'baselines': {k: _brief(v) for k, v in baselines.items()},
+      'baselines': baselines,
       'train_seconds': train_seconds, 'steps': int(state.step),
       'steps_per_s': (timed_steps / timed_seconds) if timed_seconds else float('nan'),
       'num_params': count_params(params),

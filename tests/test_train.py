@@ -119,3 +119,11 @@ def test_bad_config_fails_before_compilation(tmp_path, data_dir, monkeypatch, fi
     c[node] = value
   with pytest.raises(ValueError, match=match):
     train.train_and_evaluate(c, str(tmp_path / 'run'))
+
+
+def test_eval_episodes_zero_trains_without_evaluating(tmp_path, data_dir):
+  c = smoke(data_dir)
+  c.eval.episodes = 0
+  report = train.train_and_evaluate(c, str(tmp_path / 'run'))
+  assert report['steps'] == 4 and report['success_rate'] is None and report['baselines'] == {}
+  assert not os.path.exists(tmp_path / 'run' / 'eval.csv')
