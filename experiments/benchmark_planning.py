@@ -1,0 +1,281 @@
+"""Planning benchmark: latency, compile time, FLOPs and fraction of peak, LD-MPC vs MPPI.
+
+  python -m experiments.benchmark_planning                                    # everything
+  python -m experiments.benchmark_planning --widths=cpu --variants=reference,fast,mppi
+  python -m experiments.benchmark_planning --config=door_open.py --repeats=20 \
+      --out=benchmark_planning.json
+
+Every LD-MPC variant is a set of config overrides of the same model, run at the reference width
+(the config file without preset) and/or at the `:cpu` preset's width (the trained model's size);
+the rest of the config (plan settings included) comes from --config. `mppi` is the TD-MPC2-style
+baseline (ld_mpc_jax.mppi) with a TD-MPC2-sized MLP world model. Parameters are random (latency
+does not depend on their values). Writes a JSON list of entries to --out and a markdown table
+next to it (.md). Method: docs/benchmark.md.
+"""
+
+import dataclasses
+import importlib.util
+import json
+import os
+import sys
+import time
+
+from absl import app, flags
+import jax
+import jax.numpy as jnp
+import ml_collections
+from ml_collections import config_flags
+import numpy as np
+
+CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'configs')
+
+# name -> overrides (dotted config field -> value, or a function of the config for values that
+# depend on the width). Applied on top of --config with the width's model section.
+_DDIM_8X2 = {'plan.action_steps': 8, 'plan.dynamics_steps': 2, 'plan.action_eta': 0.0,
+             'plan.dynamics_eta': 0.0}
+_DDIM_4X1 = {'plan.action_steps': 4, 'plan.dynamics_steps': 1, 'plan.action_eta': 0.0,
+             'plan.dynamics_eta': 0.0}
+_CHEAP_OBJECTIVE = {'model.objective_blocks': lambda c: max(1, c.model.objective_blocks // 5)}
+VARIANTS = {
+    'reference': {},
+    'ddim_8x2': _DDIM_8X2,
+    'ddim_4x1': _DDIM_4X1,
+    'ddim_8x2_k32': {**_DDIM_8X2, 'plan.num_candidates': 32},
+    'ddim_8x2_cheap_obj': {**_DDIM_8X2, **_CHEAP_OBJECTIVE},
+    # Previous plan re-noised to t = 0.5 and denoised in 4 steps instead of 8 from noise.
+    'warm_start': {**_DDIM_8X2, 'plan.warm_start_steps': 4, 'plan.warm_start_t': 0.5},
+    'fast': {**_DDIM_4X1, 'plan.num_candidates': 32, **_CHEAP_OBJECTIVE},
+    'mppi': None,  # The baseline; runs once, independent of the width.
+}
+WIDTHS = {'ref': None, 'cpu': 'cpu'}  # width name -> preset of the config file.
+
+_CONFIG = config_flags.DEFINE_config_file(
+    'config', os.path.join(CONFIG_DIR, 'door_open.py'), 'Config file (optionally :preset).',
+    lock_config=True)
+_REPEATS = flags.DEFINE_integer('repeats', 20, 'Timed calls per configuration (after warm-up).')
+_WARMUP = flags.DEFINE_integer('warmup', 2, 'Untimed calls after compilation.')
+_OUT = flags.DEFINE_string('out', 'benchmark_planning.json', 'JSON output; .md written beside.')
+_VARIANTS = flags.DEFINE_list('variants', list(VARIANTS), f'Subset of {list(VARIANTS)}.')
+_WIDTHS = flags.DEFINE_list('widths', list(WIDTHS), f'Subset of {list(WIDTHS)}.')
+_PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
+_PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
+
+
+def resolve_config_arg(argv):
+  """Rewrites --config=name.py[:preset] to a path under experiments/configs when needed."""
+  out = []
+  for arg in argv:
+    if arg.startswith('--config='):
+      path, sep, preset = arg[len('--config='):].partition(':')
+      if not os.path.exists(path) and os.path.exists(os.path.join(CONFIG_DIR, path)):
+        arg = f'--config={os.path.join(CONFIG_DIR, path)}{sep}{preset}'
+    out.append(arg)
+  return out
+
+
+def device_info() -> dict:
+  """The machine: CPU model and core count, or the accelerator's device kind."""
+  dev = jax.devices()[0]
+  info = {'platform': dev.platform, 'device_kind': dev.device_kind,
+          'cpu_count': os.cpu_count(), 'jax': jax.__version__,
+          'loadavg_1min_at_start': os.getloadavg()[0]}
+  try:
+    with open('/proc/cpuinfo') as f:
+      info['cpu_model'] = next(l.split(':', 1)[1].strip() for l in f if l.startswith('model name'))
+  except (OSError, StopIteration):
+    info['cpu_model'] = 'unknown'
+  info['name'] = (f"{info['cpu_model']}, {info['cpu_count']} cores" if dev.platform == 'cpu'
+                  else f'{dev.device_kind} ({dev.platform})')
+  return info
+
+
+def measure_peak(n: int, repeats: int) -> float:
+  """Median GFLOP/s of an [n, n] x [n, n] float32 matmul."""
+  from ld_mpc_jax.flops import matmul_flops
+  ka, kb = jax.random.split(jax.random.key(0))
+  a, b = jax.random.normal(ka, (n, n)), jax.random.normal(kb, (n, n))
+  matmul = jax.jit(jnp.matmul)
+  matmul(a, b).block_until_ready()
+  times = []
+  for _ in range(repeats):
+    t0 = time.perf_counter()
+    matmul(a, b).block_until_ready()
+    times.append(time.perf_counter() - t0)
+  return matmul_flops(n) / float(np.median(times)) / 1e9
+
+
+def time_calls(fn, params, z, keys, carry_fn=None, carry=None, warmup: int = 2):
+  """Compiles fn(params, z, key[, carry]) ahead of time, then times it.
+
+  Returns (compiled executable, compile seconds, first jitted call seconds, latencies [s]).
+  carry_fn(out) -> the next call's carry (the previous plan, for warm starts).
+  """
+  args = lambda key, c: (params, z, key) if carry is None else (params, z, key, c)
+  t0 = time.perf_counter()
+  compiled = fn.lower(*args(keys[0], carry)).compile()
+  compile_s = time.perf_counter() - t0
+  t0 = time.perf_counter()
+  out = jax.block_until_ready(fn(*args(keys[0], carry)))
+  first_s = time.perf_counter() - t0
+  for key in keys[1:1 + warmup]:
+    carry = carry_fn(out) if carry_fn else carry
+    out = jax.block_until_ready(fn(*args(key, carry)))
+  latencies = []
+  for key in keys[1 + warmup:]:
+    carry = carry_fn(out) if carry_fn else carry
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(fn(*args(key, carry)))
+    latencies.append(time.perf_counter() - t0)
+  return compiled, compile_s, first_s, latencies
+
+
+def variant_config(base: ml_collections.ConfigDict, model: ml_collections.ConfigDict,
+                   overrides: dict):
+  """base with `model` swapped in and overrides applied -> (config, resolved overrides)."""
+  c = ml_collections.ConfigDict(base.to_dict())
+  c.model = ml_collections.ConfigDict(model.to_dict())
+  resolved = {}
+  for dotted, value in overrides.items():
+    value = value(c) if callable(value) else value
+    section, field = dotted.split('.')
+    c[section][field] = value
+    resolved[dotted] = value
+  return c, resolved
+
+
+def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warmup: int) -> dict:
+  import ld_mpc_jax as ldmpc
+  from ld_mpc_jax import flops
+  params = ldmpc.init_params(config, jax.random.key(0))
+  plan = ldmpc.make_plan(config)
+  z = ldmpc.encode(params, np.linspace(-1.0, 1.0, config.obs_dim, dtype=np.float32))
+  keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
+  warm = config.plan.warm_start_steps > 0
+  carry = jnp.zeros((config.horizon, config.action_dim)) if warm else None
+  compiled, compile_s, first_s, lat = time_calls(
+      plan, params, z, keys, (lambda out: out.sequence) if warm else None, carry, warmup)
+  args = (params, z, keys[0]) + ((carry,) if warm else ())
+  xla = flops.xla_plan_flops(config, plan, args, plan_once=flops.compiled_flops(compiled))
+  hand = flops.plan_flops(config)
+  p = config.plan
+  return dict(name=f'{name}/{width}', variant=name, width=width, overrides=overrides,
+              model={k: config.model[k] for k in ('latent_dim', 'width', 'proposal_blocks',
+                                                  'dynamics_blocks', 'objective_blocks')},
+              num_params=ldmpc.count_params(params), num_candidates=p.num_candidates,
+              steps=(f'{p.warm_start_steps if warm else p.action_steps}x{p.dynamics_steps}'),
+              compile_s=compile_s, first_call_s=first_s, latencies_ms=lat,
+              gflop=hand['total'] / 1e9, gflop_xla=xla['total'] / 1e9,
+              gflop_xla_uncorrected=xla['plan_once'] / 1e9,
+              gflop_breakdown={k: v / 1e9 for k, v in hand.items() if k != 'total'})
+
+
+def run_mppi(repeats: int, warmup: int) -> dict:
+  from ld_mpc_jax import flops, mppi
+  from ld_mpc_jax.models import count_params
+  mppi_cfg, model_cfg = mppi.MPPIConfig(), mppi.TDMPC2Config()
+  params = mppi.init_tdmpc2_params(model_cfg, jax.random.key(0))
+  obs = np.linspace(-1.0, 1.0, model_cfg.obs_dim, dtype=np.float32)
+  z = mppi.TDMPC2Model(model_cfg).apply({'params': params}, obs, method=mppi.TDMPC2Model.encode)
+  plan = mppi.make_tdmpc2_mppi(mppi_cfg, model_cfg)
+  keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
+  carry = jnp.zeros((mppi_cfg.horizon, mppi_cfg.action_dim))
+  compiled, compile_s, first_s, lat = time_calls(plan, params, z, keys, lambda out: out.mean,
+                                                 carry, warmup)
+  xla = flops.xla_mppi_flops(plan, (params, z, keys[0], carry),
+                             mppi.make_tdmpc2_value_fn(model_cfg), params, mppi_cfg,
+                             plan_once=flops.compiled_flops(compiled))
+  hand = flops.tdmpc2_mppi_flops(mppi_cfg, model_cfg)
+  return dict(name='mppi', variant='mppi', width='tdmpc2-5M',
+              overrides={'mppi': dataclasses.asdict(mppi_cfg),
+                         'model': dataclasses.asdict(model_cfg)},
+              num_params=count_params(params), num_candidates=mppi_cfg.num_samples,
+              steps=f'{mppi_cfg.iterations} it', compile_s=compile_s, first_call_s=first_s,
+              latencies_ms=lat, gflop=hand['total'] / 1e9, gflop_xla=xla['total'] / 1e9,
+              gflop_xla_uncorrected=xla['plan_once'] / 1e9)
+
+
+def finish(entries: list, peak_gflops: float, device: dict) -> list:
+  """Adds latency stats, peak, bound ratio and the ratio to MPPI's median latency."""
+  for e in entries:
+    lat = np.asarray(e.pop('latencies_ms')) * 1e3
+    e['latency_ms'] = dict(median=float(np.median(lat)), min=float(lat.min()),
+                           max=float(lat.max()), n=int(lat.size))
+    e['peak_gflops'] = peak_gflops
+    e['bound_ratio'] = e['latency_ms']['median'] / 1e3 / (e['gflop'] / peak_gflops)
+    e['device'] = device
+  mppi_ms = next((e['latency_ms']['median'] for e in entries if e['variant'] == 'mppi'), None)
+  for e in entries:
+    e['latency_vs_mppi'] = e['latency_ms']['median'] / mppi_ms if mppi_ms else None
+  return entries
+
+
+def markdown(entries: list) -> str:
+  dev = entries[0]['device']
+  lines = [f"Device: {dev['name']} ({dev['platform']}), JAX {dev['jax']}; peak "
+           f"{entries[0]['peak_gflops']:.1f} GFLOP/s (float32 matmul); 1-min load average at "
+           f"start {dev['loadavg_1min_at_start']:.2f}.", '',
+           '| configuration | params | K | steps | compile s | median ms | min ms | max ms '
+           '| GFLOP (hand) | GFLOP (XLA) | bound ratio | / MPPI |',
+           '| --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |']
+  for e in entries:
+    l, vs = e['latency_ms'], e['latency_vs_mppi']
+    lines.append(f"| {e['name']} | {e['num_params'] / 1e6:.2f}M | {e['num_candidates']} | "
+                 f"{e['steps']} | {e['compile_s']:.1f} | {l['median']:.1f} | {l['min']:.1f} | "
+                 f"{l['max']:.1f} | {e['gflop']:.2f} | {e['gflop_xla']:.2f} | "
+                 f"{e['bound_ratio']:.2f} | {'-' if vs is None else f'{vs:.2f}'} |")
+  return '\n'.join(lines) + '\n'
+
+
+def load_preset(preset):
+  """get_config(preset) of the file --config names."""
+  path = config_flags.get_config_filename(flags.FLAGS['config']).partition(':')[0]
+  spec = importlib.util.spec_from_file_location('_benchmark_config', path)
+  module = importlib.util.module_from_spec(spec)
+  spec.loader.exec_module(module)
+  return module.get_config(preset)
+
+
+def main(argv):
+  del argv
+  unknown = set(_VARIANTS.value) - set(VARIANTS) | set(_WIDTHS.value) - set(WIDTHS)
+  if unknown:
+    raise app.UsageError(f'unknown variants/widths {sorted(unknown)}; variants: '
+                         f'{list(VARIANTS)}, widths: {list(WIDTHS)}')
+  base = _CONFIG.value
+  device = device_info()
+  print(f"device: {device['name']}; load average {device['loadavg_1min_at_start']:.2f}")
+  peak = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
+  print(f'peak: {peak:.1f} GFLOP/s ({_PEAK_SIZE.value}^2 float32 matmul)')
+  entries = []
+
+  def add(entry):
+    entries.append(entry)
+    print(f"{entry['name']}: median {np.median(entry['latencies_ms']) * 1e3:.1f} ms, compile "
+          f"{entry['compile_s']:.1f} s, {entry['gflop']:.2f} GFLOP (XLA {entry['gflop_xla']:.2f})",
+          flush=True)
+
+  for name in _VARIANTS.value:
+    if name == 'mppi':
+      add(run_mppi(_REPEATS.value, _WARMUP.value))
+      continue
+    if name == 'warm_start' and 'warm_start_steps' not in base.plan:
+      print('skipping warm_start: this config has no plan.warm_start_steps')
+      continue
+    for width in _WIDTHS.value:
+      config, resolved = variant_config(base, load_preset(WIDTHS[width]).model, VARIANTS[name])
+      add(run_ldmpc(name, width, config, resolved, _REPEATS.value, _WARMUP.value))
+  peak_end = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
+  print(f'peak at the end: {peak_end:.1f} GFLOP/s')
+  entries = finish(entries, max(peak, peak_end), device)
+  table = markdown(entries)
+  print(table)
+  with open(_OUT.value, 'w') as f:
+    json.dump(entries, f, indent=1)
+  with open(os.path.splitext(_OUT.value)[0] + '.md', 'w') as f:
+    f.write(table)
+  print(f'wrote {_OUT.value} and {os.path.splitext(_OUT.value)[0]}.md')
+
+
+if __name__ == '__main__':
+  sys.argv = resolve_config_arg(sys.argv)
+  app.run(main)
