@@ -74,52 +74,58 @@ def n_step_targets(rewards: jnp.ndarray, bootstrap: jnp.ndarray, gamma: float) -
 def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   """Returns loss_fn(params, target_params, batch, key) -> (loss, metrics).
 
-  batch: obs [B, H+1, obs_dim], action [B, H, A], reward [B, H].
+  batch: obs [B, H+2, obs_dim], action [B, H+1, A], reward [B, H+1]. The models see the first
+  H + 1 observations (T = H + 1 = 5 in the reference); the one extra step only supplies the
+  bootstrap of the value targets, so that the terminal value V(z_H) the planner uses is trained
+  like every other position.
   L = w_dyn L_dyn + w_act L_act + w_rew L_rew + w_val L_val + w_actor L_actor, where
-    L_dyn: denoising loss of z_{i+1} = sg(enc(o_{i+1})) given (enc(o_i), a_i), all i < H;
+    L_dyn: denoising loss of z_{i+1} = sg(enc(o_{i+1})) given (enc(o_i), a_i), all i <= H;
     L_act: denoising loss of the action sequence a_{0:H} given enc(o_0);
-    L_rew, L_val: two-hot soft cross-entropies of the sequence objective model;
-    L_actor: behaviour cloning of the actor prior, MSE on a_i from enc(o_i).
-  Value targets come from `target_params` (the EMA parameters), never differentiated.
+    L_rew: two-hot cross-entropy of r_i, i < H, read at the a_i tokens;
+    L_val: two-hot cross-entropy of V(z_i), i <= H, against n-step targets
+      sum_{j=i}^{H} gamma^(j-i) r_j + gamma^(H+1-i) V_ema(z_{H+1}), where V_ema is the EMA
+      (target) network's terminal value on the window shifted by one step;
+    L_actor: behaviour cloning of the actor prior, MSE on a_i from enc(o_i), i <= H.
   """
   m, w, pred = config.model, config.loss, config.diffusion.prediction
-  gamma = config.gamma
+  gamma, h = config.gamma, config.horizon
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
-    b, h1 = obs.shape[:2]
-    h = h1 - 1
+    b = obs.shape[0]
     k_dyn, k_act, k_drop = jax.random.split(key, 3)
     drop = lambda i: {'dropout': jax.random.fold_in(k_drop, i)}  # One stream per network.
 
-    z = nets.encoder.apply({'params': params['encoder']}, obs)  # [B, H+1, D]
+    z = nets.encoder.apply({'params': params['encoder']}, obs)  # [B, H+2, D]
 
-    # Latent dynamics, teacher-forced over all H transitions at once.
-    z_in = z[:, :-1].reshape(b * h, -1)
-    a_in = action.reshape(b * h, -1)
-    z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(b * h, -1)
+    # Latent dynamics, teacher-forced over all H + 1 transitions at once.
+    z_in = z[:, :-1].reshape(b * (h + 1), -1)
+    a_in = action.reshape(b * (h + 1), -1)
+    z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(b * (h + 1), -1)
     dyn_fn = lambda x_t, t: nets.dynamics.apply(
         {'params': params['dynamics']}, x_t, t, z_in, a_in, deterministic=False,
         rngs=drop(0))
     l_dyn = diffusion.denoising_loss(dyn_fn, z_next, k_dyn, pred).mean()
 
-    # Action proposal: the whole H-step sequence given z_0.
+    # Action proposal: the H-step sequence given z_0.
     act_fn = lambda a_t, t: nets.proposal.apply(
         {'params': params['proposal']}, a_t, t, z[:, 0], deterministic=False,
         rngs=drop(1))
-    l_act = diffusion.denoising_loss(act_fn, action, k_act, pred).mean()
+    l_act = diffusion.denoising_loss(act_fn, action[:, :h], k_act, pred).mean()
 
-    # Sequence objective: rewards at a_i tokens, values at z_i tokens.
+    # Sequence objective on (z_0, a_0, ..., z_H): rewards at a_i tokens, values at z_i tokens.
     r_logits, v_logits = nets.objective.apply(
-        {'params': params['objective']}, z, action, deterministic=False, rngs=drop(2))
-    l_rew = soft_cross_entropy(r_logits, two_hot(reward, m.num_bins, m.vmin, m.vmax)).mean()
+        {'params': params['objective']}, z[:, :h + 1], action[:, :h], deterministic=False,
+        rngs=drop(2))
+    l_rew = soft_cross_entropy(r_logits, two_hot(reward[:, :h], m.num_bins, m.vmin,
+                                                 m.vmax)).mean()
 
-    z_tgt = nets.encoder.apply({'params': target_params['encoder']}, obs)
-    _, v_tgt_logits = nets.objective.apply({'params': target_params['objective']}, z_tgt, action)
-    bootstrap = two_hot_decode(v_tgt_logits[:, -1], m.vmin, m.vmax)
-    v_target = jax.lax.stop_gradient(n_step_targets(reward, bootstrap, gamma))  # [B, H]
-    l_val = soft_cross_entropy(v_logits[:, :-1],
-                               two_hot(v_target, m.num_bins, m.vmin, m.vmax)).mean()
+    z_tgt = nets.encoder.apply({'params': target_params['encoder']}, obs[:, 1:])
+    _, v_tgt_logits = nets.objective.apply({'params': target_params['objective']}, z_tgt,
+                                           action[:, 1:])
+    bootstrap = two_hot_decode(v_tgt_logits[:, -1], m.vmin, m.vmax)  # V_ema(z_{H+1}).
+    v_target = jax.lax.stop_gradient(n_step_targets(reward, bootstrap, gamma))  # [B, H+1]
+    l_val = soft_cross_entropy(v_logits, two_hot(v_target, m.num_bins, m.vmin, m.vmax)).mean()
 
     a_pi = nets.actor.apply({'params': params['actor']}, z[:, :-1])
     l_actor = jnp.mean(jnp.sum((a_pi - action) ** 2, axis=-1))

@@ -23,16 +23,21 @@ from ld_mpc_jax.train_state import create_train_state, make_update
 PROGRESS_FILE = 'progress.json'
 
 
+def window_length(config: ml_collections.ConfigDict) -> int:
+  """Observations per training window: T = H + 1, plus one for the value bootstrap."""
+  return config.horizon + 2
+
+
 def check_config_for_data(config: ml_collections.ConfigDict, dataset: data.Dataset) -> None:
   """Errors that need the data: windows of H + 1 observations, batch vs. dataset size."""
   longest = int(dataset.episode_lengths.max())
-  if config.horizon > longest:
-    raise ValueError(f'config.horizon ({config.horizon}) is larger than the longest episode '
-                     f'({longest} transitions): no training window of H + 1 observations fits')
-  windows = data.ReplayBuffer(dataset, config.horizon + 1).num_windows
+  if config.horizon + 1 > longest:
+    raise ValueError(f'config.horizon ({config.horizon}) is too large for the longest episode '
+                     f'({longest} transitions): training windows need H + 1 transitions')
+  windows = data.ReplayBuffer(dataset, window_length(config)).num_windows
   if config.train.batch_size > windows:
     raise ValueError(f'config.train.batch_size ({config.train.batch_size}) is larger than the '
-                     f'dataset ({windows} windows of length {config.horizon + 1})')
+                     f'dataset ({windows} windows of length {window_length(config)})')
   if dataset.obs_dim != config.obs_dim or dataset.act_dim != config.action_dim:
     raise ValueError(f'config.obs_dim/action_dim ({config.obs_dim}, {config.action_dim}) do not '
                      f'match the dataset ({dataset.obs_dim}, {dataset.act_dim})')
@@ -162,7 +167,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
 
   update = make_update(config)
   # A resumed run draws fresh windows rather than replaying the first run's.
-  buffer = data.ReplayBuffer(dataset, config.horizon + 1, seed=config.seed * 1_000_003 + start)
+  buffer = data.ReplayBuffer(dataset, window_length(config),
+                             seed=config.seed * 1_000_003 + start)
   train_key = jax.random.key(config.seed + 1)
   writer = _summary_writer(workdir)
   t_cfg = config.train

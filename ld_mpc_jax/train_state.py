@@ -47,7 +47,8 @@ def ema_update(ema_params, params, decay: float):
 def make_update(config: ml_collections.ConfigDict) -> Callable:
   """Returns jitted update(state, batch, key) -> (state, metrics); `state` is donated.
 
-  batch: obs [B, H+1, obs_dim], action [B, H, A], reward [B, H] (float32).
+  batch: obs [B, H+2, obs_dim], action [B, H+1, A], reward [B, H+1] (float32): windows of
+  T = H + 1 steps plus one for the value bootstrap (see losses.make_loss_fn).
   Metrics are a dict of scalars, including the gradient norm before clipping.
   """
   validate_config(config)
@@ -59,7 +60,8 @@ def make_update(config: ml_collections.ConfigDict) -> Callable:
 
   def update(state: TrainState, batch: dict, key: jax.Array):
     b = batch['obs'].shape[0]
-    expected = {'obs': (b, h + 1, obs_dim), 'action': (b, h, act_dim), 'reward': (b, h)}
+    expected = {'obs': (b, h + 2, obs_dim), 'action': (b, h + 1, act_dim),
+                'reward': (b, h + 1)}
     for name, shape in expected.items():
       if name not in batch or tuple(batch[name].shape) != shape:
         got = tuple(batch[name].shape) if name in batch else 'missing'

@@ -13,9 +13,10 @@ def make_batch(config, batch_size=8, seed=0):
   rng = np.random.default_rng(seed)
   h = config.horizon
   return {
-      'obs': rng.normal(size=(batch_size, h + 1, config.obs_dim)).astype(np.float32),
-      'action': rng.uniform(-1, 1, size=(batch_size, h, config.action_dim)).astype(np.float32),
-      'reward': rng.uniform(0, 5, size=(batch_size, h)).astype(np.float32),
+      'obs': rng.normal(size=(batch_size, h + 2, config.obs_dim)).astype(np.float32),
+      'action': rng.uniform(-1, 1, size=(batch_size, h + 1, config.action_dim)).astype(
+          np.float32),
+      'reward': rng.uniform(0, 5, size=(batch_size, h + 1)).astype(np.float32),
   }
 
 

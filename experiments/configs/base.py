@@ -12,7 +12,7 @@ def get_config() -> ml_collections.ConfigDict:
   c.seed = 0
   c.obs_dim = 39  # Meta-World state observation.
   c.action_dim = 4  # End-effector xyz delta + gripper, in [-1, 1].
-  c.horizon = 4  # H: planning horizon; training windows have T = H + 1 observations.
+  c.horizon = 4  # H: planning horizon; models see T = H + 1 observations (+1 for value targets).
   c.gamma = 0.99
 
   c.model = m = ml_collections.ConfigDict()
