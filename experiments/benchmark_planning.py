@@ -269,6 +269,7 @@ def main(argv):
   entries = finish(entries, max(peak, peak_end), device)
   table = markdown(entries)
   print(table)
+  os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)
   with open(_OUT.value, 'w') as f:
     json.dump(entries, f, indent=1)
   with open(os.path.splitext(_OUT.value)[0] + '.md', 'w') as f:
