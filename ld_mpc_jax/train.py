@@ -12,6 +12,8 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
+import orbax.checkpoint as ocp
+from tensorboardX import SummaryWriter
 import tqdm
 
 from ld_mpc_jax import checkpointing, data, envs, evaluation
@@ -170,7 +172,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   buffer = data.ReplayBuffer(dataset, window_length(config),
                              seed=config.seed * 1_000_003 + start)
   train_key = jax.random.key(config.seed + 1)
-  writer = _summary_writer(workdir)
+  writer = SummaryWriter(os.path.join(workdir, 'tb'))
   t_cfg = config.train
   num_steps = t_cfg.num_steps
   evaluate = config.eval.episodes > 0  # eval.episodes = 0: train and checkpoint only.
@@ -203,10 +205,12 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
         if k != 'step':
           writer.add_scalar(f'train/{k}', v, done)
     if done % t_cfg.checkpoint_every == 0 or done == num_steps:
-      if not all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree_util.tree_leaves(state.params)):
+      finite = jax.tree_util.tree_reduce(lambda ok, x: ok & jnp.all(jnp.isfinite(x)),
+                                         state.params, jnp.array(True))
+      if not bool(finite):  # One host sync per checkpoint.
         raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
                                  f'good checkpoint is step {manager.latest_step()}.')
-      manager.save(done, args=_save_args(state))
+      manager.save(done, args=ocp.args.StandardSave(state))
       with open(progress_path + '.tmp', 'w') as f:
         json.dump({'step': done, 'train_seconds': prior_seconds + timed_seconds}, f)
       os.replace(progress_path + '.tmp', progress_path)
@@ -270,13 +274,3 @@ def _periodic_eval(config, params, step, workdir, writer, episodes=None):
                   f"[{lo:.2f}, {hi:.2f}] over {episodes} episodes")
   write_plots(workdir)
   return result
-
-
-def _save_args(state):
-  import orbax.checkpoint as ocp
-  return ocp.args.StandardSave(state)
-
-
-def _summary_writer(workdir: str):
-  from tensorboardX import SummaryWriter
-  return SummaryWriter(os.path.join(workdir, 'tb'))
