@@ -19,6 +19,7 @@ _SEED = flags.DEFINE_integer('seed', 0, 'Evaluation seed.')
 _NOISE = flags.DEFINE_bool('noise_sweep', True, 'Run the observation-noise sweep (planner).')
 _VIDEO = flags.DEFINE_bool('video', True, 'Render a short video of the planner if possible.')
 _OVERRIDE = flags.DEFINE_multi_string('set', [], 'Config override, e.g. plan.action_steps=4.')
+_OUT = flags.DEFINE_string('out', None, 'JSON output (default: <workdir>/evaluation.json).')
 flags.mark_flag_as_required('workdir')
 
 
@@ -59,7 +60,8 @@ def main(argv):
     except Exception as err:  # Rendering needs an offscreen GL backend; report, don't fail.
       out['video_error'] = f'{type(err).__name__}: {err}'
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
-  path = os.path.join(_WORKDIR.value, 'evaluation.json')
+  path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
+  os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
   with open(path, 'w') as f:
     json.dump(out, f, indent=2)
   print(f'wrote {path}')

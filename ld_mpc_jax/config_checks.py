@@ -56,12 +56,49 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      f'got {p.warm_start_steps!r}')
   if not 0.0 < p.warm_start_t <= 1.0:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
+  if 'eval' in config:
+    bad = set(config.eval.get('baselines', ())) - {'plan', 'actor', 'proposal', 'mppi'}
+    if bad:
+      raise ValueError(f'config.eval.baselines has unknown modes {sorted(bad)}; use plan, '
+                       'actor, proposal or mppi')
   if 'eval' in config and config.eval.episodes < 0:
     raise ValueError(f'config.eval.episodes must be >= 0 (0 skips evaluation), '
                      f'got {config.eval.episodes}')
+  _validate_variant(config)
   t = config.train
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
   if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
     raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
                      f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
+
+
+def _validate_variant(config: ml_collections.ConfigDict) -> None:
+  """Model kinds and the planner options each one supports (see ld_mpc_jax.models)."""
+  m, p = config.model, config.plan
+  proposal = m.get('proposal_type', 'diffusion_seq')
+  dynamics = m.get('dynamics_type', 'diffusion_ar')
+  if proposal not in ('diffusion_seq', 'diffusion_step', 'mlp'):
+    raise ValueError("config.model.proposal_type must be 'diffusion_seq', 'diffusion_step' or "
+                     f"'mlp', got {proposal!r}")
+  if dynamics not in ('diffusion_ar', 'diffusion_traj', 'mlp'):
+    raise ValueError("config.model.dynamics_type must be 'diffusion_ar', 'diffusion_traj' or "
+                     f"'mlp', got {dynamics!r}")
+  if proposal != 'diffusion_seq' and dynamics == 'diffusion_traj':
+    raise ValueError(f'config.model.dynamics_type diffusion_traj needs whole action sequences '
+                     f'up front, but proposal_type {proposal!r} proposes one action per latent')
+  if dynamics == 'diffusion_traj' and p.num_prior_candidates:
+    raise ValueError('config.plan.num_prior_candidates must be 0 with dynamics_type '
+                     'diffusion_traj: actor-prior candidates need a step-by-step rollout')
+  if proposal != 'diffusion_seq' and p.warm_start_steps:
+    raise ValueError('config.plan.warm_start_steps must be 0 unless proposal_type is '
+                     f'diffusion_seq (got {proposal!r}): only sequences can be shifted')
+  guidance = p.get('guidance_scale', 0.0)
+  if guidance < 0:
+    raise ValueError(f'config.plan.guidance_scale must be >= 0 (0 = off), got {guidance}')
+  if guidance and (proposal != 'diffusion_seq' or config.diffusion.prediction != 'x0'):
+    raise ValueError('config.plan.guidance_scale > 0 needs proposal_type diffusion_seq and '
+                     "diffusion.prediction 'x0'")
+  if guidance and p.get('guidance_dynamics_steps', 1) < 1:
+    raise ValueError('config.plan.guidance_dynamics_steps must be >= 1, '
+                     f'got {p.guidance_dynamics_steps}')

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import ml_collections
 
 from ld_mpc_jax import diffusion
-from ld_mpc_jax.models import Networks
+from ld_mpc_jax.models import Networks, dynamics_type, proposal_type
 
 
 def symlog(x: jnp.ndarray) -> jnp.ndarray:
@@ -79,8 +79,11 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   bootstrap of the value targets, so that the terminal value V(z_H) the planner uses is trained
   like every other position.
   L = w_dyn L_dyn + w_act L_act + w_rew L_rew + w_val L_val + w_actor L_actor, where
-    L_dyn: denoising loss of z_{i+1} = sg(enc(o_{i+1})) given (enc(o_i), a_i), all i <= H;
-    L_act: denoising loss of the action sequence a_{0:H} given enc(o_0);
+    L_dyn: denoising loss of z_{i+1} = sg(enc(o_{i+1})) given (enc(o_i), a_i), all i <= H
+      (dynamics_type 'mlp': MSE of the prediction; 'diffusion_traj': denoising loss of the
+      whole trajectory z_{1:H} given z_0 and a_{0:H-1});
+    L_act: denoising loss of the action sequence a_{0:H} given enc(o_0) (single-step proposal
+      kinds: of a_i given enc(o_i), all i <= H; 'mlp': Gaussian negative log-likelihood);
     L_rew: two-hot cross-entropy of r_i, i < H, read at the a_i tokens;
     L_val: two-hot cross-entropy of V(z_i), i <= H, against n-step targets
       sum_{j=i}^{H} gamma^(j-i) r_j + gamma^(H+1-i) V_ema(z_{H+1}), where V_ema is the EMA
@@ -89,6 +92,42 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   """
   m, w, pred = config.model, config.loss, config.diffusion.prediction
   gamma, h = config.gamma, config.horizon
+  kind_p, kind_d = proposal_type(config), dynamics_type(config)
+
+  def dynamics_loss(params, z, action, key, rngs):
+    """z [B, H+2, D], action [B, H+1, A] -> [] (mean over examples and latent features)."""
+    b = z.shape[0]
+    apply = lambda *args: nets.dynamics.apply({'params': params['dynamics']}, *args,
+                                              deterministic=False, rngs=rngs)
+    if kind_d == 'diffusion_traj':  # z_{1:H} given z_0 and a_{0:H-1}, as the planner uses it.
+      target = jax.lax.stop_gradient(z[:, 1:h + 1])
+      fn = lambda x_t, t: apply(x_t, t, z[:, 0], action[:, :h])
+      return diffusion.denoising_loss(fn, target, key, pred).mean()
+    # One-step kinds, teacher-forced over all H + 1 transitions at once.
+    z_in = z[:, :-1].reshape(b * (h + 1), -1)
+    a_in = action.reshape(b * (h + 1), -1)
+    z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(b * (h + 1), -1)
+    if kind_d == 'mlp':
+      z_pred = nets.dynamics.apply({'params': params['dynamics']}, z_in, a_in)
+      return jnp.mean((z_pred - z_next) ** 2)
+    fn = lambda x_t, t: apply(x_t, t, z_in, a_in)
+    return diffusion.denoising_loss(fn, z_next, key, pred).mean()
+
+  def proposal_loss(params, z, action, key, rngs):
+    """Sequence kind: a_{0:H} given z_0. Single-step kinds: a_i given z_i, i <= H."""
+    b = z.shape[0]
+    if kind_p == 'diffusion_seq':
+      fn = lambda a_t, t: nets.proposal.apply({'params': params['proposal']}, a_t, t, z[:, 0],
+                                              deterministic=False, rngs=rngs)
+      return diffusion.denoising_loss(fn, action[:, :h], key, pred).mean()
+    z_in = z[:, :-1].reshape(b * (h + 1), -1)
+    a_in = action.reshape(b * (h + 1), -1)
+    if kind_p == 'mlp':  # Gaussian negative log-likelihood (constant dropped), per dimension.
+      mean, log_std = nets.proposal.apply({'params': params['proposal']}, z_in)
+      return jnp.mean(0.5 * ((a_in - mean) * jnp.exp(-log_std)) ** 2 + log_std)
+    fn = lambda a_t, t: nets.proposal.apply({'params': params['proposal']}, a_t, t, z_in,
+                                            deterministic=False, rngs=rngs)
+    return diffusion.denoising_loss(fn, a_in[:, None], key, pred).mean()
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
@@ -98,20 +137,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
 
     z = nets.encoder.apply({'params': params['encoder']}, obs)  # [B, H+2, D]
 
-    # Latent dynamics, teacher-forced over all H + 1 transitions at once.
-    z_in = z[:, :-1].reshape(b * (h + 1), -1)
-    a_in = action.reshape(b * (h + 1), -1)
-    z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(b * (h + 1), -1)
-    dyn_fn = lambda x_t, t: nets.dynamics.apply(
-        {'params': params['dynamics']}, x_t, t, z_in, a_in, deterministic=False,
-        rngs=drop(0))
-    l_dyn = diffusion.denoising_loss(dyn_fn, z_next, k_dyn, pred).mean()
-
-    # Action proposal: the H-step sequence given z_0.
-    act_fn = lambda a_t, t: nets.proposal.apply(
-        {'params': params['proposal']}, a_t, t, z[:, 0], deterministic=False,
-        rngs=drop(1))
-    l_act = diffusion.denoising_loss(act_fn, action[:, :h], k_act, pred).mean()
+    l_dyn = dynamics_loss(params, z, action, k_dyn, drop(0))
+    l_act = proposal_loss(params, z, action, k_act, drop(1))
 
     # Sequence objective on (z_0, a_0, ..., z_H): rewards at a_i tokens, values at z_i tokens.
     r_logits, v_logits = nets.objective.apply(

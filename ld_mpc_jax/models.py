@@ -2,6 +2,16 @@
 
 All are plain flax modules. `build_networks(config)` instantiates them from a config;
 `init_params(config, key)` returns a dict of their parameters, one entry per network.
+
+The proposal and the dynamics each come in three kinds, chosen by `config.model.proposal_type`
+and `config.model.dynamics_type` (the ablations of experiments/ablations.py):
+  proposal  'diffusion_seq'  diffusion over the whole H-step action sequence given z_0 (default);
+            'diffusion_step' diffusion over one action given the current latent z_i;
+            'mlp'            Gaussian MLP policy over one action given z_i;
+  dynamics  'diffusion_ar'   diffusion over z_{i+1} given (z_i, a_i), autoregressive (default);
+            'diffusion_traj' diffusion over the whole latent trajectory z_{1:H} given (z_0, a_{0:H});
+            'mlp'            deterministic MLP z_{i+1} = f(z_i, a_i).
+Single-step proposals are sampled inside the rollout, one action per visited latent.
 """
 
 from typing import NamedTuple
@@ -111,6 +121,73 @@ class LatentDynamics(nn.Module):
     return self.denoise(x_t, t, self.embed_cond(z, a), deterministic)
 
 
+class TrajectoryDynamics(nn.Module):
+  """Diffusion transformer over a whole latent trajectory p(z_{1:H} | z_0, a_{0:H-1}).
+
+  Tokens: [z_0, a_0 + noisy z_1, ..., a_{H-1} + noisy z_H] (bidirectional attention) with Fourier
+  position embeddings plus the diffusion-time embedding; predicts the H latents at once.
+  """
+  latent_dim: int
+  width: int
+  num_blocks: int
+  num_heads: int
+  mlp_ratio: int = 4
+  dropout: float = 0.0
+
+  def setup(self):
+    self.z_proj = nn.Dense(self.width)
+    self.a_proj = nn.Dense(self.width)
+    self.x_proj = nn.Dense(self.width)
+    self.time_embed = TimeEmbedding(self.width)
+    self.backbone = Transformer(self.num_blocks, self.num_heads, self.mlp_ratio, self.dropout)
+    self.out = nn.Dense(self.latent_dim)
+
+  def embed_cond(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D], a [..., H, A] -> conditioning [..., H + 1, W] (z_0 token, then a_i)."""
+    return jnp.concatenate([self.z_proj(z)[..., None, :], self.a_proj(a)], axis=-2)
+
+  def denoise(self, x_t: jnp.ndarray, t: jnp.ndarray, cond: jnp.ndarray,
+              deterministic: bool = True) -> jnp.ndarray:
+    """x_t [..., H, D] noisy z_{1:H}, t [] or [...], cond [..., H+1, W] -> [..., H, D]."""
+    horizon = x_t.shape[-2]
+    temb = self.time_embed(t)[..., None, :]
+    pos = position_embedding(horizon + 1, self.width)
+    x = jnp.concatenate([jnp.zeros_like(cond[..., :1, :]), self.x_proj(x_t)], axis=-2)
+    h = self.backbone(cond + x + pos + temb, deterministic=deterministic)
+    return self.out(h[..., 1:, :])
+
+  def __call__(self, x_t, t, z, a, deterministic: bool = True):
+    return self.denoise(x_t, t, self.embed_cond(z, a), deterministic)
+
+
+class MLPDynamics(nn.Module):
+  """Deterministic transition z_{i+1} = normalise(MLP([z_i, a_i])), on the encoder's sphere."""
+  hidden: int
+  latent_dim: int
+
+  @nn.compact
+  def __call__(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D], a [..., A] -> [..., D]."""
+    x = jnp.concatenate([z, a], axis=-1)
+    return rms_normalize(MLP((self.hidden, self.hidden, self.latent_dim), name='mlp')(x))
+
+
+class MLPProposal(nn.Module):
+  """Gaussian policy over one action: mean and log-std from an MLP of z (a single-step proposal)."""
+  hidden: tuple
+  action_dim: int
+  log_std_min: float = -5.0
+  log_std_max: float = 1.0
+
+  @nn.compact
+  def __call__(self, z: jnp.ndarray):
+    """z [..., D] -> (mean [..., A], log_std [..., A])."""
+    out = MLP(tuple(self.hidden) + (2 * self.action_dim,), name='mlp')(z)
+    mean, log_std = jnp.split(out, 2, axis=-1)
+    log_std = self.log_std_min + (self.log_std_max - self.log_std_min) * jax.nn.sigmoid(log_std)
+    return jnp.tanh(mean), log_std
+
+
 class SequenceObjective(nn.Module):
   """Causal transformer over (z_0, a_0, z_1, ..., a_{H-1}, z_H) -> reward and value logits.
 
@@ -155,10 +232,24 @@ class Actor(nn.Module):
     return jnp.tanh(MLP(tuple(self.hidden) + (self.action_dim,), name='mlp')(z))
 
 
+PROPOSAL_TYPES = ('diffusion_seq', 'diffusion_step', 'mlp')
+DYNAMICS_TYPES = ('diffusion_ar', 'diffusion_traj', 'mlp')
+
+
+def proposal_type(config: ml_collections.ConfigDict) -> str:
+  """config.model.proposal_type; configs saved before the field existed mean the default."""
+  return config.model.get('proposal_type', 'diffusion_seq')
+
+
+def dynamics_type(config: ml_collections.ConfigDict) -> str:
+  """config.model.dynamics_type; configs saved before the field existed mean the default."""
+  return config.model.get('dynamics_type', 'diffusion_ar')
+
+
 class Networks(NamedTuple):
   encoder: Encoder
-  proposal: ActionProposal
-  dynamics: LatentDynamics
+  proposal: nn.Module  # ActionProposal, or MLPProposal for proposal_type 'mlp'.
+  dynamics: nn.Module  # LatentDynamics, TrajectoryDynamics or MLPDynamics.
   objective: SequenceObjective
   actor: Actor
 
@@ -167,11 +258,24 @@ def build_networks(config: ml_collections.ConfigDict) -> Networks:
   """Instantiates the five networks from `config.model` (no parameters yet)."""
   m = config.model
   common = dict(width=m.width, num_heads=m.num_heads, mlp_ratio=m.mlp_ratio, dropout=m.dropout)
+  proposal = {
+      'diffusion_seq': lambda: ActionProposal(config.horizon, config.action_dim,
+                                              num_blocks=m.proposal_blocks, **common),
+      'diffusion_step': lambda: ActionProposal(1, config.action_dim,
+                                               num_blocks=m.proposal_blocks, **common),
+      'mlp': lambda: MLPProposal(tuple(m.actor_hidden), config.action_dim),
+  }[proposal_type(config)]()
+  dynamics = {
+      'diffusion_ar': lambda: LatentDynamics(m.latent_dim, num_blocks=m.dynamics_blocks,
+                                             **common),
+      'diffusion_traj': lambda: TrajectoryDynamics(m.latent_dim, num_blocks=m.dynamics_blocks,
+                                                   **common),
+      'mlp': lambda: MLPDynamics(m.width, m.latent_dim),
+  }[dynamics_type(config)]()
   return Networks(
       encoder=Encoder(m.encoder_hidden, m.latent_dim),
-      proposal=ActionProposal(config.horizon, config.action_dim,
-                              num_blocks=m.proposal_blocks, **common),
-      dynamics=LatentDynamics(m.latent_dim, num_blocks=m.dynamics_blocks, **common),
+      proposal=proposal,
+      dynamics=dynamics,
       objective=SequenceObjective(num_blocks=m.objective_blocks, num_bins=m.num_bins, **common),
       actor=Actor(tuple(m.actor_hidden), config.action_dim),
   )
@@ -185,10 +289,20 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   keys = dict(zip(Networks._fields, jax.random.split(key, len(Networks._fields))))
   obs = jnp.zeros((1, config.obs_dim))
   z, t = jnp.zeros((1, d)), jnp.zeros((1,))
+  proposal_args = {
+      'diffusion_seq': (jnp.zeros((1, h, a)), t, z),
+      'diffusion_step': (jnp.zeros((1, 1, a)), t, z),
+      'mlp': (z,),
+  }[proposal_type(config)]
+  dynamics_args = {
+      'diffusion_ar': (z, t, z, jnp.zeros((1, a))),
+      'diffusion_traj': (jnp.zeros((1, h, d)), t, z, jnp.zeros((1, h, a))),
+      'mlp': (z, jnp.zeros((1, a))),
+  }[dynamics_type(config)]
   return {
       'encoder': nets.encoder.init(keys['encoder'], obs)['params'],
-      'proposal': nets.proposal.init(keys['proposal'], jnp.zeros((1, h, a)), t, z)['params'],
-      'dynamics': nets.dynamics.init(keys['dynamics'], z, t, z, jnp.zeros((1, a)))['params'],
+      'proposal': nets.proposal.init(keys['proposal'], *proposal_args)['params'],
+      'dynamics': nets.dynamics.init(keys['dynamics'], *dynamics_args)['params'],
       'objective': nets.objective.init(keys['objective'], jnp.zeros((1, h + 1, d)),
                                        jnp.zeros((1, h, a)))['params'],
       'actor': nets.actor.init(keys['actor'], z)['params'],

@@ -277,3 +277,29 @@ def make_ldmpc_value_fn(config: ml_collections.ConfigDict) -> ValueFn:
     return score(params, latents, actions)
 
   return value_fn
+
+
+def make_ldmpc_prior_fn(config: ml_collections.ConfigDict) -> PriorFn:
+  """Actor-prior trajectories of LD-MPC's actor rolled out through its learned dynamics."""
+  from ld_mpc_jax import planner
+  from ld_mpc_jax.models import build_networks
+  nets = build_networks(config)
+  h, a = config.horizon, config.action_dim
+
+  def prior_fn(params, z, key, num):
+    c = ml_collections.ConfigDict(config.to_dict())
+    c.plan.num_candidates, c.plan.num_prior_candidates = num, num
+    actions, _ = planner.make_rollout(c, nets)(params, z, jnp.zeros((0, h, a)), key)
+    return actions
+
+  return prior_fn
+
+
+def make_ldmpc_mppi(config: ml_collections.ConfigDict) -> Callable:
+  """MPPI (settings from config.mppi) on LD-MPC's learned dynamics, objective and actor prior.
+
+  Returns plan(params, z [latent_dim], key, prev_mean [H, A] | None) -> MPPIOutput.
+  """
+  cfg = MPPIConfig(action_dim=config.action_dim, horizon=config.horizon, **config.mppi)
+  prior_fn = make_ldmpc_prior_fn(config) if cfg.num_prior else None
+  return make_mppi_plan(cfg, make_ldmpc_value_fn(config), prior_fn)

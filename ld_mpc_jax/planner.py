@@ -2,10 +2,12 @@
 
 One call of `plan`:
   1. samples K - P action sequences [H, A] from the diffusion proposal given z (lax.scan over the
-     denoising steps, all candidates batched);
+     denoising steps, all candidates batched; optionally energy-guided by the objective);
   2. rolls every candidate out with the latent diffusion dynamics, autoregressively over H
      (outer lax.scan) with a full denoising loop per transition (inner lax.scan); the P
      actor-prior candidates take a_i = Actor(z_hat_i) along their own rollout;
+     (the ablation kinds of ld_mpc_jax.models swap in single-step proposals drawn inside the
+     rollout, MLP dynamics, or whole-trajectory latent diffusion);
   3. scores each with J = sum_{i<H} gamma^i r_i + gamma^H V(z_H) from the sequence objective model;
   4. returns the first action of the argmax candidate, clipped to [-1, 1].
 """
@@ -20,7 +22,8 @@ import ml_collections
 from ld_mpc_jax import diffusion
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.losses import discounted_return, two_hot_decode
-from ld_mpc_jax.models import ActionProposal, LatentDynamics, Networks, build_networks
+from ld_mpc_jax.models import (ActionProposal, LatentDynamics, Networks, TrajectoryDynamics,
+                               build_networks, dynamics_type, proposal_type)
 
 # score_fn(params, latents [K, H+1, D], actions [K, H, A]) -> returns [K].
 ScoreFn = Callable[[dict, jnp.ndarray, jnp.ndarray], jnp.ndarray]
@@ -49,6 +52,31 @@ def make_objective_score(config: ml_collections.ConfigDict, nets: Networks) -> S
   return score
 
 
+def make_step_proposal(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+  """Single-step proposal kinds: returns step_propose(params, zs [N, D], key) -> [N, A].
+
+  'diffusion_step' denoises one action per latent in `plan.action_steps` steps; 'mlp' samples
+  the Gaussian policy. Actions are clipped to [-1, 1].
+  """
+  p, d = config.plan, config.diffusion
+
+  def step_propose(params, zs, key):
+    variables = {'params': params['proposal']}
+    init_key, sample_key = jax.random.split(key)
+    noise = jax.random.normal(init_key, zs.shape[:-1] + (1, config.action_dim))
+    if proposal_type(config) == 'mlp':
+      mean, log_std = nets.proposal.apply(variables, zs)
+      return jnp.clip(mean + jnp.exp(log_std) * noise[..., 0, :], -1.0, 1.0)
+    cond = nets.proposal.apply(variables, zs, method=ActionProposal.embed_cond)  # [N, 1, W]
+    model_fn = lambda a_t, t: nets.proposal.apply(variables, a_t, t, cond,
+                                                  method=ActionProposal.denoise)
+    a = diffusion.sample(model_fn, noise, sample_key, p.action_steps, p.action_eta,
+                         d.prediction, clip_x0=d.clip_actions)
+    return jnp.clip(a[..., 0, :], -1.0, 1.0)
+
+  return step_propose
+
+
 def make_propose(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   """Returns propose(params, z [D], key, num, init=None) -> [num, H, A] action sequences.
 
@@ -56,9 +84,29 @@ def make_propose(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   [H, A] given and `plan.warm_start_steps` > 0): `init` is noised to t = `plan.warm_start_t`
   with independent noise per candidate and denoised in `warm_start_steps` steps (SDEdit-style),
   so candidates stay near the previous plan but keep diversity, at a fraction of the cost.
+
+  Energy guidance (`plan.guidance_scale` > 0): at every denoising step the predicted clean
+  sequence x0(a_t) is scored by J under a cheap deterministic rollout (`plan.
+  guidance_dynamics_steps` DDIM steps per transition) and moved along the gradient of J with
+  respect to the noisy sequence a_t: x0 + scale (1 - alpha_bar(t)) g, with g = dJ/da_t scaled
+  to unit RMS per candidate (so `scale` is in action units), and guidance fades with the noise.
+
+  Single-step proposal kinds return [num, 1, A]: one action for z (the proposal-alone policy).
   """
   p, d = config.plan, config.diffusion
   h, a = config.horizon, config.action_dim
+  if proposal_type(config) != 'diffusion_seq':
+    step_propose = make_step_proposal(config, nets)
+    return lambda params, z, key, num, init=None: step_propose(
+        params, jnp.broadcast_to(z, (num,) + z.shape), key)[:, None]
+  guidance = p.get('guidance_scale', 0.0)
+  if guidance:
+    guide_config = ml_collections.ConfigDict(config.to_dict())
+    guide_config.plan.dynamics_steps = p.get('guidance_dynamics_steps', 1)
+    guide_config.plan.dynamics_eta = 0.0
+    guide_config.plan.num_prior_candidates = 0
+    guide_rollout = make_rollout(guide_config, nets)
+    score = make_objective_score(config, nets)
 
   def propose(params, z, key, num, init=None):
     variables = {'params': params['proposal']}
@@ -66,7 +114,20 @@ def make_propose(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     cond = jnp.broadcast_to(cond, (num,) + cond.shape)
     model_fn = lambda a_t, t: nets.proposal.apply(variables, a_t, t, cond,
                                                   method=ActionProposal.denoise)
-    init_key, sample_key = jax.random.split(key)
+    init_key, sample_key, guide_key = jax.random.split(key, 3)
+    if guidance:
+      unguided = model_fn
+
+      def model_fn(a_t, t):
+        def total_return(a_t):
+          x0 = jnp.clip(unguided(a_t, t), -d.clip_actions, d.clip_actions)
+          _, latents = guide_rollout(params, z, x0, guide_key)
+          return score(params, latents, x0).sum(), x0
+        grad, x0 = jax.grad(total_return, has_aux=True)(a_t)
+        # Unit RMS per candidate: the scale is then in action units, whatever J's scale.
+        rms = jnp.sqrt(jnp.mean(grad ** 2, axis=(-2, -1), keepdims=True))
+        return x0 + guidance * (1.0 - diffusion.alpha_bar(t)) * grad / (rms + 1e-8)
+
     noise = jax.random.normal(init_key, (num, h, a))
     if init is None or p.warm_start_steps == 0:
       return diffusion.sample(model_fn, noise, sample_key, p.action_steps, p.action_eta,
@@ -84,40 +145,80 @@ def shift_sequence(sequence: jnp.ndarray) -> jnp.ndarray:
   return jnp.concatenate([sequence[1:], sequence[-1:]], axis=0)
 
 
-def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
-  """Returns rollout(params, z [D], actions [K-P, H, A], key) -> (actions, latents).
+def make_transition(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+  """One-step dynamics kinds: returns step(params, z [N, D], a [N, A], key) -> z_next [N, D]."""
+  p, d = config.plan, config.diffusion
 
-  actions out: [K, H, A] (proposals then P actor-prior candidates); latents: [K, H+1, D] with
-  latents[:, 0] = z.
+  def step(params, z_cur, a_cur, key):
+    dyn_vars = {'params': params['dynamics']}
+    if dynamics_type(config) == 'mlp':
+      return nets.dynamics.apply(dyn_vars, z_cur, a_cur)
+    cond = nets.dynamics.apply(dyn_vars, z_cur, a_cur, method=LatentDynamics.embed_cond)
+    model_fn = lambda x_t, t: nets.dynamics.apply(dyn_vars, x_t, t, cond,
+                                                  method=LatentDynamics.denoise)
+    x_init = jax.random.normal(jax.random.fold_in(key, 0), z_cur.shape)
+    return diffusion.sample(model_fn, x_init, jax.random.fold_in(key, 1), p.dynamics_steps,
+                            p.dynamics_eta, d.prediction)
+
+  return step
+
+
+def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+  """Returns rollout(params, z [D], proposals, key) -> (actions [K, H, A], latents [K, H+1, D]).
+
+  `proposals` is either fixed action sequences [N, H, A], or an int N: then each of the N
+  candidates draws a_i from the single-step proposal at its own z_i. The P =
+  `plan.num_prior_candidates` actor-prior candidates are appended (K = N + P); they take
+  a_i = Actor(z_i) along their own rollout. latents[:, 0] = z. Autoregressive kinds roll out
+  with an outer lax.scan over H; 'diffusion_traj' denoises all H latents at once.
   """
   p, d = config.plan, config.diffusion
-  k, num_prior, h = p.num_candidates, p.num_prior_candidates, config.horizon
+  num_prior, h = p.num_prior_candidates, config.horizon
+  transition = make_transition(config, nets)
+  step_propose = (make_step_proposal(config, nets)
+                  if proposal_type(config) != 'diffusion_seq' else None)
+
+  def trajectory_rollout(params, z, proposals, key):
+    dyn_vars = {'params': params['dynamics']}
+    k = proposals.shape[0]
+    cond = nets.dynamics.apply(dyn_vars, jnp.broadcast_to(z, (k,) + z.shape), proposals,
+                               method=TrajectoryDynamics.embed_cond)
+    model_fn = lambda x_t, t: nets.dynamics.apply(dyn_vars, x_t, t, cond,
+                                                  method=TrajectoryDynamics.denoise)
+    x_init = jax.random.normal(jax.random.fold_in(key, 0), (k, h) + z.shape)
+    zs = diffusion.sample(model_fn, x_init, jax.random.fold_in(key, 1), p.dynamics_steps,
+                          p.dynamics_eta, d.prediction)
+    latents = jnp.concatenate([jnp.broadcast_to(z, (k, 1) + z.shape), zs], axis=1)
+    return proposals, latents
 
   def rollout(params, z, proposals, key):
-    dyn_vars = {'params': params['dynamics']}
-    actions_t = jnp.swapaxes(proposals, 0, 1)  # [H, K-P, A]
+    if dynamics_type(config) == 'diffusion_traj':
+      return trajectory_rollout(params, z, proposals, key)
+    sampled = isinstance(proposals, int)
+    num = proposals if sampled else proposals.shape[0]
+    k = num + num_prior
+    xs = jnp.arange(h) if sampled else (jnp.swapaxes(proposals, 0, 1), jnp.arange(h))
 
-    def transition(z_cur, inputs):
-      a_prop, i = inputs
+    def step(z_cur, inputs):
+      i = inputs if sampled else inputs[1]
       step_key = jax.random.fold_in(key, i)
+      if sampled:
+        a_prop = step_propose(params, z_cur[:num], jax.random.fold_in(step_key, 3))
+      else:
+        a_prop = inputs[0]
       if num_prior:
-        a_pi = nets.actor.apply({'params': params['actor']}, z_cur[k - num_prior:])
+        a_pi = nets.actor.apply({'params': params['actor']}, z_cur[num:])
         if p.prior_noise_std > 0:
           noise = jax.random.normal(jax.random.fold_in(step_key, 2), a_pi.shape)
           a_pi = jnp.clip(a_pi + p.prior_noise_std * noise, -1.0, 1.0)
         a_cur = jnp.concatenate([a_prop, a_pi], axis=0)
       else:
         a_cur = a_prop
-      cond = nets.dynamics.apply(dyn_vars, z_cur, a_cur, method=LatentDynamics.embed_cond)
-      model_fn = lambda x_t, t: nets.dynamics.apply(dyn_vars, x_t, t, cond,
-                                                    method=LatentDynamics.denoise)
-      x_init = jax.random.normal(jax.random.fold_in(step_key, 0), z_cur.shape)
-      z_next = diffusion.sample(model_fn, x_init, jax.random.fold_in(step_key, 1),
-                                p.dynamics_steps, p.dynamics_eta, d.prediction)
+      z_next = transition(params, z_cur, a_cur, step_key)
       return z_next, (a_cur, z_next)
 
     z0 = jnp.broadcast_to(z, (k,) + z.shape)
-    _, (acts, zs) = jax.lax.scan(transition, z0, (actions_t, jnp.arange(h)))
+    _, (acts, zs) = jax.lax.scan(step, z0, xs)
     latents = jnp.concatenate([z0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
     return jnp.swapaxes(acts, 0, 1), latents
 
@@ -144,6 +245,7 @@ def make_plan(config: ml_collections.ConfigDict,
   score_fn = score_fn or make_objective_score(config, nets)
   propose = make_propose(config, nets)
   rollout = make_rollout(config, nets)
+  sequence_proposal = proposal_type(config) == 'diffusion_seq'
 
   def plan(params, z, key, prev_sequence=None) -> PlanOutput:
     if z.shape != (d,):
@@ -156,10 +258,13 @@ def make_plan(config: ml_collections.ConfigDict,
         raise ValueError(f'prev_sequence must have shape ({config.horizon}, '
                          f'{config.action_dim}), got {prev_sequence.shape}')
       init = shift_sequence(prev_sequence)
-    proposals = propose(params, z, prop_key, k - num_prior, init)
-    if p.action_noise_std > 0:
-      noise = jax.random.normal(noise_key, proposals.shape)
-      proposals = jnp.clip(proposals + p.action_noise_std * noise, -1.0, 1.0)
+    if sequence_proposal:
+      proposals = propose(params, z, prop_key, k - num_prior, init)
+      if p.action_noise_std > 0:
+        noise = jax.random.normal(noise_key, proposals.shape)
+        proposals = jnp.clip(proposals + p.action_noise_std * noise, -1.0, 1.0)
+    else:  # Single-step proposals are drawn inside the rollout.
+      proposals = k - num_prior
     actions, latents = rollout(params, z, proposals, dyn_key)
     scores = score_fn(params, latents, actions)
     index = jnp.argmax(scores)

@@ -202,7 +202,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
              'steps_per_s': steps_per_s}
       _append_csv(os.path.join(workdir, 'metrics.csv'), row)
       for k, v in row.items():
-        if k != 'step':
+        if k != 'step' and np.isfinite(v):  # steps/s is NaN until the second log.
           writer.add_scalar(f'train/{k}', v, done)
     if done % t_cfg.checkpoint_every == 0 or done == num_steps:
       finite = jax.tree_util.tree_reduce(lambda ok, x: ok & jnp.all(jnp.isfinite(x)),
@@ -225,7 +225,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
                            episodes=config.eval.episodes)
     baselines = {mode: _brief(run_evaluation(config, params, mode, config.eval.episodes,
                                              config.seed))
-                 for mode in ('actor', 'proposal')}
+                 for mode in config.eval.get('baselines', ('actor', 'proposal'))}
   else:
     final = dict.fromkeys(('success_rate', 'success_ci95', 'mean_return', 'mean_length',
                            'decisions_per_s'))

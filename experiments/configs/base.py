@@ -28,6 +28,10 @@ def get_config() -> ml_collections.ConfigDict:
   m.dynamics_blocks = 5
   m.objective_blocks = 10
   m.actor_hidden = (256, 256)  # TD-MPC2's policy MLP width.
+  # Model kinds (ld_mpc_jax.models): the project's model is a whole-sequence diffusion proposal
+  # with autoregressive latent diffusion dynamics; the others exist for the ablations.
+  m.proposal_type = 'diffusion_seq'  # | 'diffusion_step' | 'mlp'
+  m.dynamics_type = 'diffusion_ar'  # | 'diffusion_traj' | 'mlp'
   m.num_bins = 101  # Two-hot bins over symlog values on [vmin, vmax], as TD-MPC2.
   m.vmin = -10.0
   m.vmax = 10.0
@@ -54,6 +58,20 @@ def get_config() -> ml_collections.ConfigDict:
   # denoise it in warm_start_steps steps instead of action_steps from pure noise.
   p.warm_start_steps = 0
   p.warm_start_t = 0.5
+  # Energy guidance (0 = off): each denoising step of the proposal moves the predicted sequence
+  # along the gradient of J, scored under a cheap rollout of guidance_dynamics_steps per step.
+  p.guidance_scale = 0.0
+  p.guidance_dynamics_steps = 1
+
+  # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
+  c.mppi = mp = ml_collections.ConfigDict()
+  mp.num_samples = 512
+  mp.num_elites = 64
+  mp.num_prior = 24  # Actor-prior trajectories rolled out through the learned dynamics.
+  mp.iterations = 6
+  mp.temperature = 0.5
+  mp.min_std = 0.05
+  mp.max_std = 2.0
 
   c.loss = l = ml_collections.ConfigDict()
   l.w_dyn = 1.0  # Latent dynamics denoising loss.
@@ -89,6 +107,7 @@ def get_config() -> ml_collections.ConfigDict:
   c.eval = e = ml_collections.ConfigDict()
   e.episodes = 50  # Final evaluation (Meta-World protocol).
   e.periodic_episodes = 10  # Cheaper evaluations during training.
+  e.baselines = ('actor', 'proposal')  # Also evaluated at the end, on the same parameters.
   e.action_repeat = 2  # TD-MPC2's setting for Meta-World.
   e.max_episode_steps = 500
   e.noise_stds = (0.0, 0.01, 0.05, 0.1)

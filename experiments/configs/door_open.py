@@ -3,6 +3,7 @@
   python -m experiments.train --config=door_open.py            # reference (paper-sized)
   python -m experiments.train --config=door_open.py:cpu        # trains on a 2-core CPU
   python -m experiments.train --config=door_open.py:smoke      # seconds, for tests
+  python -m experiments.ablations                               # uses the :ablation preset
 """
 
 import ml_collections
@@ -27,13 +28,37 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     _resize(c, width=128, heads=4, blocks=2)
     c.model.actor_hidden = (128, 128)
     c.model.dropout = 0.0  # Short training on plentiful data: dropout only slows fitting.
-    c.plan.action_steps = 8
-    c.plan.dynamics_steps = 4
+    # The fast planner (README, Results): 4 deterministic DDIM steps for the proposal, 1 per
+    # transition, and 16 of the 64 candidates from the actor prior.
+    c.plan.action_steps = 4
+    c.plan.dynamics_steps = 1
+    c.plan.action_eta = c.plan.dynamics_eta = 0.0
+    c.plan.num_prior_candidates = 16
     # 4,000 steps of batch 128 train in about 14 minutes on 2 cores (README, Results).
     c.train.batch_size = 128
     c.train.learning_rate = 3e-4
     c.train.num_steps = 4_000
     c.train.eval_every = 2_000
+    return c
+  if preset == 'ablation':
+    # Sized so that experiments.ablations (6 variants x 4 runs + baselines, 50-episode
+    # evaluations) fits in about two hours on a 2-core CPU.
+    _resize(c, width=64, heads=4, blocks=1)
+    c.model.actor_hidden = (64, 64)
+    c.model.dropout = 0.0
+    c.plan.num_candidates = 32
+    c.plan.action_steps = 4
+    c.plan.dynamics_steps = 2
+    c.mppi.num_samples = 64  # TD-MPC2's 512 x 6 iterations is 100x the planner's 32 rollouts.
+    c.mppi.num_elites = 8
+    c.mppi.num_prior = 8
+    c.mppi.iterations = 3
+    c.train.batch_size = 128
+    c.train.learning_rate = 3e-4
+    c.train.warmup_steps = 100
+    c.train.num_steps = 3_000
+    c.train.eval_every = 3_000  # Only the final evaluation.
+    c.train.checkpoint_every = 1_000
     return c
   if preset == 'smoke':
     _resize(c, width=16, heads=2, blocks=1)
@@ -54,4 +79,4 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.eval.max_episode_steps = 20
     c.eval.noise_stds = (0.0,)
     return c
-  raise ValueError(f"unknown preset {preset!r}: use '', 'cpu' or 'smoke'")
+  raise ValueError(f"unknown preset {preset!r}: use '', 'cpu', 'ablation' or 'smoke'")

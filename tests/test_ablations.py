@@ -1,0 +1,145 @@
+"""The ablation variants (ld_mpc_jax.models kinds, energy guidance, MPPI) and the sweep's helpers."""
+
+import json
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from experiments import ablations
+from ld_mpc_jax import agent, models, planner
+from ld_mpc_jax.train_state import create_train_state, make_update
+
+
+def _batch(config, b=4):
+  h, rng = config.horizon, np.random.default_rng(0)
+  return {'obs': jnp.asarray(rng.normal(size=(b, h + 2, config.obs_dim)), jnp.float32),
+          'action': jnp.asarray(rng.uniform(-1, 1, size=(b, h + 2 - 1, config.action_dim)),
+                                jnp.float32),
+          'reward': jnp.asarray(rng.uniform(0, 1, size=(b, h + 1)), jnp.float32)}
+
+
+@pytest.mark.parametrize('name', list(ablations.VARIANTS))
+def test_variant_builds_trains_one_step_and_plans(smoke_config, name):
+  config = ablations.with_overrides(smoke_config, ablations.VARIANTS[name][1])
+  state = create_train_state(config, jax.random.key(0))
+  before = jax.tree_util.tree_map(jnp.copy, state.params)
+  state, metrics = make_update(config)(state, _batch(config), jax.random.key(1))
+  assert np.isfinite(float(metrics['loss']))
+  for net in ('proposal', 'dynamics'):  # Both kinds of network receive gradients.
+    moved = jax.tree_util.tree_map(lambda a, b: float(jnp.abs(a - b).max()),
+                                   before[net], state.params[net])
+    assert max(jax.tree_util.tree_leaves(moved)) > 0, net
+  z = models.encode(state.params, jnp.linspace(-1, 1, config.obs_dim))
+  out = planner.make_plan(config)(state.params, z, jax.random.key(2))
+  k, h, a = config.plan.num_candidates, config.horizon, config.action_dim
+  chex.assert_shape(out.candidates, (k, h, a))
+  chex.assert_shape(out.action, (a,))
+  assert np.all(np.abs(np.asarray(out.candidates)) <= 1.0)
+  assert np.all(np.isfinite(np.asarray(out.scores)))
+  np.testing.assert_allclose(out.action, out.candidates[int(out.index), 0])
+
+
+def test_mlp_dynamics_stays_on_the_encoder_sphere(smoke_config):
+  config = ablations.with_overrides(smoke_config, {'model.dynamics_type': 'mlp'})
+  params = models.init_params(config, jax.random.key(0))
+  nets = models.build_networks(config)
+  d = config.model.latent_dim
+  z_next = nets.dynamics.apply({'params': params['dynamics']}, jnp.ones((3, d)),
+                               jnp.zeros((3, config.action_dim)))
+  np.testing.assert_allclose(jnp.sqrt(jnp.mean(z_next ** 2, -1)), 1.0, rtol=1e-4)
+
+
+def test_single_step_proposal_draws_a_fresh_action_at_every_latent(smoke_config):
+  """With a single-step proposal, a_i depends on z_i: different rollouts differ after step 0."""
+  config = ablations.with_overrides(smoke_config, ablations.VARIANTS['diffstep_mlp'][1])
+  params = models.init_params(config, jax.random.key(0))
+  rollout = planner.make_rollout(config, models.build_networks(config))
+  actions, latents = rollout(params, jnp.ones(config.model.latent_dim), 3, jax.random.key(1))
+  chex.assert_shape(actions, (3, config.horizon, config.action_dim))
+  chex.assert_shape(latents, (3, config.horizon + 1, config.model.latent_dim))
+  assert float(jnp.abs(actions[0] - actions[1]).max()) > 0
+
+
+def test_trajectory_dynamics_rejects_actor_prior_candidates(smoke_config):
+  config = ablations.with_overrides(smoke_config, {'model.dynamics_type': 'diffusion_traj',
+                                                   'plan.num_prior_candidates': 1})
+  with pytest.raises(ValueError, match='num_prior_candidates'):
+    planner.make_plan(config)
+
+
+def test_energy_guidance_raises_the_guided_return(smoke_config):
+  """Same key and noise: guided proposals score higher under the guidance rollout's J."""
+  guided_cfg = ablations.with_overrides(smoke_config, {'plan.guidance_scale': 1.0,
+                                                       'plan.num_candidates': 16})
+  plain_cfg = ablations.with_overrides(guided_cfg, {'plan.guidance_scale': 0.0})
+  params = models.init_params(guided_cfg, jax.random.key(3))
+  nets = models.build_networks(guided_cfg)
+  z, key = models.encode(params, jnp.linspace(-1, 1, 39)), jax.random.key(4)
+  guided = planner.make_propose(guided_cfg, nets)(params, z, key, 16)
+  plain = planner.make_propose(plain_cfg, nets)(params, z, key, 16)
+  assert np.all(np.abs(np.asarray(guided)) <= 1.0)
+  assert float(jnp.abs(guided - plain).max()) > 1e-3
+  score_cfg = ablations.with_overrides(plain_cfg, {'plan.dynamics_steps': 1,
+                                                   'plan.dynamics_eta': 0.0})
+  rollout = planner.make_rollout(score_cfg, nets)
+  score = planner.make_objective_score(score_cfg, nets)
+  j = lambda acts: float(score(params, rollout(params, z, acts, jax.random.key(5))[1],
+                               acts).mean())
+  assert j(guided) > j(plain)
+
+
+def test_guidance_needs_a_sequence_proposal(smoke_config):
+  config = ablations.with_overrides(smoke_config, {'plan.guidance_scale': 1.0,
+                                                   'model.proposal_type': 'mlp'})
+  with pytest.raises(ValueError, match='guidance_scale'):
+    planner.make_plan(config)
+
+
+def test_mppi_mode_acts_within_bounds_and_is_deterministic(smoke_config, smoke_params):
+  config = ablations.with_overrides(smoke_config, {'mppi.num_samples': 8, 'mppi.num_elites': 2,
+                                                   'mppi.num_prior': 2, 'mppi.iterations': 2})
+  act = agent.make_act(config, 'mppi')
+  obs = jnp.linspace(-1, 1, 39)
+  a1, mean = act(smoke_params, obs, jax.random.key(0), 0, None)
+  a2, _ = act(smoke_params, obs, jax.random.key(0), 0, None)
+  chex.assert_shape(mean, (config.horizon, config.action_dim))
+  np.testing.assert_array_equal(a1, a2)
+  assert np.all(np.abs(np.asarray(a1)) <= 1.0)
+
+
+def test_seed_interval_matches_hand_computed_t_interval():
+  lo, hi = ablations.seed_interval([0.5, 0.6, 0.7])
+  half = 4.303 * 0.1 / np.sqrt(3)
+  np.testing.assert_allclose([lo, hi], [0.6 - half, 0.6 + half], rtol=1e-6)
+  assert ablations.seed_interval([0.9, 1.0, 1.0])[1] == 1.0  # Clipped.
+  assert ablations.seed_interval([0.4]) == [0.4, 0.4]
+
+
+def test_row_aggregates_mixed_seeds_and_expert():
+  r = lambda s: {'success_rate': s, 'success_ci95': [s - 0.1, s], 'mean_return': 100 * s,
+                 'decisions_per_s': 10.0, 'num_params': 7}
+  out = ablations.row('x', {('mixed', 0): r(0.2), ('mixed', 1): r(0.4), ('expert', 0): r(1.0)})
+  assert out['mixed_success_per_seed'] == [0.2, 0.4]
+  np.testing.assert_allclose(out['mixed_success_mean'], 0.3)
+  np.testing.assert_allclose(out['mixed_return_mean'], 30.0)
+  assert out['expert_success'] == 1.0 and out['num_params'] == 7
+
+
+def test_finished_runs_are_reused_not_retrained(tmp_path, smoke_config):
+  workdir = tmp_path / 'mixed' / 'ldmpc' / 'seed0'
+  workdir.mkdir(parents=True)
+  (workdir / 'report.json').write_text(json.dumps({'success_rate': 0.5}))
+  assert ablations.train_variant(smoke_config, 'ldmpc', 'mixed', 0, str(tmp_path), 1) == {
+      'success_rate': 0.5}
+  cached = workdir / 'eval_mppi.json'
+  cached.write_text(json.dumps({'success_rate': 0.25}))
+  assert ablations.evaluate_on(str(tmp_path), 'ldmpc', 'mixed', 0, 'eval_mppi', {}, 'mppi',
+                               1)['success_rate'] == 0.25
+
+
+def test_with_overrides_rejects_unknown_fields(smoke_config):
+  with pytest.raises(ValueError, match='model.nope'):
+    ablations.with_overrides(smoke_config, {'model.nope': 1})
