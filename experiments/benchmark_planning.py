@@ -44,7 +44,9 @@ VARIANTS = {
     'ddim_8x2_cheap_obj': {**_DDIM_8X2, **_CHEAP_OBJECTIVE},
     # Previous plan re-noised to t = 0.5 and denoised in 4 steps instead of 8 from noise.
     'warm_start': {**_DDIM_8X2, 'plan.warm_start_steps': 4, 'plan.warm_start_t': 0.5},
-    'fast': {**_DDIM_4X1, 'plan.num_candidates': 32, **_CHEAP_OBJECTIVE},
+    # The :cpu preset's planner: DDIM 4x1 with 16 of the 64 candidates from the actor prior.
+    'fast': {**_DDIM_4X1, 'plan.num_prior_candidates': 16},
+    'fast_k32_cheap_obj': {**_DDIM_4X1, 'plan.num_candidates': 32, **_CHEAP_OBJECTIVE},
     'mppi': None,  # The baseline; runs once, independent of the width.
 }
 WIDTHS = {'ref': None, 'cpu': 'cpu'}  # width name -> preset of the config file.
