@@ -196,7 +196,7 @@ def bar_plot(rows: dict, path: str) -> None:
   ax.set_xticks(x, [rows[n]['label'] for n in names], rotation=30, ha='right', fontsize=8)
   ax.set_ylabel('door-open-v3 success')
   ax.set_ylim(0, 1.05)
-  ax.legend(loc='lower right')
+  ax.legend(loc='upper left', bbox_to_anchor=(1.0, 1.0))
   fig.tight_layout()
   fig.savefig(path, dpi=120)
   plt.close(fig)
