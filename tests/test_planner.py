@@ -123,3 +123,26 @@ def test_warm_start_is_deterministic_valid_and_stays_near_the_previous_plan(
   assert warm_err < 0.5 * cold_err, (warm_err, cold_err)
   with pytest.raises(ValueError, match='prev_sequence'):
     plan(smoke_params, z, jax.random.key(0), prev[:-1])
+
+
+@pytest.mark.parametrize('overrides', [
+    # The :cpu preset's fast planner (benchmark variant `fast`): DDIM 4 x 1 + actor candidates.
+    {'action_steps': 4, 'dynamics_steps': 1, 'action_eta': 0.0, 'dynamics_eta': 0.0,
+     'num_prior_candidates': 2},
+    {'action_steps': 8, 'dynamics_steps': 2, 'action_eta': 0.0, 'dynamics_eta': 0.0},
+    {'action_steps': 1, 'dynamics_steps': 1, 'action_eta': 0.0, 'dynamics_eta': 0.0,
+     'num_candidates': 2},
+])
+def test_fast_variants_return_valid_deterministic_actions(smoke_config, smoke_params, z,
+                                                          overrides):
+  for field, value in overrides.items():
+    smoke_config.plan[field] = value
+  plan = make_plan(smoke_config)
+  out = plan(smoke_params, z, jax.random.key(7))
+  again = plan(smoke_params, z, jax.random.key(7))
+  np.testing.assert_array_equal(out.candidates, again.candidates)
+  k = smoke_config.plan.num_candidates
+  assert out.candidates.shape == (k, smoke_config.horizon, smoke_config.action_dim)
+  assert bool(jnp.all(jnp.abs(out.candidates) <= 1.0))
+  assert bool(jnp.all(jnp.isfinite(out.scores)))
+  np.testing.assert_array_equal(out.action, out.candidates[int(jnp.argmax(out.scores)), 0])
