@@ -38,7 +38,7 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
   from ld_mpc_jax.train import train_and_evaluate
-  report = train_and_evaluate(_CONFIG.value, _WORKDIR.value)
+  train_and_evaluate(_CONFIG.value, _WORKDIR.value)
   print(open(os.path.join(_WORKDIR.value, 'report.md')).read())
 
 

@@ -131,7 +131,6 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
-    b = obs.shape[0]
     k_dyn, k_act, k_drop = jax.random.split(key, 3)
     drop = lambda i: {'dropout': jax.random.fold_in(k_drop, i)}  # One stream per network.
 

@@ -176,7 +176,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   t_cfg = config.train
   num_steps = t_cfg.num_steps
   evaluate = config.eval.episodes > 0  # eval.episodes = 0: train and checkpoint only.
-  timed_steps, timed_seconds, last_time = 0, 0.0, None
+  timed_steps, timed_seconds, last_time, last_step = 0, 0.0, None, start
   bar = tqdm.tqdm(range(start, num_steps), initial=start, total=num_steps, desc='train',
                   dynamic_ncols=True)
   for step in bar:

@@ -1,6 +1,5 @@
 """Environment-loop policies: planner (cold and warm), actor prior, proposal alone."""
 
-import jax
 import numpy as np
 import pytest
 
