@@ -31,9 +31,10 @@ import sys
 import time
 
 from absl import app, flags, logging
-import ml_collections
 from ml_collections import config_flags
 import numpy as np
+
+from experiments.overrides import with_overrides
 
 CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'configs')
 
@@ -65,20 +66,6 @@ _EXPERT = flags.DEFINE_bool('expert', True, 'Also one seed on the expert dataset
 _EPISODES = flags.DEFINE_integer('episodes', 50, 'Evaluation episodes per policy.')
 _VARIANTS = flags.DEFINE_list('variants', list(VARIANTS), f'Subset of {list(VARIANTS)}.')
 _NOISE = flags.DEFINE_bool('noise_sweep', True, 'Observation-noise sweep at the end.')
-
-
-def with_overrides(config: ml_collections.ConfigDict, overrides: dict) -> ml_collections.ConfigDict:
-  """A copy of config with dotted fields set, e.g. {'model.dynamics_type': 'mlp'}."""
-  c = ml_collections.ConfigDict(config.to_dict())
-  for dotted, value in overrides.items():
-    *path, leaf = dotted.split('.')
-    node = c
-    for part in path:
-      node = node[part]
-    if leaf not in node:
-      raise ValueError(f'unknown config field {dotted!r}')
-    node[leaf] = value
-  return c
 
 
 def seed_interval(values) -> list:

@@ -27,6 +27,8 @@ import ml_collections
 from ml_collections import config_flags
 import numpy as np
 
+from experiments.overrides import with_overrides
+
 CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'configs')
 
 # name -> overrides (dotted config field -> value, or a function of the config for values that
@@ -136,13 +138,9 @@ def variant_config(base: ml_collections.ConfigDict, model: ml_collections.Config
   """base with `model` swapped in and overrides applied -> (config, resolved overrides)."""
   c = ml_collections.ConfigDict(base.to_dict())
   c.model = ml_collections.ConfigDict(model.to_dict())
-  resolved = {}
-  for dotted, value in overrides.items():
-    value = value(c) if callable(value) else value
-    section, field = dotted.split('.')
-    c[section][field] = value
-    resolved[dotted] = value
-  return c, resolved
+  resolved = {dotted: value(c) if callable(value) else value
+              for dotted, value in overrides.items()}
+  return with_overrides(c, resolved), resolved
 
 
 def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warmup: int) -> dict:

@@ -28,15 +28,9 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax import checkpointing
   from ld_mpc_jax.train import run_evaluation
+  from experiments.overrides import with_overrides
   config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
-  for item in _OVERRIDE.value:
-    name, value = item.split('=', 1)
-    node, *path = name.split('.')
-    parent = config[node] if path else config
-    for part in path[:-1]:
-      parent = parent[part]
-    leaf = path[-1] if path else node
-    parent[leaf] = type(parent[leaf])(value)
+  config = with_overrides(config, dict(item.split('=', 1) for item in _OVERRIDE.value))
   episodes = _EPISODES.value or config.eval.episodes
   out = {'step': step, 'episodes': episodes, 'overrides': _OVERRIDE.value, 'modes': {}}
   for mode in _MODES.value:

@@ -139,7 +139,3 @@ def test_finished_runs_are_reused_not_retrained(tmp_path, smoke_config):
   assert ablations.evaluate_on(str(tmp_path), 'ldmpc', 'mixed', 0, 'eval_mppi', {}, 'mppi',
                                1)['success_rate'] == 0.25
 
-
-def test_with_overrides_rejects_unknown_fields(smoke_config):
-  with pytest.raises(ValueError, match='model.nope'):
-    ablations.with_overrides(smoke_config, {'model.nope': 1})
