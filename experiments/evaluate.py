@@ -48,7 +48,8 @@ def main(argv):
   if _VIDEO.value:
     path = os.path.join(_WORKDIR.value, 'planner.mp4')
     try:
-      run_evaluation(config, params, 'plan', 2, _SEED.value, video_path=path)
+      # The written path: .gif where mp4 needs the missing imageio-ffmpeg.
+      path = run_evaluation(config, params, 'plan', 2, _SEED.value, video_path=path)['video_path']
       out['video'] = path
       print(f'video: {path}')
     except Exception as err:  # Rendering needs an offscreen GL backend; report, don't fail.
