@@ -121,26 +121,13 @@ class LatentDynamics(nn.Module):
     return self.denoise(x_t, t, self.embed_cond(z, a), deterministic)
 
 
-class TrajectoryDynamics(nn.Module):
+class TrajectoryDynamics(LatentDynamics):
   """Diffusion transformer over a whole latent trajectory p(z_{1:H} | z_0, a_{0:H-1}).
 
   Tokens: [z_0, a_0 + noisy z_1, ..., a_{H-1} + noisy z_H] (bidirectional attention) with Fourier
-  position embeddings plus the diffusion-time embedding; predicts the H latents at once.
+  position embeddings plus the diffusion-time embedding; predicts the H latents at once. Same
+  layers as LatentDynamics; only the tokens differ.
   """
-  latent_dim: int
-  width: int
-  num_blocks: int
-  num_heads: int
-  mlp_ratio: int = 4
-  dropout: float = 0.0
-
-  def setup(self):
-    self.z_proj = nn.Dense(self.width)
-    self.a_proj = nn.Dense(self.width)
-    self.x_proj = nn.Dense(self.width)
-    self.time_embed = TimeEmbedding(self.width)
-    self.backbone = Transformer(self.num_blocks, self.num_heads, self.mlp_ratio, self.dropout)
-    self.out = nn.Dense(self.latent_dim)
 
   def embed_cond(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
     """z [..., D], a [..., H, A] -> conditioning [..., H + 1, W] (z_0 token, then a_i)."""
@@ -155,9 +142,6 @@ class TrajectoryDynamics(nn.Module):
     x = jnp.concatenate([jnp.zeros_like(cond[..., :1, :]), self.x_proj(x_t)], axis=-2)
     h = self.backbone(cond + x + pos + temb, deterministic=deterministic)
     return self.out(h[..., 1:, :])
-
-  def __call__(self, x_t, t, z, a, deterministic: bool = True):
-    return self.denoise(x_t, t, self.embed_cond(z, a), deterministic)
 
 
 class MLPDynamics(nn.Module):
