@@ -36,28 +36,40 @@ def dense_flops(n_in: int, n_out: int, rows: int = 1, bias: bool = True) -> int:
   return rows * (2 * n_in * n_out + (n_out if bias else 0))
 
 
-def attention_flops(length: int, width: int, rows: int = 1) -> int:
-  """Scores Q K^T and mixing softmax(.) V over `length` tokens: 2 x 2 L^2 W per sequence.
+def attention_flops(length: int, width: int, rows: int = 1, queries: int | None = None) -> int:
+  """Scores Q K^T and mixing softmax(.) V, `queries` (default all) tokens attending to `length`.
 
-  Summed over heads, each of the two products is L x L x W multiply-adds, independent of the
-  number of heads.
+  Summed over heads, each of the two products is L_q x L x W multiply-adds, independent of the
+  number of heads: 2 x 2 L_q L W per sequence.
   """
-  return rows * 2 * (2 * length * length * width)
+  queries = length if queries is None else queries
+  return rows * 2 * (2 * queries * length * width)
 
 
-def transformer_block_flops(length: int, width: int, mlp_ratio: int, rows: int = 1) -> int:
-  """One pre-LN block on [rows, L, W]: QKV + output projections, attention, 2-layer MLP."""
-  tokens = rows * length
-  projections = 4 * dense_flops(width, width, tokens)
-  mlp = dense_flops(width, mlp_ratio * width, tokens) + dense_flops(mlp_ratio * width, width,
-                                                                    tokens)
-  return projections + attention_flops(length, width, rows) + mlp
+def transformer_block_flops(length: int, width: int, mlp_ratio: int, rows: int = 1,
+                            outputs: int | None = None) -> int:
+  """One pre-LN block on [rows, L, W]: QKV + output projections, attention, 2-layer MLP.
+
+  With `outputs` < L (the last block of a Transformer called with `outputs`), Q, K and V are
+  still projected for all L tokens (one fused matmul), and attention, the output projection and
+  the MLP run on the `outputs` tokens only.
+  """
+  outputs = length if outputs is None else outputs
+  projections = (3 * dense_flops(width, width, rows * length)
+                 + dense_flops(width, width, rows * outputs))
+  mlp = (dense_flops(width, mlp_ratio * width, rows * outputs)
+         + dense_flops(mlp_ratio * width, width, rows * outputs))
+  return projections + attention_flops(length, width, rows, outputs) + mlp
 
 
 def transformer_flops(num_blocks: int, length: int, width: int, mlp_ratio: int,
-                      rows: int = 1) -> int:
-  """A stack of `num_blocks` blocks (the final LayerNorm is element-wise: not counted)."""
-  return num_blocks * transformer_block_flops(length, width, mlp_ratio, rows)
+                      rows: int = 1, outputs: int | None = None) -> int:
+  """A stack of `num_blocks` blocks whose last computes `outputs` tokens (default all).
+
+  The final LayerNorm is element-wise: not counted.
+  """
+  return ((num_blocks - 1) * transformer_block_flops(length, width, mlp_ratio, rows)
+          + transformer_block_flops(length, width, mlp_ratio, rows, outputs))
 
 
 def mlp_flops(sizes, rows: int = 1) -> int:
@@ -76,7 +88,8 @@ def plan_flops(config: ml_collections.ConfigDict) -> dict:
   Follows the code: the proposal's conditioning token is computed once per plan, the dynamics'
   conditioning tokens once per transition, time embeddings once per denoising step (shared by
   all candidates), the objective once per candidate, the actor once per transition on the
-  P prior candidates.
+  P prior candidates. The last block of the proposal computes only the H action tokens and
+  that of the dynamics only the noisy-latent token (the outputs that are read).
 
   Returns:
     {'proposal', 'dynamics', 'objective', 'actor', 'total'}: FLOPs (ints).
@@ -90,12 +103,13 @@ def plan_flops(config: ml_collections.ConfigDict) -> dict:
     action_steps = p.warm_start_steps  # Warm-started proposals run the short schedule only.
 
   proposal_step = (time_embedding_flops(w) + dense_flops(a, w, n * h)
-                   + transformer_flops(m.proposal_blocks, h + 1, w, r, n)
+                   + transformer_flops(m.proposal_blocks, h + 1, w, r, n, outputs=h)
                    + dense_flops(w, a, n * h))
   proposal = dense_flops(d, w, 1) + action_steps * proposal_step
 
   dynamics_step = (time_embedding_flops(w) + dense_flops(d, w, k)
-                   + transformer_flops(m.dynamics_blocks, 3, w, r, k) + dense_flops(w, d, k))
+                   + transformer_flops(m.dynamics_blocks, 3, w, r, k, outputs=1)
+                   + dense_flops(w, d, k))
   transition_cond = dense_flops(d, w, k) + dense_flops(a, w, k)
   dynamics = h * (transition_cond + p.dynamics_steps * dynamics_step)
 

@@ -75,8 +75,8 @@ class ActionProposal(nn.Module):
     temb = self.time_embed(t)[..., None, :]
     pos = position_embedding(self.horizon + 1, self.width)
     tokens = jnp.concatenate([cond, self.action_proj(a_t)], axis=-2) + pos + temb
-    h = self.backbone(tokens, deterministic=deterministic)
-    return self.out(h[..., 1:, :])
+    h = self.backbone(tokens, deterministic=deterministic, outputs=slice(1, None))
+    return self.out(h)
 
   def __call__(self, a_t, t, z, deterministic: bool = True):
     return self.denoise(a_t, t, self.embed_cond(z), deterministic)
@@ -114,8 +114,8 @@ class LatentDynamics(nn.Module):
     temb = self.time_embed(t)[..., None, :]
     pos = position_embedding(3, self.width)
     tokens = jnp.concatenate([cond, self.x_proj(x_t)[..., None, :]], axis=-2) + pos + temb
-    h = self.backbone(tokens, deterministic=deterministic)
-    return self.out(h[..., -1, :])
+    h = self.backbone(tokens, deterministic=deterministic, outputs=slice(2, None))
+    return self.out(h[..., 0, :])
 
   def __call__(self, x_t, t, z, a, deterministic: bool = True):
     return self.denoise(x_t, t, self.embed_cond(z, a), deterministic)
@@ -140,8 +140,9 @@ class TrajectoryDynamics(LatentDynamics):
     temb = self.time_embed(t)[..., None, :]
     pos = position_embedding(horizon + 1, self.width)
     x = jnp.concatenate([jnp.zeros_like(cond[..., :1, :]), self.x_proj(x_t)], axis=-2)
-    h = self.backbone(cond + x + pos + temb, deterministic=deterministic)
-    return self.out(h[..., 1:, :])
+    h = self.backbone(cond + x + pos + temb, deterministic=deterministic,
+                      outputs=slice(1, None))
+    return self.out(h)
 
 
 class MLPDynamics(nn.Module):

@@ -20,6 +20,10 @@ def test_dense_and_attention_hand_counts():
   #   MLP 2 x (2*4*8 + 8) + 2 x (2*8*4 + 4) = 144 + 136 = 280.
   assert flops.transformer_block_flops(2, 4, 2) == 288 + 64 + 280
   assert flops.transformer_flops(3, 2, 4, 2, rows=5) == 3 * 5 * 632
+  # Last block computing 1 of the 2 tokens: QKV on both (3 x 2 x 36), output projection,
+  # attention (2 x 2 x 1 x 2 x 4) and MLP (280 / 2) on one.
+  assert flops.transformer_block_flops(2, 4, 2, outputs=1) == 216 + 36 + 32 + 140
+  assert flops.transformer_flops(3, 2, 4, 2, outputs=1) == 2 * 632 + 424
   assert flops.mlp_flops((3, 5, 2)) == 2 * 3 * 5 + 5 + 2 * 5 * 2 + 2
 
 
@@ -30,12 +34,14 @@ def test_dense_hand_count_equals_xla():
   assert flops.xla_flops(layer.apply, params, x) == flops.dense_flops(32, 48, rows=10)
 
 
-def test_transformer_block_hand_count_close_to_xla():
+@pytest.mark.parametrize('outputs', [None, slice(1, None), slice(4, None)])
+def test_transformer_block_hand_count_close_to_xla(outputs):
   block = TransformerBlock(num_heads=4)
   x = jnp.ones((8, 5, 64))
   params = block.init(jax.random.key(0), x)
-  hand = flops.transformer_block_flops(5, 64, 4, rows=8)
-  xla = flops.xla_flops(block.apply, params, x)
+  n_out = None if outputs is None else len(range(5)[outputs])
+  hand = flops.transformer_block_flops(5, 64, 4, rows=8, outputs=n_out)
+  xla = flops.xla_flops(lambda p, x: block.apply(p, x, outputs=outputs), params, x)
   assert hand <= xla <= 1.1 * hand  # XLA adds LayerNorm, GELU and softmax.
 
 

@@ -4,7 +4,14 @@ import math
 from typing import Optional
 
 import flax.linen as nn
+import jax
 import jax.numpy as jnp
+
+# Sequences up to this length compute attention scores and mixing as broadcast products summed
+# over the head dimension (element-wise fusions); longer ones as batched matmuls. On XLA:CPU the
+# batched matmul of a [3, 64] x [64, 3] problem per (sequence, head) costs about 4x the
+# element-wise form at the planner's lengths (3, 5 and 9 tokens); see docs/benchmark.md.
+SHORT_SEQUENCE = 8
 
 
 def fourier_features(x: jnp.ndarray, dim: int, max_period: float = 10_000.0) -> jnp.ndarray:
@@ -42,6 +49,111 @@ def position_embedding(num: int, width: int) -> jnp.ndarray:
   return fourier_features(jnp.arange(num, dtype=jnp.float32), width, max_period=100.0)
 
 
+class _Projection(nn.Module):
+  """The kernel [W, heads, head_dim] and bias [heads, head_dim] of one of q, k, v.
+
+  Declared like flax's DenseGeneral (same names, shapes and initialisers) but not applied, so
+  that SelfAttention can do the three projections as one matmul.
+  """
+  width: int
+  num_heads: int
+  head_dim: int
+
+  @nn.compact
+  def __call__(self):
+    shape = (self.width, self.num_heads, self.head_dim)
+    init = lambda key, shape: nn.initializers.lecun_normal()(
+        key, (shape[0], shape[1] * shape[2])).reshape(shape)
+    return (self.param('kernel', init, shape),
+            self.param('bias', nn.initializers.zeros_init(), shape[1:]))
+
+
+class SelfAttention(nn.Module):
+  """Multi-head self-attention, the function and parameters of nn.MultiHeadDotProductAttention.
+
+  Parameters are flax's ('query', 'key', 'value': kernels [W, heads, head_dim] and biases;
+  'out': DenseGeneral back to the width), so checkpoints written with flax's module load
+  unchanged and give the same outputs. What differs is the computation, for speed at the short
+  sequences of the planner: the projections are one matmul ([W, 3W], or [W, 2W] for keys and
+  values when only some queries are wanted), the scores and the mixing are broadcast products
+  for short sequences (see SHORT_SEQUENCE), and dropout on the attention weights is drawn per
+  element rather than broadcast over the batch.
+
+  Attributes:
+    num_heads: attention heads (width must be divisible by it).
+    dropout: dropout rate on the attention weights.
+  """
+  num_heads: int
+  dropout: float = 0.0
+
+  @nn.compact
+  def __call__(self, x: jnp.ndarray, mask: Optional[jnp.ndarray] = None,
+               deterministic: bool = True, queries: Optional[slice] = None) -> jnp.ndarray:
+    """Attention of the tokens `queries` (all if None) to every token of x.
+
+    Args:
+      x: [..., L, W] tokens.
+      mask: broadcastable to [..., heads, L, L] (True = attend), or None.
+      deterministic: no dropout.
+      queries: a slice of the L positions whose outputs are wanted (Q of L_q tokens).
+    Returns:
+      [..., L_q, W].
+    """
+    width, length = x.shape[-1], x.shape[-2]
+    if width % self.num_heads:
+      raise ValueError(f'width {width} is not divisible by num_heads {self.num_heads}')
+    head_dim = width // self.num_heads
+    params = {name: _Projection(width, self.num_heads, head_dim, name=name)()
+              for name in ('query', 'key', 'value')}
+
+    def project(names, inputs):  # One matmul for the named projections -> each [..., heads, hd].
+      kernel = jnp.stack([params[n][0] for n in names], axis=1).reshape(width, -1)
+      bias = jnp.stack([params[n][1] for n in names]).reshape(-1)
+      out = (inputs @ kernel + bias).reshape(
+          inputs.shape[:-1] + (len(names), self.num_heads, head_dim))
+      return [out[..., i, :, :] for i in range(len(names))]
+
+    q, k, v = project(('query', 'key', 'value'), x)  # [..., L, heads, head_dim]
+    if queries is not None:
+      q = q[..., queries, :, :]
+      if mask is not None:
+        mask = mask[..., queries, :]
+    q = q / math.sqrt(head_dim)
+    if length <= SHORT_SEQUENCE:
+      # scores [..., Lq, Lk, heads], softmax over Lk; mixing unrolled over the Lk keys.
+      scores = _sum_last_axis(q[..., :, None, :, :] * k[..., None, :, :, :])
+      if mask is not None:
+        mask = jnp.moveaxis(mask, -3, -1)  # [..., heads, Lq, Lk] -> [..., Lq, Lk, heads]
+      weights = self._weights(scores, mask, axis=-2, deterministic=deterministic)
+      out = sum(weights[..., j, :, None] * v[..., None, j, :, :] for j in range(length))
+    else:
+      q, k, v = (jnp.swapaxes(y, -2, -3) for y in (q, k, v))  # [..., heads, L, head_dim]
+      weights = self._weights(q @ jnp.swapaxes(k, -1, -2), mask, axis=-1,
+                              deterministic=deterministic)
+      out = jnp.swapaxes(weights @ v, -2, -3)
+    return nn.DenseGeneral(width, axis=(-2, -1), name='out')(out)
+
+  def _weights(self, scores, mask, axis: int, deterministic: bool):
+    if mask is not None:
+      scores = jnp.where(mask, scores, jnp.finfo(scores.dtype).min)
+    weights = jax.nn.softmax(scores, axis=axis)
+    return nn.Dropout(self.dropout)(weights, deterministic=deterministic)
+
+
+def _sum_last_axis(x: jnp.ndarray) -> jnp.ndarray:
+  """jnp.sum(x, axis=-1) as a tree of halvings: XLA:CPU fuses it into one element-wise loop,
+  2-4x faster than its reduction at the planner's sizes (the attention scores over head_dim)."""
+  while x.shape[-1] > 1 and x.shape[-1] % 2 == 0:
+    half = x.shape[-1] // 2
+    x = x[..., :half] + x[..., half:]
+  return jnp.sum(x, axis=-1)
+
+
+def gelu(x: jnp.ndarray) -> jnp.ndarray:
+  """tanh-approximate GELU, the function of nn.gelu, in a form XLA:CPU evaluates ~1.4x faster."""
+  return 0.5 * x * (1.0 + jnp.tanh(math.sqrt(2.0 / math.pi) * x * (1.0 + 0.044715 * x * x)))
+
+
 class TransformerBlock(nn.Module):
   """Pre-LayerNorm transformer block: x + MHA(LN(x)); x + MLP(LN(x)).
 
@@ -56,17 +168,21 @@ class TransformerBlock(nn.Module):
 
   @nn.compact
   def __call__(self, x: jnp.ndarray, mask: Optional[jnp.ndarray] = None,
-               deterministic: bool = True) -> jnp.ndarray:
-    """x: [..., L, W]; mask: broadcastable to [..., heads, L, L] (True = attend)."""
+               deterministic: bool = True, outputs: Optional[slice] = None) -> jnp.ndarray:
+    """x: [..., L, W]; mask: broadcastable to [..., heads, L, L] (True = attend).
+
+    Returns [..., L, W], or only the tokens `outputs` (a slice of the L positions): their
+    queries attend to every token, and the MLP runs on them alone.
+    """
     width = x.shape[-1]
     h = nn.LayerNorm(name='ln_attn')(x)
-    h = nn.MultiHeadDotProductAttention(
-        num_heads=self.num_heads, dropout_rate=self.dropout,
-        deterministic=deterministic, name='attn')(h, h, mask=mask)
+    h = SelfAttention(self.num_heads, self.dropout, name='attn')(h, mask, deterministic, outputs)
+    if outputs is not None:
+      x = x[..., outputs, :]
     x = x + nn.Dropout(self.dropout)(h, deterministic=deterministic)
     h = nn.LayerNorm(name='ln_mlp')(x)
     h = nn.Dense(self.mlp_ratio * width, name='mlp_in')(h)
-    h = nn.Dense(width, name='mlp_out')(nn.gelu(h))
+    h = nn.Dense(width, name='mlp_out')(gelu(h))
     return x + nn.Dropout(self.dropout)(h, deterministic=deterministic)
 
 
@@ -79,9 +195,15 @@ class Transformer(nn.Module):
 
   @nn.compact
   def __call__(self, x: jnp.ndarray, mask: Optional[jnp.ndarray] = None,
-               deterministic: bool = True) -> jnp.ndarray:
-    """x: [..., L, W] -> [..., L, W]."""
+               deterministic: bool = True, outputs: Optional[slice] = None) -> jnp.ndarray:
+    """x: [..., L, W] -> [..., L, W], or [..., L_out, W] for the tokens `outputs`.
+
+    `outputs` (a slice of the L positions) is what the caller reads: the last block computes
+    only those tokens (every token still serves as key and value), which saves its
+    projections and MLP on the others. The result equals the full output sliced.
+    """
     for i in range(self.num_blocks):
+      last = i == self.num_blocks - 1
       x = TransformerBlock(self.num_heads, self.mlp_ratio, self.dropout,
-                           name=f'block_{i}')(x, mask, deterministic)
+                           name=f'block_{i}')(x, mask, deterministic, outputs if last else None)
     return nn.LayerNorm(name='ln_final')(x)
