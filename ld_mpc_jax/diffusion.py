@@ -88,7 +88,7 @@ def sample(model_fn: ModelFn, x_init: jnp.ndarray, key: jax.Array, num_steps: in
   Args:
     model_fn: (x_t [...], t []) -> prediction [...]; t is a scalar shared by the whole batch.
     x_init: [...] starting sample at time t_start.
-    key: PRNG key; step i draws its noise from fold_in(key, i).
+    key: PRNG key; step i draws its noise from fold_in(key, i) (none when eta is a Python 0).
     num_steps: number of denoising steps (static).
     eta: stochasticity in [0, 1].
     prediction: 'x0' or 'eps'.
@@ -100,16 +100,19 @@ def sample(model_fn: ModelFn, x_init: jnp.ndarray, key: jax.Array, num_steps: in
   if num_steps < 1:
     raise ValueError(f'num_steps must be >= 1, got {num_steps}')
 
+  deterministic = isinstance(eta, (int, float)) and eta == 0  # DDIM: no noise to draw.
+
   def step(x, i):
     t = t_start * (num_steps - i) / num_steps
     s = t_start * (num_steps - i - 1) / num_steps
     x0, eps = split_prediction(model_fn(x, t), x, t, prediction, clip_x0)
     ab_t, ab_s = alpha_bar(t), alpha_bar(s)  # alpha_bar(0) = 1: the last step returns x0
     var = eta ** 2 * (1.0 - ab_s) / (1.0 - ab_t) * (1.0 - ab_t / ab_s)
-    noise = jax.random.normal(jax.random.fold_in(key, i), x.shape, x.dtype)
-    x = (jnp.sqrt(ab_s) * x0 + jnp.sqrt(jnp.maximum(1.0 - ab_s - var, 0.0)) * eps
-         + jnp.sqrt(var) * noise)
-    return x, None
+    x_next = jnp.sqrt(ab_s) * x0 + jnp.sqrt(jnp.maximum(1.0 - ab_s - var, 0.0)) * eps
+    if not deterministic:
+      noise = jax.random.normal(jax.random.fold_in(key, i), x.shape, x.dtype)
+      x_next = x_next + jnp.sqrt(var) * noise
+    return x_next, None
 
   x, _ = jax.lax.scan(step, x_init, jnp.arange(num_steps))
   return x
