@@ -34,9 +34,8 @@ from absl import app, flags, logging
 from ml_collections import config_flags
 import numpy as np
 
+from experiments.configs import CONFIG_DIR
 from experiments.overrides import with_overrides
-
-CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'configs')
 
 VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant to reuse).
     'mlp_mlp': ('1 MLP proposal (1-step) + MLP dynamics',

@@ -27,9 +27,9 @@ import ml_collections
 from ml_collections import config_flags
 import numpy as np
 
+from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
 
-CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'configs')
 
 # name -> overrides (dotted config field -> value, or a function of the config for values that
 # depend on the width). Applied on top of --config with the width's model section.
@@ -63,18 +63,6 @@ _VARIANTS = flags.DEFINE_list('variants', list(VARIANTS), f'Subset of {list(VARI
 _WIDTHS = flags.DEFINE_list('widths', list(WIDTHS), f'Subset of {list(WIDTHS)}.')
 _PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
 _PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
-
-
-def resolve_config_arg(argv):
-  """Rewrites --config=name.py[:preset] to a path under experiments/configs when needed."""
-  out = []
-  for arg in argv:
-    if arg.startswith('--config='):
-      path, sep, preset = arg[len('--config='):].partition(':')
-      if not os.path.exists(path) and os.path.exists(os.path.join(CONFIG_DIR, path)):
-        arg = f'--config={os.path.join(CONFIG_DIR, path)}{sep}{preset}'
-    out.append(arg)
-  return out
 
 
 def device_info() -> dict:

@@ -12,21 +12,7 @@ import sys
 from absl import app, flags, logging
 from ml_collections import config_flags
 
-CONFIG_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'configs')
-
-
-def resolve_config_arg(argv):
-  """Rewrites --config=name.py[:preset] to a path under experiments/configs when needed."""
-  out = []
-  for arg in argv:
-    if arg.startswith('--config='):
-      value = arg[len('--config='):]
-      path, sep, preset = value.partition(':')
-      if not os.path.exists(path) and os.path.exists(os.path.join(CONFIG_DIR, path)):
-        arg = f'--config={os.path.join(CONFIG_DIR, path)}{sep}{preset}'
-    out.append(arg)
-  return out
-
+from experiments.configs import resolve_config_arg
 
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
                                           lock_config=True)

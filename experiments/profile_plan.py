@@ -1,0 +1,41 @@
+"""Where the time of one `plan` call goes: XLA ops grouped by network and by kind.
+
+  python -m experiments.profile_plan                          # reference config, 3 traced calls
+  python -m experiments.profile_plan --config=door_open.py:cpu --calls=5 --out=profile.json
+
+Traces `--calls` calls of the jitted plan (random parameters, after compilation and one warm-up)
+with jax.profiler and prints, in ms per call, the time of the XLA ops grouped by network and by
+kind of work (ld_mpc_jax/profiling.py); writes the numbers as JSON with --out. Method:
+docs/benchmark.md.
+"""
+
+import json
+import os
+import sys
+
+from absl import app, flags
+from ml_collections import config_flags
+
+from experiments.configs import CONFIG_DIR, resolve_config_arg
+
+_CONFIG = config_flags.DEFINE_config_file(
+    'config', os.path.join(CONFIG_DIR, 'door_open.py'), 'Config file (optionally :preset).',
+    lock_config=True)
+_CALLS = flags.DEFINE_integer('calls', 3, 'Traced plan calls (after one warm-up call).')
+_OUT = flags.DEFINE_string('out', None, 'JSON output (optional).')
+
+
+def main(argv):
+  del argv
+  from ld_mpc_jax import profiling
+  result = profiling.profile_plan(_CONFIG.value, _CALLS.value)
+  print(profiling.markdown(result))
+  if _OUT.value:
+    with open(_OUT.value, 'w') as f:
+      json.dump(result, f, indent=2)
+    print(f'wrote {_OUT.value}')
+
+
+if __name__ == '__main__':
+  sys.argv = resolve_config_arg(sys.argv)
+  app.run(main)

@@ -1,0 +1,142 @@
+"""Where the time of one `plan` call goes: XLA ops grouped by network and by kind of work.
+
+`profile_plan(config)` traces jitted plan calls with jax.profiler, reads the per-op events of
+the trace and maps each to its HLO instruction's source location (the `op_name` metadata of the
+compiled module): the network (proposal, dynamics, objective, actor) and the kind of work
+(matmul, attention element-wise, LayerNorm, MLP element-wise such as GELU, random numbers,
+other). Op times are summed per op (loop and conditional events, which can span their bodies,
+are left out), so they do not add up exactly to the wall time (loop and dispatch overheads are
+in neither); both are reported. The event names are XLA:CPU's (thunk runtime); on other
+backends the table may come out mostly 'other'. CLI: experiments/profile_plan.py.
+"""
+
+import collections
+import glob
+import gzip
+import json
+import os
+import re
+import tempfile
+import time
+
+import jax
+import numpy as np
+
+from ld_mpc_jax.models import encode, init_params
+from ld_mpc_jax.planner import make_plan
+
+NETWORKS = (('ActionProposal', 'proposal'), ('LatentDynamics', 'dynamics'),
+            ('TrajectoryDynamics', 'dynamics'), ('SequenceObjective', 'objective'),
+            ('Actor', 'actor'), ('Encoder', 'encoder'))
+KINDS = ('matmul', 'attention element-wise', 'layernorm', 'mlp element-wise (GELU, residual)',
+         'random numbers', 'other')
+# Trace events that are not single XLA ops (wrappers, waits, Python frames), and control flow
+# (a while loop's event can span its body's ops, which are traced themselves).
+_NOT_OPS = re.compile(r'^(\$|Thunk|SlinkyThreadPool|PjitFunction|end: |ParseArguments|'
+                      r'CommonPjRt|while|conditional|call)')
+
+
+def classify(op_name: str, is_matmul: bool) -> tuple:
+  """(network, kind) of an HLO instruction from its op_name metadata (its JAX source path)."""
+  network = next((short for long, short in NETWORKS if long in op_name), 'other')
+  if is_matmul:
+    kind = 'matmul'
+  elif re.search(r'_normal|_uniform|threefry|random_bits', op_name):
+    kind = 'random numbers'
+  elif re.search(r'/ln_|LayerNorm', op_name):
+    kind = 'layernorm'
+  elif '/attn' in op_name:
+    kind = 'attention element-wise'
+  elif re.search(r'/block_\d+/[^/]+$', op_name):
+    kind = 'mlp element-wise (GELU, residual)'
+  else:
+    kind = 'other'
+  return network, kind
+
+
+def hlo_ops(hlo_text: str) -> dict:
+  """instruction name -> (op_name metadata, is a matmul) for every instruction with metadata.
+
+  An instruction is a matmul if it is a dot or a fusion whose computation contains one (library
+  fusions such as XLA:CPU's YNNPACK ones also wrap reductions and element-wise work).
+  """
+  bodies = {m.group(1): m.group(2) for m in re.finditer(
+      r'^%?([\w.\-]+) [^\n]*\{\n(.*?)\n\}', hlo_text, re.S | re.M)}
+  ops = {}
+  for line in hlo_text.splitlines():
+    m = re.match(r'\s*%([\w.\-]+) = .*?op_name="([^"]+)"', line)
+    if m:
+      called = re.search(r'calls=%([\w.\-]+)', line)
+      is_matmul = bool(re.search(r'= \S+ dot\(', line)) or bool(
+          called and re.search(r' dot\(', bodies.get(called.group(1), '')))
+      ops[m.group(1)] = (m.group(2), is_matmul)
+  return ops
+
+
+def op_times(trace_dir: str) -> collections.Counter:
+  """Summed duration [us] per trace event name in the newest perfetto trace under trace_dir."""
+  files = sorted(glob.glob(os.path.join(trace_dir, '**', '*.trace.json.gz'), recursive=True),
+                 key=os.path.getmtime)
+  if not files:
+    raise FileNotFoundError(f'jax.profiler wrote no perfetto trace under {trace_dir}')
+  with gzip.open(files[-1]) as f:
+    events = json.load(f)['traceEvents']
+  times = collections.Counter()
+  for e in events:
+    if e.get('ph') == 'X' and not _NOT_OPS.match(e.get('name', '')):
+      times[e['name']] += e.get('dur', 0)
+  return times
+
+
+def profile_plan(config, calls: int = 3) -> dict:
+  """Traces `calls` calls of make_plan(config) (random parameters, after one warm-up call).
+
+  Returns {'ms_per_call': {'network/kind': ms}, 'ops_ms', 'unmatched_ms', 'traced_ms_per_call',
+  'wall_ms_median', 'calls'}.
+  """
+  params = init_params(config, jax.random.key(0))
+  z = encode(params, np.linspace(-1.0, 1.0, config.obs_dim, dtype=np.float32))
+  key = jax.random.key(1)
+  compiled = make_plan(config).lower(params, z, key).compile()
+  jax.block_until_ready(compiled(params, z, key))
+  with tempfile.TemporaryDirectory() as trace_dir:
+    t0 = time.perf_counter()
+    with jax.profiler.trace(trace_dir, create_perfetto_trace=True):
+      for _ in range(calls):
+        jax.block_until_ready(compiled(params, z, key))
+    traced_s = time.perf_counter() - t0
+    times = op_times(trace_dir)
+  ops = hlo_ops(compiled.as_text())
+  table = collections.defaultdict(float)
+  unmatched = 0.0
+  for name, us in times.items():
+    if name in ops:
+      table[classify(*ops[name])] += us / 1e3 / calls
+    else:
+      unmatched += us / 1e3 / calls
+  # Plain wall time of the same calls without the profiler.
+  wall = []
+  for _ in range(calls):
+    t0 = time.perf_counter()
+    jax.block_until_ready(compiled(params, z, key))
+    wall.append(time.perf_counter() - t0)
+  return dict(ms_per_call={f'{n}/{k}': v for (n, k), v in sorted(table.items())},
+              ops_ms=sum(table.values()), unmatched_ms=unmatched,
+              traced_ms_per_call=traced_s * 1e3 / calls,
+              wall_ms_median=float(np.median(wall)) * 1e3, calls=calls)
+
+
+def markdown(result: dict) -> str:
+  networks = sorted({k.split('/')[0] for k in result['ms_per_call']})
+  head = '| kind | ' + ' | '.join(networks) + ' | total | share |'
+  lines = [head, '| --- |' + ' ---: |' * (len(networks) + 2)]
+  total = result['ops_ms']
+  for kind in KINDS:
+    row = [result['ms_per_call'].get(f'{n}/{kind}', 0.0) for n in networks]
+    if sum(row):
+      cells = ' | '.join(f'{v:.1f}' for v in row)
+      lines.append(f'| {kind} | {cells} | {sum(row):.1f} | {sum(row) / total:.0%} |')
+  lines.append(f'\nms per call. Ops summed: {total:.1f} ms (+ {result["unmatched_ms"]:.1f} ms in '
+               f'events without a source location); wall time of a call without the profiler: '
+               f'{result["wall_ms_median"]:.1f} ms (median of {result["calls"]}).')
+  return '\n'.join(lines)
