@@ -7,10 +7,10 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-# Sequences up to this length compute attention scores and mixing as broadcast products summed
-# over the head dimension (element-wise fusions); longer ones as batched matmuls. On XLA:CPU the
-# batched matmul of a [3, 64] x [64, 3] problem per (sequence, head) costs about 4x the
-# element-wise form at the planner's lengths (3, 5 and 9 tokens); see docs/benchmark.md.
+# Sequences up to this length compute attention scores and mixing as broadcast products
+# (element-wise fusions); longer ones as batched matmuls. On XLA:CPU, batched matmuls of
+# [L, 64] x [64, L] per (sequence, head) are much slower than the element-wise form at the
+# planner's lengths (3 tokens in the dynamics, 5 in the proposal); see docs/benchmark.md.
 SHORT_SEQUENCE = 8
 
 
@@ -74,10 +74,10 @@ class SelfAttention(nn.Module):
   Parameters are flax's ('query', 'key', 'value': kernels [W, heads, head_dim] and biases;
   'out': DenseGeneral back to the width), so checkpoints written with flax's module load
   unchanged and give the same outputs. What differs is the computation, for speed at the short
-  sequences of the planner: the projections are one matmul ([W, 3W], or [W, 2W] for keys and
-  values when only some queries are wanted), the scores and the mixing are broadcast products
-  for short sequences (see SHORT_SEQUENCE), and dropout on the attention weights is drawn per
-  element rather than broadcast over the batch.
+  sequences of the planner: Q, K and V come from one [W, 3W] matmul (for every token, also when
+  only some queries are wanted), the scores and the mixing are broadcast products for short
+  sequences (see SHORT_SEQUENCE), and dropout on the attention weights is drawn per element
+  rather than broadcast over the batch.
 
   Attributes:
     num_heads: attention heads (width must be divisible by it).
@@ -103,17 +103,11 @@ class SelfAttention(nn.Module):
     if width % self.num_heads:
       raise ValueError(f'width {width} is not divisible by num_heads {self.num_heads}')
     head_dim = width // self.num_heads
-    params = {name: _Projection(width, self.num_heads, head_dim, name=name)()
-              for name in ('query', 'key', 'value')}
-
-    def project(names, inputs):  # One matmul for the named projections -> each [..., heads, hd].
-      kernel = jnp.stack([params[n][0] for n in names], axis=1).reshape(width, -1)
-      bias = jnp.stack([params[n][1] for n in names]).reshape(-1)
-      out = (inputs @ kernel + bias).reshape(
-          inputs.shape[:-1] + (len(names), self.num_heads, head_dim))
-      return [out[..., i, :, :] for i in range(len(names))]
-
-    q, k, v = project(('query', 'key', 'value'), x)  # [..., L, heads, head_dim]
+    kernels, biases = zip(*(_Projection(width, self.num_heads, head_dim, name=name)()
+                            for name in ('query', 'key', 'value')))
+    qkv = x @ jnp.stack(kernels, axis=1).reshape(width, 3 * width) + jnp.stack(biases).reshape(-1)
+    qkv = qkv.reshape(x.shape[:-1] + (3, self.num_heads, head_dim))
+    q, k, v = qkv[..., 0, :, :], qkv[..., 1, :, :], qkv[..., 2, :, :]  # [..., L, heads, hd]
     if queries is not None:
       q = q[..., queries, :, :]
       if mask is not None:
@@ -142,7 +136,7 @@ class SelfAttention(nn.Module):
 
 def _sum_last_axis(x: jnp.ndarray) -> jnp.ndarray:
   """jnp.sum(x, axis=-1) as a tree of halvings: XLA:CPU fuses it into one element-wise loop,
-  2-4x faster than its reduction at the planner's sizes (the attention scores over head_dim)."""
+  faster than its reduction at the planner's sizes (the attention scores over head_dim)."""
   while x.shape[-1] > 1 and x.shape[-1] % 2 == 0:
     half = x.shape[-1] // 2
     x = x[..., :half] + x[..., half:]
@@ -150,7 +144,7 @@ def _sum_last_axis(x: jnp.ndarray) -> jnp.ndarray:
 
 
 def gelu(x: jnp.ndarray) -> jnp.ndarray:
-  """tanh-approximate GELU, the function of nn.gelu, in a form XLA:CPU evaluates ~1.4x faster."""
+  """tanh-approximate GELU, the function of nn.gelu, in a form XLA:CPU evaluates faster."""
   return 0.5 * x * (1.0 + jnp.tanh(math.sqrt(2.0 / math.pi) * x * (1.0 + 0.044715 * x * x)))
 
 
