@@ -48,6 +48,9 @@ VARIANTS = {
     'warm_start': {**_DDIM_8X2, 'plan.warm_start_steps': 4, 'plan.warm_start_t': 0.5},
     # The :cpu preset's planner: DDIM 4x1 with 16 of the 64 candidates from the actor prior.
     'fast': {**_DDIM_4X1, 'plan.num_prior_candidates': 16},
+    # `fast` warm-started: the shifted previous plan re-noised to t = 0.5, 2 proposal steps.
+    'fast_warm': {**_DDIM_4X1, 'plan.num_prior_candidates': 16, 'plan.warm_start_steps': 2,
+                  'plan.warm_start_t': 0.5},
     'fast_k32_cheap_obj': {**_DDIM_4X1, 'plan.num_candidates': 32, **_CHEAP_OBJECTIVE},
     'mppi': None,  # The baseline; runs once, independent of the width.
 }
