@@ -29,11 +29,15 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.model.actor_hidden = (128, 128)
     c.model.dropout = 0.0  # Short training on plentiful data: dropout only slows fitting.
     # The fast planner (README, Results): 4 deterministic DDIM steps for the proposal, 1 per
-    # transition, and 16 of the 64 candidates from the actor prior.
+    # transition, 16 of the 64 candidates from the actor prior, and after the first step of an
+    # episode the proposal warm-started from the shifted previous plan (re-noised to t = 0.5,
+    # 2 denoising steps): 149 of 150 episodes over 3 evaluation seeds, against 128 without it.
     c.plan.action_steps = 4
     c.plan.dynamics_steps = 1
     c.plan.action_eta = c.plan.dynamics_eta = 0.0
     c.plan.num_prior_candidates = 16
+    c.plan.warm_start_steps = 2
+    c.plan.warm_start_t = 0.5
     # 4,000 steps of batch 128 train in about 14 minutes on 2 cores (README, Results).
     c.train.batch_size = 128
     c.train.learning_rate = 3e-4
