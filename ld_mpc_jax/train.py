@@ -123,10 +123,12 @@ def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
 
 
 def _summary_md(report: Dict[str, Any]) -> str:
+  speed = (f"{report['steps_per_s']:.2f} steps/s without compilation"
+           if np.isfinite(report['steps_per_s'])
+           else 'no update steps in this run: resumed at the final step')
   lines = [f"# LD-MPC on {report['task']}", '',
            f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
-           f"({report['steps_per_s']:.2f} steps/s without compilation); "
-           f"{report['num_params']:,} parameters.", '',
+           f"({speed}); {report['num_params']:,} parameters.", '',
            '| policy (EMA params) | success | 95% CI | mean return | decisions/s |',
            '| --- | --- | --- | --- | --- |']
   for name, r in [('planner', report)] + list(report['baselines'].items()):

@@ -127,3 +127,17 @@ def test_eval_episodes_zero_trains_without_evaluating(tmp_path, data_dir):
   report = train.train_and_evaluate(c, str(tmp_path / 'run'))
   assert report['steps'] == 4 and report['success_rate'] is None and report['baselines'] == {}
   assert not os.path.exists(tmp_path / 'run' / 'eval.csv')
+
+
+@pytest.mark.parametrize('steps_per_s,expected', [
+    (4.671, '4.67 steps/s without compilation'),
+    (float('nan'), 'no update steps in this run: resumed at the final step')])
+def test_report_summary_states_speed_or_that_nothing_was_trained(steps_per_s, expected):
+  report = dict(task='door-open-v3', steps=4000, train_seconds=836.2, steps_per_s=steps_per_s,
+                num_params=1423442, success_rate=0.94, success_ci95=(0.84, 0.98),
+                mean_return=474.7, decisions_per_s=30.5, baselines={}, eval_episodes=50,
+                git_commit='abc')
+  md = train._summary_md(report)
+  assert f'4000 update steps in 836 s of training ({expected}); 1,423,442 parameters.' in md
+  assert '| planner | 0.94 | [0.84, 0.98] | 474.7 | 30.5 |' in md
+  assert 'nan' not in md
