@@ -27,12 +27,13 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax import checkpointing
-  from ld_mpc_jax.train import run_evaluation
+  from ld_mpc_jax.train import git_commit, run_evaluation
   from experiments.overrides import with_overrides
   config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
   config = with_overrides(config, dict(item.split('=', 1) for item in _OVERRIDE.value))
   episodes = _EPISODES.value or config.eval.episodes
-  out = {'step': step, 'episodes': episodes, 'overrides': _OVERRIDE.value, 'modes': {}}
+  out = {'step': step, 'episodes': episodes, 'seed': _SEED.value, 'overrides': _OVERRIDE.value,
+         'git_commit': git_commit(), 'modes': {}}
   for mode in _MODES.value:
     r = run_evaluation(config, params, mode, episodes, _SEED.value)
     out['modes'][mode] = {k: v for k, v in r.items() if k != 'successes'}
