@@ -46,9 +46,11 @@ VARIANTS = {
     'ddim_8x2_cheap_obj': {**_DDIM_8X2, **_CHEAP_OBJECTIVE},
     # Previous plan re-noised to t = 0.5 and denoised in 4 steps instead of 8 from noise.
     'warm_start': {**_DDIM_8X2, 'plan.warm_start_steps': 4, 'plan.warm_start_t': 0.5},
-    # The :cpu preset's planner: DDIM 4x1 with 16 of the 64 candidates from the actor prior.
+    # The previous :cpu preset's planner: DDIM 4x1 with 16 of the 64 candidates from the actor
+    # prior.
     'fast': {**_DDIM_4X1, 'plan.num_prior_candidates': 16},
-    # `fast` warm-started: the shifted previous plan re-noised to t = 0.5, 2 proposal steps.
+    # `fast` warm-started (the :cpu preset's planner now): the shifted previous plan re-noised
+    # to t = 0.5, 2 proposal steps.
     'fast_warm': {**_DDIM_4X1, 'plan.num_prior_candidates': 16, 'plan.warm_start_steps': 2,
                   'plan.warm_start_t': 0.5},
     'fast_k32_cheap_obj': {**_DDIM_4X1, 'plan.num_candidates': 32, **_CHEAP_OBJECTIVE},
