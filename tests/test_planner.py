@@ -129,7 +129,7 @@ def test_warm_start_is_deterministic_valid_and_stays_near_the_previous_plan(
 
 
 @pytest.mark.parametrize('overrides', [
-    # Benchmark variant `fast` (the :cpu preset without warm start): DDIM 4 x 1 + actor candidates.
+    # Benchmark variant `fast` (the :cpu preset without warm start): DDIM 4 x 1 + actor.
     {'action_steps': 4, 'dynamics_steps': 1, 'action_eta': 0.0, 'dynamics_eta': 0.0,
      'num_prior_candidates': 2},
     {'action_steps': 8, 'dynamics_steps': 2, 'action_eta': 0.0, 'dynamics_eta': 0.0},
