@@ -38,6 +38,12 @@ PRESETS: Dict[str, Sequence[Dict[str, float]]] = {
 }
 
 
+# Bumped whenever collected data change for the same request: cached files of an older collector
+# are collected again. 2: observations are no longer shifted in place by the scripted policies
+# of door-open and button-press (which moved the stored object position).
+COLLECTOR_VERSION = 2
+
+
 def level_assignment(preset: str, episodes: int, seed: int) -> np.ndarray:
   """int64 [episodes]: the PRESETS level index of each episode (shuffled)."""
   if preset not in PRESETS:
@@ -126,7 +132,8 @@ def collect(task: str, preset: str, episodes: int, seed: int = 0,
       random_prob=np.array([spec[l]['random_prob'] for l in levels]),
       seed=seeds)
   metadata: Dict[str, Any] = dict(
-      source='metaworld-scripted', task=task, tasks=[task], preset=preset,
+      source='metaworld-scripted', collector_version=COLLECTOR_VERSION, task=task, tasks=[task],
+      preset=preset,
       levels=[dict(l) for l in spec], episodes=int(episodes), seed=int(seed),
       action_repeat=int(action_repeat),
       max_episode_steps=int(max_episode_steps),
@@ -155,7 +162,8 @@ def get_or_collect(task: str, preset: str, episodes: int, seed: int,
   request, is replaced (with a warning).
   """
   path = dataset_path(data_dir, task, preset, episodes, seed, action_repeat)
-  want = dict(task=task, preset=preset, episodes=episodes, seed=seed,
+  want = dict(collector_version=COLLECTOR_VERSION, task=task, preset=preset, episodes=episodes,
+              seed=seed,
               action_repeat=action_repeat, max_episode_steps=max_episode_steps)
   if os.path.exists(path):
     try:

@@ -9,7 +9,10 @@ configurations are fixed by `seed`, and wraps it in `MetaWorldWrapper`, which ad
 * optional termination on success (Meta-World's evaluation protocol);
 * seeded Gaussian observation noise;
 * seeded episodes: `reset(seed=s)` reseeds the goal choice and the noise, so the
-  same `s` always gives the same episode start.
+  same `s` always gives the same episode start;
+* explicit goals: `reset(seed=s, options={'goal': task})` starts the episode at one given
+  goal configuration (a `metaworld.Task`, see `ld_mpc_jax.envs.goals`) instead of drawing one of
+  the environment's own 50; `info['goal_vector']` is the start's object and goal position.
 
 Observations are float64 [39] and actions float32 [4] in [-1, 1], as in
 Meta-World.
@@ -25,6 +28,19 @@ OBS_DIM = 39
 ACT_DIM = 4
 # Meta-World's own per-episode limit (SawyerXYZEnv.max_path_length).
 METAWORLD_MAX_PATH_LENGTH = 500
+# Where a state observation holds the (first) object's position and the goal position.
+OBJECT_SLICE = slice(4, 7)
+GOAL_SLICE = slice(36, 39)
+
+
+def goal_vector(obs: np.ndarray) -> np.ndarray:
+  """[..., 39] observations -> [..., 6]: object position and goal position.
+
+  At an episode's first (noise-free) observation this identifies the goal configuration: the
+  hand always starts at the same place, and Meta-World's random vector sets the object and goal.
+  """
+  obs = np.asarray(obs, np.float64)
+  return np.concatenate([obs[..., OBJECT_SLICE], obs[..., GOAL_SLICE]], axis=-1)
 
 
 def task_names() -> List[str]:
@@ -85,7 +101,10 @@ class MetaWorldWrapper(gym.Wrapper):
     self.env.unwrapped.max_path_length = max(
         self.max_episode_steps, METAWORLD_MAX_PATH_LENGTH)
     inner = self.env
+    self._task_select = None  # Meta-World's wrapper that draws one of its 50 goals per reset.
     while isinstance(inner, gym.Wrapper):
+      if hasattr(inner, 'toggle_sample_tasks_on_reset'):
+        self._task_select = inner
       if isinstance(inner, gym.wrappers.TimeLimit):
         inner._max_episode_steps = self.env.unwrapped.max_path_length  # pylint: disable=protected-access
       if hasattr(inner, 'toggle_terminate_on_success'):
@@ -103,16 +122,31 @@ class MetaWorldWrapper(gym.Wrapper):
   def reset(self, *, seed: Optional[int] = None,
             options: Optional[Dict[str, Any]] = None
             ) -> Tuple[np.ndarray, Dict[str, Any]]:
-    """Starts an episode; a given `seed` fixes the goal choice and the noise."""
+    """Starts an episode; a given `seed` fixes the goal choice and the noise.
+
+    `options={'goal': task}` (a `metaworld.Task` of this environment's task) starts at that goal
+    configuration; without it the environment draws one of its own 50 goals with its seeded
+    random state. `info['goal_vector']` ([6], `goal_vector` of the noise-free first observation)
+    identifies the configuration.
+    """
+    options = dict(options or {})
+    goal = options.pop('goal', None)
     if seed is not None:
       # SawyerXYZEnv.reset ignores its seed; its np_random picks the goal.
       self.env.unwrapped.seed(int(seed))
       self._noise_rng = np.random.default_rng(int(seed))
-    obs, info = self.env.reset(options=options)
+    if self._task_select is not None:
+      self._task_select.toggle_sample_tasks_on_reset(goal is None)
+    if goal is not None:
+      if self._task_select is None:
+        raise ValueError('this environment has no Meta-World goal configurations to set')
+      self.env.unwrapped.set_task(goal)
+    obs, info = self.env.reset(options=options or None)
     self._env_steps = 0
     self._needs_reset = False
     info = dict(info)
     info['env_steps'] = 0
+    info['goal_vector'] = goal_vector(obs)
     return self._noisy(obs), info
 
   def step(self, action: np.ndarray
@@ -210,4 +244,6 @@ def scripted_policy(task: str):
   if task not in ENV_POLICY_MAP:
     raise ValueError(f'Meta-World has no scripted policy for {task!r}.')
   policy = ENV_POLICY_MAP[task]()
-  return lambda obs: np.asarray(policy.get_action(obs), dtype=np.float32)
+  # A copy: some scripted policies (door-open, button-press) shift parts of the observation
+  # they are given in place, which would corrupt the caller's (and a dataset's) observations.
+  return lambda obs: np.asarray(policy.get_action(np.array(obs, copy=True)), dtype=np.float32)
