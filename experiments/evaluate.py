@@ -1,23 +1,30 @@
-"""Evaluates a trained LD-MPC checkpoint under the Meta-World protocol.
+"""Evaluates a trained LD-MPC checkpoint under the Meta-World protocol, on held-out and train goals.
 
-  python -m experiments.evaluate --workdir=runs/door_open_cpu [--modes=plan,actor,proposal]
+  python -m experiments.evaluate --workdir=runs/door_open_cpu --seeds=0,1,2
+      [--modes=plan,actor,proposal] [--splits=held_out,train] [--set=plan.warm_start_steps=0]
 
-Loads <workdir>/config.json and the latest checkpoint (EMA parameters), runs the protocol for
-each mode, an observation-noise sweep for the planner, and (where MuJoCo can render offscreen,
-e.g. MUJOCO_GL=osmesa with libosmesa6) a short video. Writes <workdir>/evaluation.json.
+Loads <workdir>/config.json and the latest checkpoint (EMA parameters) and runs every policy on
+the same episodes of each goal split and evaluation seed (environments in lockstep, one jitted
+call per decision). Prints pooled success with Wilson intervals and exact McNemar tests between
+policies, and writes the per-episode records and the summary to <workdir>/evaluation.json.
+Optionally an observation-noise sweep of the planner (held-out goals) and a short video (mp4 with
+imageio-ffmpeg; rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless machine).
 """
 
 import json
 import os
+import sys
 
 from absl import app, flags, logging
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory.')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
-_EPISODES = flags.DEFINE_integer('episodes', None, 'Episodes per policy (default: config).')
-_SEED = flags.DEFINE_integer('seed', 0, 'Evaluation seed.')
-_NOISE = flags.DEFINE_bool('noise_sweep', True, 'Run the observation-noise sweep (planner).')
-_VIDEO = flags.DEFINE_bool('video', True, 'Render a short video of the planner if possible.')
+_SPLITS = flags.DEFINE_list('splits', ['held_out', 'train'], 'Goal splits, held_out first.')
+_SEEDS = flags.DEFINE_list('seeds', ['0'], 'Evaluation seeds (pooled).')
+_EPISODES = flags.DEFINE_integer('episodes', None, 'Episodes per policy, split and seed '
+                                 '(default: config).')
+_NOISE = flags.DEFINE_bool('noise_sweep', False, 'Observation-noise sweep of the planner.')
+_VIDEO = flags.DEFINE_bool('video', False, 'Render a 2-episode video of the planner.')
 _OVERRIDE = flags.DEFINE_multi_string('set', [], 'Config override, e.g. plan.action_steps=4.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output (default: <workdir>/evaluation.json).')
 flags.mark_flag_as_required('workdir')
@@ -26,40 +33,53 @@ flags.mark_flag_as_required('workdir')
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import checkpointing
+  from ld_mpc_jax import checkpointing, evaluation_suite
+  from ld_mpc_jax.config_checks import validate_config
   from ld_mpc_jax.train import git_commit, run_evaluation
-  from experiments.overrides import with_overrides
-  config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
-  config = with_overrides(config, dict(item.split('=', 1) for item in _OVERRIDE.value))
+  from experiments.overrides import parse_items, with_overrides
+  try:
+    seeds = [int(s) for s in _SEEDS.value]
+    config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
+    config = with_overrides(config, parse_items(_OVERRIDE.value))
+    validate_config(config)
+    bad = set(_SPLITS.value) - {'held_out', 'train'} or set(_MODES.value) - {
+        'plan', 'actor', 'proposal', 'mppi'}
+    if bad:
+      raise ValueError(f'unknown split or mode {sorted(bad)}')
+  except (ValueError, FileNotFoundError) as err:
+    print(f'error: {err}', file=sys.stderr)
+    sys.exit(2)
   episodes = _EPISODES.value or config.eval.episodes
-  out = {'step': step, 'episodes': episodes, 'seed': _SEED.value, 'overrides': _OVERRIDE.value,
-         'git_commit': git_commit(), 'modes': {}}
-  for mode in _MODES.value:
-    r = run_evaluation(config, params, mode, episodes, _SEED.value)
-    out['modes'][mode] = {k: v for k, v in r.items() if k != 'successes'}
-    print(f"{mode}: success {r['success_rate']:.2f} {r['success_ci95']} "
-          f"return {r['mean_return']:.1f}, {r['decisions_per_s']:.1f} decisions/s")
+  records = evaluation_suite.evaluate_checkpoint(
+      config, params, None, step, _MODES.value, _SPLITS.value, seeds, episodes,
+      run=config.seed)
+  summary = evaluation_suite.summarize(records)
+  print(evaluation_suite.markdown(summary))
+  out = {'step': step, 'episodes': episodes, 'seeds': seeds, 'overrides': _OVERRIDE.value,
+         'git_commit': git_commit(), 'summary': summary, 'records': records}
   if _NOISE.value:
     out['noise_sweep'] = {}
     for std in config.eval.noise_stds:
-      r = run_evaluation(config, params, 'plan', episodes, _SEED.value, obs_noise_std=std)
-      out['noise_sweep'][str(std)] = {k: r[k] for k in ('success_rate', 'success_ci95',
-                                                        'mean_return')}
-      print(f"obs noise {std}: success {r['success_rate']:.2f} {r['success_ci95']}")
+      r = {s: run_evaluation(config, params, 'plan', episodes, s, obs_noise_std=std)
+           for s in seeds}
+      pooled = evaluation_suite.stats.summarize([x for v in r.values() for x in v['records']])
+      out['noise_sweep'][str(std)] = pooled
+      lo, hi = pooled['success_ci95']
+      print(f"obs noise {std}: planner {pooled['successes']}/{pooled['episodes']} = "
+            f"{pooled['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] (held-out goals)")
   if _VIDEO.value:
     path = os.path.join(_WORKDIR.value, 'planner.mp4')
     try:
-      # The written path: .gif where mp4 needs the missing imageio-ffmpeg.
-      path = run_evaluation(config, params, 'plan', 2, _SEED.value, video_path=path)['video_path']
+      path = run_evaluation(config, params, 'plan', 2, seeds[0], video_path=path)['video_path']
       out['video'] = path
       print(f'video: {path}')
-    except Exception as err:  # Rendering needs an offscreen GL backend; report, don't fail.
+    except Exception as err:  # pylint: disable=broad-except
       out['video_error'] = f'{type(err).__name__}: {err}'
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
   path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
   os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
   with open(path, 'w') as f:
-    json.dump(out, f, indent=2)
+    json.dump(out, f, indent=1)
   print(f'wrote {path}')
 
 

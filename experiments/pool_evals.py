@@ -1,44 +1,45 @@
-"""Pools evaluation JSONs (experiments.evaluate --out) over seeds: successes, rate, Wilson CI.
+"""Pools evaluation JSONs (experiments.evaluate --out) from per-episode records.
 
-  python -m experiments.pool_evals runs/evals/warm_seed0.json runs/evals/warm_seed1.json ...
+  python -m experiments.pool_evals runs/a/evaluation.json runs/b/evaluation.json ...
 
-Prints one line per policy mode found in the files: successes / episodes, the pooled success
-rate with its 95% Wilson interval, and the per-file rates in the order given.
+Each file's records count once (a file is one `run`, named by its path, so episodes of different
+checkpoints never pair up). Prints per goal split and policy the pooled successes with a Wilson
+interval and the rate of each file, then exact McNemar tests between policies on the same
+episodes.
 """
 
 import json
 import sys
 
-from ld_mpc_jax.evaluation import wilson_interval
+from ld_mpc_jax import evaluation_suite
 
 
-def pool(results: list) -> dict:
-  """[evaluate JSON dicts] -> {mode: {successes, episodes, success_rate, success_ci95, rates}}."""
-  pooled = {}
-  for result in results:
-    for mode, r in result['modes'].items():
-      p = pooled.setdefault(mode, dict(successes=0, episodes=0, rates=[]))
-      p['successes'] += int(round(r['success_rate'] * result['episodes']))
-      p['episodes'] += result['episodes']
-      p['rates'].append(r['success_rate'])
-  for p in pooled.values():
-    p['success_rate'] = p['successes'] / p['episodes']
-    p['success_ci95'] = wilson_interval(p['successes'], p['episodes'])
-  return pooled
+def pool(results: list, names: list) -> dict:
+  """[evaluate JSON dicts], [their names] -> evaluation_suite.summarize of all their records."""
+  records = []
+  for result, name in zip(results, names):
+    for r in result['records']:
+      records.append({**r, 'run': name})
+  return evaluation_suite.summarize(records)
 
 
 def main(paths: list) -> None:
   if not paths:
-    raise SystemExit(__doc__)
+    print(__doc__.strip().splitlines()[0], file=sys.stderr)
+    raise SystemExit(2)
   results = []
   for path in paths:
-    with open(path) as f:
-      results.append(json.load(f))
-  for mode, p in pool(results).items():
-    lo, hi = p['success_ci95']
-    rates = ', '.join(f'{r:.2f}' for r in p['rates'])
-    print(f"{mode}: {p['successes']}/{p['episodes']} = {p['success_rate']:.3f} "
-          f"[{lo:.2f}, {hi:.2f}] (per file: {rates})")
+    try:
+      with open(path) as f:
+        results.append(json.load(f))
+    except (OSError, json.JSONDecodeError) as err:
+      print(f'error: cannot read {path}: {err}', file=sys.stderr)
+      raise SystemExit(2) from None
+    if 'records' not in results[-1]:
+      print(f'error: {path} has no per-episode records (written by an older evaluate?)',
+            file=sys.stderr)
+      raise SystemExit(2)
+  print(evaluation_suite.markdown(pool(results, paths)), end='')
 
 
 if __name__ == '__main__':

@@ -23,7 +23,15 @@ flags.mark_flags_as_required(['config', 'workdir'])
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
+  from ld_mpc_jax.config_checks import validate_config
+  from ld_mpc_jax.envs import check_task
   from ld_mpc_jax.train import train_and_evaluate
+  try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
+    validate_config(_CONFIG.value)
+    check_task(_CONFIG.value.task)
+  except ValueError as err:
+    print(f'error: {err}', file=sys.stderr)
+    sys.exit(2)
   train_and_evaluate(_CONFIG.value, _WORKDIR.value)
   print(open(os.path.join(_WORKDIR.value, 'report.md')).read())
 

@@ -1,12 +1,14 @@
 """Policies for the environment loop: the planner, the actor prior, the proposal alone, and MPPI
 on the learned model (config.mppi; the TD-MPC2-style baseline).
 
-Each is one jitted function of (params, obs, key, t) that encodes the observation and acts, so a
-decision costs one dispatch; the per-step key is fold_in(key, t) inside jit. `make_policy` wraps
-one in the `policy(obs) -> action` interface of `ld_mpc_jax.evaluation.evaluate`.
+Each is one jitted function of (params, obs, key, t, prev) that encodes the observation and
+acts, so a decision costs one dispatch. Keys follow a fixed schedule: episode e acts at decision
+t with fold_in(fold_in(key(seed), e.reset_seed), t), whether it runs alone (`make_policy`, the
+`policy(obs) -> action` interface) or with others in lockstep (`make_batch_policy`, one jitted
+call for N environments), so the two give the same episodes.
 """
 
-from typing import Callable, Tuple
+from typing import Callable, Optional, Sequence, Tuple
 
 import jax
 import jax.numpy as jnp
@@ -19,12 +21,8 @@ from ld_mpc_jax.planner import make_plan, make_propose
 MODES = ('plan', 'actor', 'proposal', 'mppi')
 
 
-def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
-  """Returns jitted act(params, obs [obs_dim], key, t [], prev) -> (action [A], sequence [H, A]).
-
-  `prev` is the previous decision's sequence (or None at the start of an episode); only the
-  planner with `plan.warm_start_steps` > 0 and MPPI (its Gaussian mean) use it. `sequence` is what to pass as the next `prev`.
-  """
+def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
+  """act(params, obs [obs_dim], key, prev) -> (action [A], sequence [H, A]), not jitted."""
   nets = build_networks(config)
   encode = lambda params, obs: nets.encoder.apply({'params': params['encoder']}, obs)
   if mode == 'plan':
@@ -51,31 +49,131 @@ def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
       return seq[0], seq
   else:
     raise ValueError(f'mode must be one of {MODES}, got {mode!r}')
+  return act
+
+
+def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
+  """Whether `mode` acts on the previous decision's sequence (warm-started planner, MPPI)."""
+  return (mode == 'plan' and config.plan.warm_start_steps > 0) or mode == 'mppi'
+
+
+def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
+  """Returns jitted act(params, obs [obs_dim], key, t [], prev) -> (action [A], sequence [H, A]).
+
+  The decision's key is fold_in(key, t). `prev` is the previous decision's sequence (or None at
+  the start of an episode); only the planner with `plan.warm_start_steps` > 0 and MPPI (its
+  Gaussian mean) use it. `sequence` is what to pass as the next `prev`.
+  """
+  act = _make_act_fn(config, mode)
   return jax.jit(lambda params, obs, key, t, prev: act(params, obs, jax.random.fold_in(key, t),
                                                        prev))
 
 
-def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', seed: int = 0
-                ) -> Tuple[Callable[[np.ndarray], np.ndarray], Callable[[], None]]:
-  """(policy, reset) for the evaluation loop: policy(obs [obs_dim]) -> action [A].
+def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
+  """[N] keys: fold_in(key(seed), reset_seed) for each episode."""
+  seeds = jnp.asarray(np.asarray(reset_seeds, np.int64).astype(np.uint32))
+  return jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), seeds)
 
-  Host state is a decision counter (it keeps counting across episodes, so no two decisions
-  share a key) and, with warm starts, the previous sequence, which stays on the device.
-  `reset()` forgets the previous sequence at the start of an episode.
+
+def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
+                   chunk: Optional[int] = None) -> Callable:
+  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N]).
+
+  -> (actions [N, A], sequences [N, H, A]): `jax.lax.map` of the single-environment act over
+  the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
+  environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
+  vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
+  """
+  act = _make_act_fn(config, mode)
+
+  def one(params, t, has_prev, inputs):
+    obs, key, prev, active = inputs
+    key = jax.random.fold_in(key, t)
+    prev = prev if has_prev else None
+    run = lambda: act(params, obs, key, prev)
+    zeros = lambda: jax.tree_util.tree_map(jnp.zeros_like, jax.eval_shape(run))
+    return jax.lax.cond(active, run, zeros)
+
+  def batch_act(params, obs, keys, t, prev, active):
+    n = obs.shape[0]
+    has_prev = prev is not None
+    prev = prev if has_prev else jnp.zeros((n, config.horizon, config.action_dim))
+    return jax.lax.map(lambda x: one(params, t, has_prev, x), (obs, keys, prev, active),
+                       batch_size=min(chunk or n, n))
+
+  return jax.jit(batch_act)
+
+
+_BATCH_ACTS = {}
+
+
+class BatchAgentPolicy:
+  """N environments in lockstep with one jitted call per decision (an evaluation BatchPolicy).
+
+  Each environment keeps its own previous sequence (warm start), cleared when a wave of
+  episodes starts, and its own key schedule (module docstring).
+  """
+
+  def __init__(self, config: ml_collections.ConfigDict, params, mode: str = 'plan',
+               seed: int = 0, chunk: Optional[int] = None):
+    self.params, self.seed = params, seed
+    self.warm = uses_prev(config, mode)
+    key = (config.to_json_best_effort(sort_keys=True), mode, chunk)
+    if key not in _BATCH_ACTS:  # One jitted function per setting: compiled once per process.
+      _BATCH_ACTS[key] = make_batch_act(config, mode, chunk)
+    self.act = _BATCH_ACTS[key]
+    self.keys = self.prev = None
+
+  def start(self, episodes) -> None:
+    self.keys = episode_keys(self.seed, [ep.reset_seed for ep in episodes])
+    self.prev = None
+
+  def warmup(self, obs: np.ndarray) -> None:
+    """Compiles the first (cold) and later (warm) decisions for this batch size."""
+    obs = jnp.asarray(obs, jnp.float32)
+    keys = episode_keys(self.seed, np.arange(obs.shape[0]))
+    active = jnp.ones(obs.shape[0], bool)
+    _, seq = self.act(self.params, obs, keys, 0, None, active)
+    jax.block_until_ready(self.act(self.params, obs, keys, 1, seq if self.warm else None, active))
+
+  def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
+    actions, sequences = self.act(self.params, jnp.asarray(obs, jnp.float32), self.keys, t,
+                                  self.prev, jnp.asarray(active))
+    if self.warm:
+      self.prev = sequences
+    return np.asarray(actions)
+
+
+def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', seed: int = 0
+                ) -> Tuple[Callable[[np.ndarray], np.ndarray], Callable[..., None]]:
+  """(policy, reset) for one episode at a time: policy(obs [obs_dim]) -> action [A].
+
+  `reset(episode)` starts an episode: it forgets the previous sequence and sets the episode's
+  key schedule from `episode.reset_seed` (module docstring; `reset()` without an episode keeps
+  counting decisions under the last key). `policy.warmup(obs)` compiles it.
   """
   act = make_act(config, mode)
-  key = jax.random.key(seed)
-  warm = (mode == 'plan' and config.plan.warm_start_steps > 0) or mode == 'mppi'
-  state = {'t': 0, 'prev': None}
+  warm = uses_prev(config, mode)
+  state = {'t': 0, 'prev': None, 'key': jax.random.key(seed)}
 
   def policy(obs: np.ndarray) -> np.ndarray:
-    action, sequence = act(params, jnp.asarray(obs, jnp.float32), key, state['t'], state['prev'])
+    action, sequence = act(params, jnp.asarray(obs, jnp.float32), state['key'], state['t'],
+                           state['prev'])
     state['t'] += 1
     if warm:
       state['prev'] = sequence
     return np.asarray(action)
 
-  def reset() -> None:
+  def reset(episode=None) -> None:
     state['prev'] = None
+    if episode is not None:
+      state['key'] = episode_keys(seed, [episode.reset_seed])[0]
+      state['t'] = 0
 
+  def warmup(obs: np.ndarray) -> None:
+    obs = jnp.asarray(obs, jnp.float32)
+    _, sequence = act(params, obs, state['key'], 0, None)
+    jax.block_until_ready(act(params, obs, state['key'], 1, sequence if warm else None))
+
+  policy.warmup = warmup
   return policy, reset

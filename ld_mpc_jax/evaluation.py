@@ -1,38 +1,68 @@
-"""Meta-World success evaluation of any policy, noise sweeps and videos.
+"""Meta-World success evaluation: episodes in lockstep, per-episode records, noise sweeps, video.
 
-Protocol (as `metaworld.evaluation.evaluation` does it): the environment
-terminates an episode at the first `info['success']` (here checked at every
-repeated sub-step), episodes last at most `max_episode_steps` = 500
-ENVIRONMENT steps, and an episode counts as a success iff success was reached.
-Episodes are seeded: episode i resets with `episode_seeds(seed, n, 'eval')[i]`,
-which picks one of the task's 50 MT1 goal configurations (fixed by `seed`) and
-seeds the observation noise; different seeds give unrelated episodes, and the
-collection stream never shares episode seeds with evaluation.
+Protocol (as `metaworld.evaluation.evaluation` does it): the environment terminates an episode at
+the first `info['success']` (here checked at every repeated sub-step), episodes last at most
+`max_episode_steps` = 500 ENVIRONMENT steps, and an episode counts as a success iff success was
+reached. Which goal configuration each episode starts from, and its seeds, are given by an
+`ld_mpc_jax.envs.goals.Episode` list (held-out or train goals); `evaluate` with a plain seed
+uses the environment's own seeded goal draw instead.
+
+`run_episodes` steps N environments in lockstep: each decision makes one call of a batched
+policy for all N (`ld_mpc_jax.agent.make_batch_policy`: one jitted call), so N episodes cost one
+dispatch per decision. It returns one record per episode: evaluation seed, split, episode index,
+goal id, success, `first_success` (the decision, counted from 1, at which success first came;
+None without success), return, length (decisions) and environment steps.
 """
 
-import math
 import os
 import time
 import warnings
-from typing import Any, Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Protocol, Sequence, Tuple
 
 import numpy as np
 import tqdm
 
+from ld_mpc_jax import stats
+from ld_mpc_jax.envs import goals as goals_lib
 from ld_mpc_jax.envs import metaworld_env
 
 Policy = Callable[[np.ndarray], np.ndarray]
+wilson_interval = stats.wilson_interval
 
 
-def wilson_interval(successes: int, n: int, z: float = 1.96) -> List[float]:
-  """Wilson score interval [lo, hi] for a binomial proportion (95% at z=1.96)."""
-  if n <= 0:
-    return [0.0, 1.0]
-  p = successes / n
-  denom = 1.0 + z * z / n
-  center = (p + z * z / (2 * n)) / denom
-  half = z / denom * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-  return [max(0.0, center - half), min(1.0, center + half)]
+class BatchPolicy(Protocol):
+  """Acts for N environments at once."""
+
+  def start(self, episodes: Sequence[goals_lib.Episode]) -> None:
+    """Starts a wave of len(episodes) episodes (clears warm starts, sets per-episode keys)."""
+
+  def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
+    """obs [N, obs_dim], decision index t, active bool [N] -> actions [N, A]."""
+
+
+class CallablePolicy:
+  """A `policy(obs) -> action` as a BatchPolicy; `reset(episode)` starts each episode."""
+
+  def __init__(self, policy: Policy, reset: Optional[Callable[[Any], None]] = None):
+    self.policy, self.reset = policy, reset
+
+  def start(self, episodes):
+    if self.reset is not None:
+      for episode in episodes:  # A stateful policy is only used one episode at a time.
+        self.reset(episode)
+
+  def warmup(self, obs: np.ndarray) -> None:
+    if hasattr(self.policy, 'warmup'):  # e.g. ld_mpc_jax.agent.make_policy: compiles it.
+      self.policy.warmup(obs[0])
+
+  def __call__(self, obs, t, active):
+    out = None
+    for i in np.flatnonzero(active):
+      a = np.asarray(self.policy(obs[i]))
+      if out is None:
+        out = np.zeros((obs.shape[0],) + a.shape, a.dtype)
+      out[i] = a
+    return out
 
 
 def _write_video(frames: List[np.ndarray], path: str, fps: int) -> str:
@@ -52,97 +82,158 @@ def _write_video(frames: List[np.ndarray], path: str, fps: int) -> str:
   return path
 
 
+_ENV_POOL: Dict[Tuple, List[Any]] = {}
+
+
+def _envs(factory, n: int, kwargs: Dict[str, Any]) -> List[Any]:
+  """n environments of factory(**kwargs), kept for the next call (building one takes ~0.5 s)."""
+  key = (factory, tuple(sorted(kwargs.items())))
+  pool = _ENV_POOL.setdefault(key, [])
+  while len(pool) < n:
+    pool.append(factory(**kwargs))
+  return pool[:n]
+
+
+def seeded_episodes(seed: int, num_episodes: int) -> List[goals_lib.Episode]:
+  """Episodes that draw the environment's own goal (no explicit goal), reset-seeded by `seed`."""
+  seeds = metaworld_env.episode_seeds(seed, num_episodes, 'eval')
+  return [goals_lib.Episode(split='env', index=i, eval_seed=int(seed), reset_seed=int(s),
+                            goal_id='', goal=None) for i, s in enumerate(seeds)]
+
+
+def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], task: str, *,
+                 batch_size: int = 1, action_repeat: int = 2,
+                 max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH,
+                 obs_noise_std: float = 0.0, env_factory: Optional[Callable[..., Any]] = None,
+                 video_path: Optional[str] = None, video_episodes: int = 3,
+                 image_size: int = 256, env_seed: int = 0, progress: bool = True,
+                 desc: str = 'evaluate') -> Tuple[List[dict], Dict[str, Any]]:
+  """Runs `episodes` in waves of `batch_size` environments stepped in lockstep.
+
+  Args:
+    policy: a BatchPolicy; called once per decision for the whole wave.
+    episodes: what to run (`ld_mpc_jax.envs.goals.make_episodes` or `seeded_episodes`).
+    task: Meta-World v3 task name.
+    batch_size: environments per wave.
+    action_repeat, max_episode_steps, obs_noise_std: as in `make_env`.
+    env_factory: replaces `make_env` (called with its keyword arguments).
+    video_path: if set, the first environment of the first `video_episodes` waves is rendered
+      to this .mp4 (imageio-ffmpeg) or .gif (MUJOCO_GL=osmesa on a headless machine).
+    env_seed: MT1 seed of the environments (their own goal draw, for `seeded_episodes`).
+    progress: show a tqdm bar over episodes.
+
+  Returns:
+    (records, info): one record per episode (module docstring), and info = dict(seconds,
+    decisions, decisions_per_s, video_path). `decisions_per_s` counts environment decisions per
+    second of the episode loop: policy calls, environment steps and resets included; the
+    policy's compilation is not (a warm-up call precedes the loop).
+  """
+  if not episodes:
+    raise ValueError('no episodes to run')
+  if batch_size < 1:
+    raise ValueError(f'batch_size must be >= 1, got {batch_size}')
+  factory = env_factory or metaworld_env.make_env
+  kwargs = dict(task=task, seed=int(env_seed), action_repeat=action_repeat,
+                max_episode_steps=max_episode_steps, obs_noise_std=obs_noise_std,
+                terminate_on_success=True)
+  n_env = min(batch_size, len(episodes))
+  envs = _envs(factory, n_env, kwargs)
+  video_env = (factory(**kwargs, render_mode='rgb_array', image_size=image_size)
+               if video_path else None)
+  # The protocol bounds episodes by environment steps; this also bounds environments that do
+  # not truncate by themselves.
+  max_decisions = -(-max_episode_steps // action_repeat)
+  records: List[dict] = []
+  frames: List[np.ndarray] = []
+  seconds, done_successes = 0.0, 0
+  bar = tqdm.tqdm(total=len(episodes), desc=desc, disable=not progress, dynamic_ncols=True)
+  for w, first in enumerate(range(0, len(episodes), n_env)):
+    wave = list(episodes[first:first + n_env])
+    slots = list(envs[:len(wave)])
+    if video_env is not None and w < video_episodes:
+      slots[0] = video_env
+    obs = np.stack([e.reset(seed=ep.reset_seed,
+                            options={'goal': ep.goal} if ep.goal is not None else None)[0]
+                    for e, ep in zip(slots, wave)])
+    if w == 0 and hasattr(policy, 'warmup'):
+      policy.warmup(obs)  # Compiles outside the timed loop.
+    policy.start(wave)
+    start_time = time.perf_counter()
+    active = np.ones(len(wave), bool)
+    rec = [dict(ep.record(), success=0, first_success=None, **{'return': 0.0}, length=0,
+                env_steps=0) for ep in wave]
+    for t in range(max_decisions):
+      if slots[0] is video_env and active[0]:
+        frames.append(np.asarray(video_env.render(), np.uint8))
+      actions = np.asarray(policy(obs, t, active))
+      for i in np.flatnonzero(active):
+        o, reward, terminated, truncated, info = slots[i].step(actions[i])
+        obs[i] = o
+        r = rec[i]
+        r['return'] += float(reward)
+        r['length'] = t + 1
+        r['env_steps'] = int(info.get('env_steps', (t + 1) * action_repeat))
+        if info.get('success', False) and not r['success']:
+          r['success'], r['first_success'] = 1, t + 1
+        if r['success'] or terminated or truncated:
+          active[i] = False
+          done_successes += r['success']
+          bar.update(1)
+          bar.set_postfix(success=f'{done_successes}/{bar.n}')
+      if not active.any():
+        break
+    seconds += time.perf_counter() - start_time
+    bar.update(int(active.sum()))  # Episodes cut at the decision limit.
+    records.extend(rec)
+  bar.close()
+  if video_env is not None and hasattr(video_env, 'close'):
+    video_env.close()
+  written = _write_video(frames, video_path, fps=20) if video_path else None
+  decisions = int(sum(r['length'] for r in records))
+  return records, dict(seconds=seconds, decisions=decisions,
+                       decisions_per_s=decisions / seconds if seconds > 0 else float('inf'),
+                       video_path=written)
+
+
+def result(records: Sequence[dict], info: Dict[str, Any]) -> Dict[str, Any]:
+  """Summary of one evaluation: `stats.summarize` of its records plus timing and records."""
+  out = stats.summarize(records)
+  out.update(num_episodes=len(records), decisions_per_s=info['decisions_per_s'],
+             seconds=info['seconds'], video_path=info.get('video_path'),
+             outcomes=[int(r['success']) for r in records], records=list(records))
+  return out
+
+
 def evaluate(policy: Policy, task: str, num_episodes: int = 50, seed: int = 0,
              action_repeat: int = 2,
              max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH,
              obs_noise_std: float = 0.0, video_path: Optional[str] = None,
-             reset: Optional[Callable[[], Any]] = None,
+             reset: Optional[Callable[[Any], None]] = None,
              env_factory: Optional[Callable[..., Any]] = None,
              video_episodes: int = 3, image_size: int = 256,
+             episodes: Optional[Sequence[goals_lib.Episode]] = None,
              progress: bool = True) -> Dict[str, Any]:
-  """Runs `num_episodes` seeded episodes of `policy` under the protocol.
+  """Runs a `policy(obs) -> action` one episode at a time under the protocol.
 
-  Args:
-    policy: obs [obs_dim] float64 -> action [act_dim] in [-1, 1].
-    task: Meta-World v3 task name.
-    num_episodes: episodes (Meta-World uses 50 per task).
-    seed: MT1 seed of the environment and base of the episode seeds.
-    action_repeat: environment steps per decision.
-    max_episode_steps: limit in environment steps (500 in the protocol).
-    obs_noise_std: Gaussian observation noise (robustness sweeps).
-    video_path: if set, the first `video_episodes` episodes are rendered to
-      this .mp4/.gif (MuJoCo offscreen rendering: MUJOCO_GL=osmesa).
-    reset: called before each episode (e.g. to clear a planner's warm start).
-    env_factory: replaces `make_env`; called with the keyword arguments of
-      `make_env` (task, seed, action_repeat, max_episode_steps, obs_noise_std,
-      terminate_on_success=True, and render_mode/image_size when rendering).
-    video_episodes: how many episodes go into the video.
-    image_size: rendered frame size.
-    progress: show a tqdm progress bar.
+  Without `episodes`, episode i resets with `episode_seeds(seed, num_episodes, 'eval')[i]` on
+  an environment of MT1 seed `seed`, which draws one of that seed's 50 goals (use
+  `ld_mpc_jax.envs.goals` episodes for held-out or train goals). `reset(episode)` is called
+  before each episode (e.g. to clear a planner's warm start).
 
   Returns:
-    dict(success_rate, success_ci95=[lo, hi] (Wilson), mean_return,
-    mean_length (decisions per episode), mean_env_steps, decisions_per_s
-    (policy calls per second of time spent in the policy), num_episodes,
-    successes (per-episode list of 0/1), video_path).
+    dict(success_rate, success_ci95 (Wilson), successes (count), episodes, mean_return,
+    mean_length (decisions), mean_env_steps, decisions_per_s (environment included, compilation
+    excluded), num_episodes, outcomes (per-episode 0/1), records, video_path).
   """
   if num_episodes < 1:
     raise ValueError(f'num_episodes must be >= 1, got {num_episodes}')
-  factory = env_factory or metaworld_env.make_env
-  kwargs = dict(task=task, seed=seed, action_repeat=action_repeat,
-                max_episode_steps=max_episode_steps,
-                obs_noise_std=obs_noise_std, terminate_on_success=True)
-  env = factory(**kwargs)
-  video_env = None
-  if video_path:
-    video_env = factory(**kwargs, render_mode='rgb_array',
-                        image_size=image_size)
-  # The protocol bounds episodes by environment steps; this also bounds
-  # environments that do not truncate by themselves.
-  max_decisions = -(-max_episode_steps // action_repeat)
-  seeds = metaworld_env.episode_seeds(seed, num_episodes, 'eval')
-  successes, returns, lengths, env_steps = [], [], [], []
-  frames: List[np.ndarray] = []
-  policy_time, calls = 0.0, 0
-  bar = tqdm.tqdm(range(num_episodes), desc=f'evaluate {task}',
-                  disable=not progress)
-  for i in bar:
-    e = video_env if (video_env is not None and i < video_episodes) else env
-    if reset is not None:
-      reset()
-    obs, _ = e.reset(seed=int(seeds[i]))
-    success, ep_return, t, info = False, 0.0, 0, {}
-    while t < max_decisions:
-      if e is video_env:
-        frames.append(np.asarray(e.render(), np.uint8))
-      start = time.perf_counter()
-      action = policy(obs)
-      policy_time += time.perf_counter() - start
-      calls += 1
-      obs, reward, terminated, truncated, info = e.step(action)
-      ep_return += float(reward)
-      t += 1
-      success = success or bool(info.get('success', False))
-      if success or terminated or truncated:
-        break
-    successes.append(int(success))
-    returns.append(ep_return)
-    lengths.append(t)
-    env_steps.append(int(info.get('env_steps', t * action_repeat)))
-    bar.set_postfix(success=float(np.mean(successes)))
-  for e in (env, video_env):
-    if e is not None and hasattr(e, 'close'):
-      e.close()
-  written = _write_video(frames, video_path, fps=20) if video_path else None
-  k = int(np.sum(successes))
-  return dict(
-      success_rate=k / num_episodes,
-      success_ci95=wilson_interval(k, num_episodes),
-      mean_return=float(np.mean(returns)),
-      mean_length=float(np.mean(lengths)),
-      mean_env_steps=float(np.mean(env_steps)),
-      decisions_per_s=calls / policy_time if policy_time > 0 else float('inf'),
-      num_episodes=num_episodes, successes=successes, video_path=written)
+  episodes = list(episodes) if episodes is not None else seeded_episodes(seed, num_episodes)
+  records, info = run_episodes(
+      CallablePolicy(policy, reset), episodes, task, batch_size=1, action_repeat=action_repeat,
+      max_episode_steps=max_episode_steps, obs_noise_std=obs_noise_std, env_factory=env_factory,
+      video_path=video_path, video_episodes=video_episodes, image_size=image_size,
+      env_seed=seed, progress=progress, desc=f'evaluate {task}')
+  return result(records, info)
 
 
 def noise_sweep(policy: Policy, task: str, stds: Sequence[float],
@@ -150,9 +241,9 @@ def noise_sweep(policy: Policy, task: str, stds: Sequence[float],
   """`evaluate` at each observation-noise std; results carry 'obs_noise_std'."""
   results = []
   for std in stds:
-    result = evaluate(policy, task, obs_noise_std=float(std), **kwargs)
-    result['obs_noise_std'] = float(std)
-    results.append(result)
+    r = evaluate(policy, task, obs_noise_std=float(std), **kwargs)
+    r['obs_noise_std'] = float(std)
+    results.append(r)
   return results
 
 

@@ -16,8 +16,7 @@ import orbax.checkpoint as ocp
 from tensorboardX import SummaryWriter
 import tqdm
 
-from ld_mpc_jax import checkpointing, data, envs, evaluation
-from ld_mpc_jax.agent import make_policy
+from ld_mpc_jax import checkpointing, data, envs, evaluation_suite
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
@@ -103,7 +102,7 @@ def write_plots(workdir: str) -> None:
     steps = np.array([int(r['step']) for r in rows])
     rate = np.array([float(r['success_rate']) for r in rows])
     lo, hi = np.array([float(r['ci_lo']) for r in rows]), np.array([float(r['ci_hi']) for r in rows])
-    ax.plot(steps, rate, 'o-', label='planner (EMA params)')
+    ax.plot(steps, rate, 'o-', label='planner, held-out goals (EMA params)')
     ax.fill_between(steps, lo, hi, alpha=0.2, label='95% Wilson interval')
     ax.set_xlabel('update step'); ax.set_ylabel('success rate'); ax.set_ylim(-0.02, 1.02)
     ax.legend(); fig.tight_layout(); fig.savefig(os.path.join(workdir, 'success.png'), dpi=100)
@@ -111,15 +110,11 @@ def write_plots(workdir: str) -> None:
 
 
 def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
-                   obs_noise_std: float = 0.0, video_path: str | None = None) -> Dict[str, Any]:
-  """Meta-World protocol for one policy mode ('plan', 'actor', 'proposal')."""
-  policy, reset = make_policy(config, params, mode, seed=seed)
-  return evaluation.evaluate(policy, config.task, num_episodes=num_episodes, seed=seed,
-                             reset=reset,
-                             action_repeat=config.eval.action_repeat,
-                             max_episode_steps=config.eval.max_episode_steps,
-                             obs_noise_std=obs_noise_std, video_path=video_path,
-                             progress=False)
+                   obs_noise_std: float = 0.0, video_path: str | None = None,
+                   split: str = 'held_out') -> Dict[str, Any]:
+  """One policy mode ('plan', 'actor', 'proposal', 'mppi') on one goal split (batched)."""
+  return evaluation_suite.evaluate_policy(config, params, mode, num_episodes, seed, split,
+                                          obs_noise_std=obs_noise_std, video_path=video_path)
 
 
 def _summary_md(report: Dict[str, Any]) -> str:
@@ -128,19 +123,26 @@ def _summary_md(report: Dict[str, Any]) -> str:
            else 'no update steps in this run: resumed at the final step')
   lines = [f"# LD-MPC on {report['task']}", '',
            f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
-           f"({speed}); {report['num_params']:,} parameters.", '',
-           '| policy (EMA params) | success | 95% CI | mean return | decisions/s |',
-           '| --- | --- | --- | --- | --- |']
-  for name, r in [('planner', report)] + list(report['baselines'].items()):
-    if r['success_rate'] is None:
-      lines.append(f'| {name} | not evaluated (eval.episodes = 0) | | | |')
-      continue
-    lo, hi = r['success_ci95']
-    lines.append(f"| {name} | {r['success_rate']:.2f} | [{lo:.2f}, {hi:.2f}] | "
-                 f"{r['mean_return']:.1f} | {r['decisions_per_s']:.1f} |")
-  lines += ['', f"Episodes per policy: {report['eval_episodes']}; git commit "
-            f"{report['git_commit']}."]
+           f"({speed}); {report['num_params']:,} parameters.", '']
+  if report['evaluation']:
+    lines += [f"EMA parameters; {report['eval_episodes']} episodes per policy, goal split and "
+              f"evaluation seed (seeds {', '.join(map(str, report['eval_seeds']))}); the same "
+              'episodes for every policy. Held-out goals: configurations no dataset episode '
+              'starts from.', '', evaluation_suite.markdown(report['evaluation'])]
+  else:
+    lines.append('Not evaluated (eval.episodes = 0).')
+  lines += ['', f"git commit {report['git_commit']}."]
   return '\n'.join(lines) + '\n'
+
+
+def _write_records(path: str, records) -> None:
+  fields = ['run', 'policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id', 'success',
+            'first_success', 'return', 'length', 'env_steps']
+  with open(path + '.tmp', 'w', newline='') as f:
+    writer = csv.DictWriter(f, fieldnames=fields, extrasaction='ignore')
+    writer.writeheader()
+    writer.writerows(records)
+  os.replace(path + '.tmp', path)
 
 
 def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
@@ -222,12 +224,19 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   manager.wait_until_finished()
 
   params = state.ema_params
+  summary, records = {}, []
   if evaluate:
-    final = _periodic_eval(config, params, num_steps, workdir, writer,
-                           episodes=config.eval.episodes)
-    baselines = {mode: _brief(run_evaluation(config, params, mode, config.eval.episodes,
-                                             config.seed))
-                 for mode in config.eval.get('baselines', ('actor', 'proposal'))}
+    modes = ('plan',) + tuple(m for m in config.eval.get('baselines', ()) if m != 'plan')
+    records = evaluation_suite.evaluate_checkpoint(
+        config, params, workdir, int(state.step), modes, config.eval.splits, config.eval.seeds,
+        config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
+    summary = evaluation_suite.summarize(records)
+    _write_records(os.path.join(workdir, 'episodes.csv'), records)
+    first = summary[config.eval.splits[0]]['policies']
+    final = {**first['plan'], 'split': config.eval.splits[0]}
+    _log_eval(workdir, writer, num_steps, final)
+    baselines = {mode: {**first[mode], 'split': config.eval.splits[0]}
+                 for mode in modes if mode != 'plan'}
   else:
     final = dict.fromkeys(('success_rate', 'success_ci95', 'mean_return', 'mean_length',
                            'decisions_per_s'))
@@ -239,8 +248,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
       'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
       'decisions_per_s': final['decisions_per_s'],
-      'eval_episodes': config.eval.episodes,
-      'baselines': baselines,
+      'eval_episodes': config.eval.episodes, 'eval_seeds': list(config.eval.seeds),
+      'baselines': baselines, 'evaluation': summary,
       'train_seconds': train_seconds, 'steps': int(state.step),
       'steps_per_s': (timed_steps / timed_seconds) if timed_seconds else float('nan'),
       'num_params': count_params(params),
@@ -254,25 +263,26 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   with open(os.path.join(workdir, 'report.md'), 'w') as f:
     f.write(_summary_md(report))
   write_plots(workdir)
+  report['records'] = records  # Per-episode records: in episodes.csv, not in report.json.
   return report
 
 
-def _brief(result: Dict[str, Any]) -> Dict[str, Any]:
-  keys = ('success_rate', 'success_ci95', 'mean_return', 'mean_length', 'decisions_per_s')
-  return {k: result[k] for k in keys}
-
-
-def _periodic_eval(config, params, step, workdir, writer, episodes=None):
-  episodes = episodes or config.eval.periodic_episodes
-  result = run_evaluation(config, params, 'plan', episodes, config.seed)
+def _log_eval(workdir, writer, step, result) -> None:
   lo, hi = result['success_ci95']
   _append_csv(os.path.join(workdir, 'eval.csv'),
-              {'step': step, 'episodes': episodes, 'success_rate': result['success_rate'],
-               'ci_lo': lo, 'ci_hi': hi, 'mean_return': result['mean_return'],
+              {'step': step, 'episodes': result['episodes'],
+               'success_rate': result['success_rate'], 'ci_lo': lo, 'ci_hi': hi,
+               'mean_return': result['mean_return'],
                'decisions_per_s': result['decisions_per_s']})
   writer.add_scalar('eval/success_rate', result['success_rate'], step)
   writer.add_scalar('eval/mean_return', result['mean_return'], step)
-  tqdm.tqdm.write(f"step {step}: success {result['success_rate']:.2f} "
-                  f"[{lo:.2f}, {hi:.2f}] over {episodes} episodes")
+  tqdm.tqdm.write(f"step {step}: planner success {result['success_rate']:.2f} [{lo:.2f}, "
+                  f"{hi:.2f}] over {result['episodes']} episodes on held-out goals")
   write_plots(workdir)
+
+
+def _periodic_eval(config, params, step, workdir, writer):
+  result = run_evaluation(config, params, 'plan', config.eval.periodic_episodes,
+                          config.eval.seeds[0], split='held_out')
+  _log_eval(workdir, writer, step, result)
   return result

@@ -190,7 +190,8 @@ def test_get_or_collect_caches_and_replaces_bad_files(tmp_path, monkeypatch):
     ds = _tiny()
     ds.metadata.update(task=task, preset=preset, episodes=episodes, seed=seed,
                        action_repeat=action_repeat,
-                       max_episode_steps=max_episode_steps)
+                       max_episode_steps=max_episode_steps,
+                       collector_version=collection.COLLECTOR_VERSION)
     return ds
 
   monkeypatch.setattr(collection, 'collect', fake_collect)
@@ -208,3 +209,8 @@ def test_get_or_collect_caches_and_replaces_bad_files(tmp_path, monkeypatch):
     collection.get_or_collect(**args)
   assert len(calls) == 2
   assert zipfile.is_zipfile(path)
+  # A file of an older collector (no version) is collected again.
+  monkeypatch.setattr(collection, 'COLLECTOR_VERSION', collection.COLLECTOR_VERSION + 1)
+  with pytest.warns(UserWarning, match='collecting again'):
+    collection.get_or_collect(**args)
+  assert len(calls) == 3

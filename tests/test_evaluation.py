@@ -43,15 +43,6 @@ def _expected(seed, n, max_decisions):
   return np.array([s % 2 == 0 for s in seeds]), np.array(lengths)
 
 
-def test_wilson_interval_hand_values():
-  lo, hi = evaluation.wilson_interval(5, 10)
-  assert lo == pytest.approx(0.2366, abs=1e-4)
-  assert hi == pytest.approx(0.7634, abs=1e-4)
-  assert evaluation.wilson_interval(0, 50)[0] == 0.0
-  assert evaluation.wilson_interval(0, 50)[1] == pytest.approx(0.0713, abs=1e-4)
-  assert evaluation.wilson_interval(50, 50)[1] == 1.0
-
-
 def test_protocol_counts_on_fake_env():
   envs, resets, calls = [], [], []
 
@@ -65,26 +56,46 @@ def test_protocol_counts_on_fake_env():
 
   res = evaluation.evaluate(policy, 'door-open-v3', num_episodes=20, seed=3,
                             action_repeat=2, max_episode_steps=20,
-                            reset=lambda: resets.append(1),
-                            env_factory=factory, progress=False)
+                            reset=resets.append, env_factory=factory, progress=False)
   success, lengths = _expected(3, 20, max_decisions=10)
   assert 0 < success.sum() < 20  # The seeds give both outcomes.
   assert res['success_rate'] == pytest.approx(success.mean())
-  assert res['successes'] == success.astype(int).tolist()
+  assert res['outcomes'] == success.astype(int).tolist()
+  assert res['successes'] == success.sum() and res['episodes'] == 20
   assert res['mean_length'] == pytest.approx(lengths.mean())
   assert res['mean_return'] == pytest.approx(lengths.mean())
   assert len(calls) == lengths.sum() and len(resets) == 20
+  assert [ep.index for ep in resets] == list(range(20))
   assert res['num_episodes'] == 20 and res['decisions_per_s'] > 0
   lo, hi = res['success_ci95']
   assert lo <= res['success_rate'] <= hi
   assert envs[0].kwargs['terminate_on_success']
   assert envs[0].kwargs['max_episode_steps'] == 20
+  # Per-episode records: the decision of the first success, length, return, seeds.
+  seeds = metaworld_env.episode_seeds(3, 20, 'eval')
+  for rec, s, ok, n in zip(res['records'], seeds, success, lengths):
+    assert rec['reset_seed'] == s and rec['eval_seed'] == 3
+    assert rec['success'] == ok and rec['length'] == n and rec['return'] == n
+    assert rec['first_success'] == (n if ok else None)
+    assert rec['env_steps'] == 2 * n
   # Seeded: the same seed replays the same episodes.
   again = evaluation.evaluate(policy, 'door-open-v3', num_episodes=20, seed=3,
                               max_episode_steps=20, env_factory=factory,
                               progress=False)
-  assert envs[-1].episode_seeds == envs[0].episode_seeds
-  assert again['successes'] == res['successes']
+  assert again['records'] == res['records']
+
+
+def test_lockstep_waves_give_the_same_records_as_one_at_a_time():
+  episodes = evaluation.seeded_episodes(5, 7)
+  policy = evaluation.CallablePolicy(lambda obs: np.zeros(1))
+  runs = [evaluation.run_episodes(policy, episodes, 'door-open-v3', batch_size=b,
+                                  max_episode_steps=20, env_factory=_FakeEnv,
+                                  progress=False)[0] for b in (1, 3, 7)]
+  assert runs[0] == runs[1] == runs[2]
+  assert len(runs[0]) == 7 and [r['episode'] for r in runs[0]] == list(range(7))
+  with pytest.raises(ValueError, match='batch_size'):
+    evaluation.run_episodes(policy, episodes, 'door-open-v3', batch_size=0,
+                            env_factory=_FakeEnv, progress=False)
 
 
 def test_noise_sweep_and_fake_video(tmp_path):
@@ -103,8 +114,7 @@ def test_scripted_policy_on_real_env_is_deterministic():
                           progress=False)
   b = evaluation.evaluate(policy, 'door-open-v3', num_episodes=2, seed=0,
                           progress=False)
-  assert a['successes'] == b['successes']
-  assert a['mean_return'] == pytest.approx(b['mean_return'])
+  assert a['records'] == b['records']
   assert 0 < a['mean_length'] <= 250
   assert a['mean_env_steps'] <= 500
 

@@ -1,8 +1,8 @@
-"""Dotted config overrides shared by the launchers."""
+"""Dotted config overrides shared by the launchers, parsed by the field's type."""
 
 import pytest
 
-from experiments.overrides import with_overrides
+from experiments.overrides import parse_items, with_overrides
 
 
 def test_overrides_convert_strings_to_the_field_type_and_copy(smoke_config):
@@ -14,7 +14,29 @@ def test_overrides_convert_strings_to_the_field_type_and_copy(smoke_config):
   assert smoke_config.plan.action_steps == 2  # The original is untouched.
 
 
-@pytest.mark.parametrize('field', ['plan.nope', 'nope.action_steps'])
+def test_tuple_bool_and_int_fields_parse(smoke_config):
+  smoke_config.eval.flag = True
+  c = with_overrides(smoke_config, parse_items([
+      'eval.noise_stds=0.0,0.05', 'eval.splits=train', 'model.actor_hidden=(8, 8)',
+      'eval.flag=False', 'eval.batch_size=3', 'plan.guidance_scale=1']))
+  assert c.eval.noise_stds == (0.0, 0.05)
+  assert c.eval.splits == ('train',)
+  assert c.model.actor_hidden == (8, 8)
+  assert c.eval.flag is False
+  assert c.eval.batch_size == 3 and isinstance(c.eval.batch_size, int)
+  assert c.plan.guidance_scale == 1.0 and isinstance(c.plan.guidance_scale, float)
+  assert with_overrides(smoke_config, {'eval.flag': 'false'}).eval.flag is False
+  assert with_overrides(smoke_config, {'eval.flag': 'true'}).eval.flag is True
+
+
+@pytest.mark.parametrize('field', ['plan.nope', 'nope.action_steps', 'task.nope'])
 def test_unknown_fields_are_named(smoke_config, field):
   with pytest.raises(ValueError, match=field):
     with_overrides(smoke_config, {field: 1})
+
+
+def test_bad_values_and_items_are_named(smoke_config):
+  with pytest.raises(ValueError, match='plan.action_steps'):
+    with_overrides(smoke_config, {'plan.action_steps': 'many'})
+  with pytest.raises(ValueError, match='field.name=value'):
+    parse_items(['plan.action_steps'])

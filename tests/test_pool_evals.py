@@ -1,4 +1,4 @@
-"""experiments.pool_evals: pooling evaluation results over seeds."""
+"""experiments.pool_evals: pooling evaluation records over files."""
 
 import json
 
@@ -7,28 +7,30 @@ import pytest
 from experiments import pool_evals
 
 
-def _result(rates: dict, episodes: int = 50) -> dict:
-  return {'episodes': episodes, 'modes': {m: {'success_rate': r} for m, r in rates.items()}}
+def _result(outcomes: dict) -> dict:
+  """{mode: [0/1 per episode]} -> an evaluate JSON with records (held-out goals, seed 0)."""
+  return {'records': [dict(policy=m, split='held_out', eval_seed=0, episode=i, success=s,
+                           **{'return': 1.0})
+                      for m, out in outcomes.items() for i, s in enumerate(out)]}
 
 
-def test_pool_counts_successes_over_files_and_gives_a_wilson_interval():
-  pooled = pool_evals.pool([_result({'plan': 1.0, 'actor': 0.92}),
-                            _result({'plan': 0.98}), _result({'plan': 0.5}, episodes=10)])
-  plan = pooled['plan']
-  assert (plan['successes'], plan['episodes']) == (50 + 49 + 5, 110)
-  assert plan['success_rate'] == pytest.approx(104 / 110)
-  assert plan['rates'] == [1.0, 0.98, 0.5]
-  lo, hi = plan['success_ci95']
-  assert 0.88 < lo < 104 / 110 < hi < 0.98
-  assert pooled['actor']['successes'] == 46 and pooled['actor']['episodes'] == 50
+def test_pool_counts_records_over_files_and_pairs_within_a_file():
+  a = _result({'plan': [1] * 10, 'actor': [1] * 6 + [0] * 4})
+  b = _result({'plan': [1] * 9 + [0], 'actor': [1] * 5 + [0] * 5})
+  s = pool_evals.pool([a, b], ['a', 'b'])['held_out']
+  plan = s['policies']['plan']
+  assert (plan['successes'], plan['episodes']) == (19, 20)
+  assert plan['success_rate'] == pytest.approx(0.95)
+  assert plan['per_run']['rates'] == {'a': 1.0, 'b': 0.9}
+  t = s['paired']['plan vs actor']
+  # Episodes pair within a file only: plan-only successes 4 + 4 = 8, actor-only 0.
+  assert (t['n'], t['a_only'], t['b_only']) == (20, 8, 0)
+  assert t['p_value'] == pytest.approx(2 / 2 ** 8)
 
 
-def test_main_prints_one_line_per_mode(tmp_path, capsys):
-  paths = []
-  for i, rate in enumerate((1.0, 0.98)):
-    path = tmp_path / f'seed{i}.json'
-    path.write_text(json.dumps(_result({'plan': rate})))
-    paths.append(str(path))
-  pool_evals.main(paths)
-  assert capsys.readouterr().out.strip() == (
-      'plan: 99/100 = 0.990 [0.95, 1.00] (per file: 1.00, 0.98)')
+def test_main_rejects_files_without_records(tmp_path, capsys):
+  path = tmp_path / 'old.json'
+  path.write_text(json.dumps({'modes': {'plan': {'success_rate': 1.0}}}))
+  with pytest.raises(SystemExit) as err:
+    pool_evals.main([str(path)])
+  assert err.value.code == 2 and 'no per-episode records' in capsys.readouterr().err

@@ -53,6 +53,15 @@ def test_smoke_run_end_to_end(tmp_path, data_dir):
   assert step == 4 and config.model.width == 16
   result = train.run_evaluation(config, params, 'actor', 1, seed=0)
   assert result['num_episodes'] == 1
+  # Both goal splits, held-out first, every policy on the same episodes, records on disk.
+  assert list(report['evaluation']) == ['held_out', 'train']
+  for split in report['evaluation'].values():
+    assert list(split['policies']) == ['plan', 'actor', 'proposal']
+    assert split['paired']['plan vs actor']['n'] == 1
+  rows = train._read_csv(os.path.join(workdir, 'episodes.csv'))
+  assert len(rows) == 2 * 3 and {r['split'] for r in rows} == {'held_out', 'train'}
+  assert report['success_rate'] == float(rows[0]['success'])  # Held-out planner first.
+  assert 'McNemar' in open(os.path.join(workdir, 'report.md')).read()
 
 
 def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
@@ -60,7 +69,8 @@ def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
   cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open.py:smoke',
          f'--workdir={workdir}', f'--config.data.dir={data_dir}',
          '--config.train.num_steps=60', '--config.train.checkpoint_every=5',
-         '--config.train.log_every=5', '--config.train.eval_every=1000']
+         '--config.train.log_every=5', '--config.train.eval_every=1000',
+         '--config.eval.episodes=0']  # Resuming is tested here; evaluation elsewhere.
   proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
   ckpt_dir = os.path.join(workdir, 'checkpoints')
   deadline = time.time() + 240
@@ -133,11 +143,16 @@ def test_eval_episodes_zero_trains_without_evaluating(tmp_path, data_dir):
     (4.671, '4.67 steps/s without compilation'),
     (float('nan'), 'no update steps in this run: resumed at the final step')])
 def test_report_summary_states_speed_or_that_nothing_was_trained(steps_per_s, expected):
+  from ld_mpc_jax import evaluation_suite
+  records = [dict(run=0, policy=mode, split='held_out', eval_seed=0, episode=i,
+                  success=int(i < k), decisions_per_s=30.5, **{'return': 474.7})
+             for mode, k in (('plan', 47), ('actor', 40)) for i in range(50)]
   report = dict(task='door-open-v3', steps=4000, train_seconds=836.2, steps_per_s=steps_per_s,
-                num_params=1423442, success_rate=0.94, success_ci95=(0.84, 0.98),
-                mean_return=474.7, decisions_per_s=30.5, baselines={}, eval_episodes=50,
-                git_commit='abc')
+                num_params=1423442, eval_episodes=50, eval_seeds=[0], git_commit='abc',
+                evaluation=evaluation_suite.summarize(records))
   md = train._summary_md(report)
   assert f'4000 update steps in 836 s of training ({expected}); 1,423,442 parameters.' in md
-  assert '| planner | 0.94 | [0.84, 0.98] | 474.7 | 30.5 |' in md
+  assert '| held_out | planner | 47/50 = 0.94 | [0.84, 0.98] | 0.94 | 474.7 | 30.5 |' in md
+  # 7 episodes only the planner solved, none only the actor: p = 2 / 2^7.
+  assert '| held_out | planner vs actor prior | 50 | 7 | 0 | 0.0156 |' in md
   assert 'nan' not in md

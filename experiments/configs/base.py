@@ -105,9 +105,19 @@ def get_config() -> ml_collections.ConfigDict:
   c.data.dir = 'data_cache'
 
   c.eval = e = ml_collections.ConfigDict()
-  e.episodes = 50  # Final evaluation (Meta-World protocol).
-  e.periodic_episodes = 10  # Cheaper evaluations during training.
-  e.baselines = ('actor', 'proposal')  # Also evaluated at the end, on the same parameters.
+  e.episodes = 50  # Final evaluation (Meta-World protocol), per split and evaluation seed.
+  e.periodic_episodes = 10  # Cheaper evaluations during training (held-out goals).
+  e.baselines = ('actor', 'proposal')  # Also evaluated at the end, on the same episodes.
+  # Goal splits of the final evaluation (ld_mpc_jax.envs.goals), held-out goals first: goals no
+  # dataset episode starts from, and the goals the data were collected on.
+  e.splits = ('held_out', 'train')
+  e.seeds = (0,)  # Evaluation seeds of the final evaluation (each: its own episodes and goals).
+  # Environments stepped in lockstep: one jitted policy call per decision for all of them.
+  e.batch_size = 50
+  # Planner environments per vmap inside that call (jax.lax.map's batch_size). On a 2-core CPU
+  # one at a time is fastest: a K = 64 plan already fills the cores, and wider batches leave
+  # the caches (experiments.benchmark_evaluation); on an accelerator, raise it.
+  e.plan_chunk = 1
   e.action_repeat = 2  # TD-MPC2's setting for Meta-World.
   e.max_episode_steps = 500
   e.noise_stds = (0.0, 0.01, 0.05, 0.1)

@@ -82,5 +82,6 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.eval.periodic_episodes = 1
     c.eval.max_episode_steps = 20
     c.eval.noise_stds = (0.0,)
+    c.eval.batch_size = 2
     return c
   raise ValueError(f"unknown preset {preset!r}: use '', 'cpu', 'ablation' or 'smoke'")

@@ -1,0 +1,169 @@
+"""Evaluating a checkpoint: policies x goal splits x evaluation seeds, with paired statistics.
+
+`evaluate_policy` runs one policy mode on one split and seed with the batched evaluation and
+returns its per-episode records; `evaluate_checkpoint` runs a grid of them, caching each cell as
+JSON under `<workdir>/evals/` (a crash or a re-run loses nothing already evaluated), and
+`summarize` pools the records (per split and policy: Wilson interval, spread over runs) and
+pairs policies on the same episodes (exact McNemar test). `markdown` renders that as tables.
+"""
+
+import functools
+import hashlib
+import itertools
+import json
+import os
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+import ml_collections
+import numpy as np
+
+from ld_mpc_jax import data, evaluation, stats
+from ld_mpc_jax.agent import BatchAgentPolicy
+from ld_mpc_jax.envs import goals
+
+POLICY_NAMES = {'plan': 'planner', 'actor': 'actor prior', 'proposal': 'proposal alone',
+                'mppi': 'MPPI (learned model)'}
+
+
+@functools.lru_cache(maxsize=8)
+def _dataset_goals(task, preset, episodes, seed, data_dir, action_repeat):
+  ds = data.get_or_collect(task, preset, episodes, seed, data_dir, action_repeat=action_repeat)
+  mt1_seed = ds.metadata.get('seed') if ds.metadata.get('source') == 'metaworld-scripted' else None
+  return goals.dataset_goal_vectors(ds), mt1_seed
+
+
+def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Optional[int]]:
+  """(goal vectors [E, 6] of the training data's episode starts, the data's MT1 seed)."""
+  d = config.data
+  return _dataset_goals(config.task, d.preset, d.episodes, d.seed, d.dir,
+                        config.eval.action_repeat)
+
+
+def episodes(config: ml_collections.ConfigDict, split: str, seed: int,
+             num_episodes: int) -> List[goals.Episode]:
+  """The episodes of one goal split and evaluation seed for config's task and data."""
+  vectors, mt1_seed = dataset_goals(config)
+  return goals.make_episodes(config.task, split, seed, num_episodes, vectors, mt1_seed)
+
+
+def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_episodes: int,
+                    seed: int, split: str = 'held_out', obs_noise_std: float = 0.0,
+                    video_path: Optional[str] = None, batch_size: Optional[int] = None,
+                    progress: bool = False) -> Dict[str, Any]:
+  """`mode` ('plan', 'actor', 'proposal', 'mppi') on `num_episodes` episodes of one split.
+
+  Environments run in lockstep, `config.eval.batch_size` at a time (one jitted call per
+  decision for all of them; the planner maps `config.eval.plan_chunk` environments per vmap).
+  Returns `evaluation.result`: summary, `records` (one per episode) and timing.
+  """
+  e = config.eval
+  batch = batch_size or (1 if video_path else e.batch_size)
+  chunk = e.plan_chunk if mode in ('plan', 'mppi') else None
+  policy = BatchAgentPolicy(config, params, mode, seed=seed, chunk=chunk)
+  eps = episodes(config, split, seed, num_episodes)
+  records, info = evaluation.run_episodes(
+      policy, eps, config.task, batch_size=batch, action_repeat=e.action_repeat,
+      max_episode_steps=e.max_episode_steps, obs_noise_std=obs_noise_std,
+      video_path=video_path, video_episodes=len(eps), progress=progress,
+      desc=f'{mode} {split} seed {seed}')
+  for r in records:
+    r['policy'] = mode
+  return evaluation.result(records, info)
+
+
+def _cell_path(workdir: str, config, step: int, mode: str, split: str, seed: int,
+               num_episodes: int, obs_noise_std: float) -> str:
+  """Cache file of one evaluation: keyed by everything that changes its episodes."""
+  relevant = dict(step=step, mode=mode, split=split, seed=seed, episodes=num_episodes,
+                  noise=obs_noise_std, task=config.task, plan=config.plan.to_dict(),
+                  mppi=config.mppi.to_dict(), data=config.data.to_dict(),
+                  eval={k: config.eval[k] for k in ('action_repeat', 'max_episode_steps')})
+  digest = hashlib.sha1(json.dumps(relevant, sort_keys=True, default=str).encode()).hexdigest()
+  return os.path.join(workdir, 'evals', f'{mode}_{split}_seed{seed}_{digest[:10]}.json')
+
+
+def evaluate_checkpoint(config: ml_collections.ConfigDict, params, workdir: Optional[str],
+                        step: int, modes: Sequence[str], splits: Sequence[str],
+                        seeds: Sequence[int], num_episodes: int, run: Any = None,
+                        obs_noise_std: float = 0.0, log=print,
+                        progress: bool = True) -> List[dict]:
+  """Every (split, seed, mode) evaluation; returns all per-episode records.
+
+  Records carry `run` (e.g. the training seed) so that runs pool and pair correctly. Each cell
+  is cached under <workdir>/evals/ and reused when its inputs are unchanged.
+  """
+  records = []
+  for split, seed, mode in itertools.product(splits, seeds, modes):
+    path = (_cell_path(workdir, config, step, mode, split, seed, num_episodes, obs_noise_std)
+            if workdir else None)
+    if path and os.path.exists(path):
+      with open(path) as f:
+        cell = json.load(f)
+    else:
+      r = evaluate_policy(config, params, mode, num_episodes, seed, split, obs_noise_std,
+                          progress=progress)
+      cell = dict(summary={k: v for k, v in r.items() if k not in ('records', 'outcomes')},
+                  records=r['records'])
+      if path:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with open(path + '.tmp', 'w') as f:
+          json.dump(cell, f)
+        os.replace(path + '.tmp', path)
+      s = cell['summary']
+      log(f"{POLICY_NAMES.get(mode, mode)}, {split} goals, seed {seed}: success "
+          f"{s['success_rate']:.2f} [{s['success_ci95'][0]:.2f}, {s['success_ci95'][1]:.2f}] "
+          f"({s['decisions_per_s']:.0f} decisions/s)")
+    for rec in cell['records']:
+      rec['run'] = run
+      rec['decisions_per_s'] = cell['summary']['decisions_per_s']
+    records.extend(cell['records'])
+  return records
+
+
+def summarize(records: Sequence[dict]) -> Dict[str, Any]:
+  """Pooled per (split, policy) summaries, spread over runs, and paired tests vs. the planner.
+
+  Returns {split: {'policies': {mode: summary}, 'paired': {'plan vs mode': mcnemar}}}, splits
+  and policies in the order first seen.
+  """
+  out: Dict[str, Any] = {}
+  splits = list(dict.fromkeys(r['split'] for r in records))
+  for split in splits:
+    recs = stats.select(records, split=split)
+    modes = list(dict.fromkeys(r['policy'] for r in recs))
+    policies = {}
+    for mode in modes:
+      mine = stats.select(recs, policy=mode)
+      s = stats.summarize(mine)
+      s['per_run'] = stats.spread(mine, 'run')
+      s['per_eval_seed'] = stats.spread(mine, 'eval_seed')['rates']
+      s['decisions_per_s'] = float(np.median([r['decisions_per_s'] for r in mine
+                                              if 'decisions_per_s' in r] or [np.nan]))
+      policies[mode] = s
+    paired = {}
+    for a, b in itertools.combinations(modes, 2):
+      paired[f'{a} vs {b}'] = stats.paired(stats.select(recs, policy=a),
+                                           stats.select(recs, policy=b))
+    out[split] = dict(policies=policies, paired=paired)
+  return out
+
+
+def markdown(summary: Dict[str, Any]) -> str:
+  """Tables of `summarize`'s output: one row per split and policy, then the paired tests."""
+  lines = ['| goals | policy | success | 95% CI (Wilson) | per run | mean return | '
+           'decisions/s |', '| --- | --- | --- | --- | --- | --- | --- |']
+  for split, s in summary.items():
+    for mode, p in s['policies'].items():
+      lo, hi = p['success_ci95']
+      runs = ', '.join(f'{v:.2f}' for v in p['per_run']['rates'].values())
+      lines.append(f"| {split} | {POLICY_NAMES.get(mode, mode)} | {p['successes']}/"
+                   f"{p['episodes']} = {p['success_rate']:.2f} | [{lo:.2f}, {hi:.2f}] | {runs} | "
+                   f"{p.get('mean_return', float('nan')):.1f} | {p['decisions_per_s']:.1f} |")
+  lines += ['', '| goals | comparison | episodes | only the first succeeded | only the second '
+            '| McNemar exact p |', '| --- | --- | --- | --- | --- | --- |']
+  for split, s in summary.items():
+    for name, t in s['paired'].items():
+      a, b = name.split(' vs ')
+      lines.append(f"| {split} | {POLICY_NAMES.get(a, a)} vs {POLICY_NAMES.get(b, b)} | {t['n']} "
+                   f"| {t['a_only']} | {t['b_only']} | {t['p_value']:.3g} |")
+  return '\n'.join(lines) + '\n'
