@@ -88,7 +88,7 @@ def device_info() -> dict:
 
 def measure_peak(n: int, repeats: int) -> float:
   """Median GFLOP/s of an [n, n] x [n, n] float32 matmul."""
-  from ld_mpc_jax.flops import matmul_flops
+  from ld_mpc_jax.bench.flops import matmul_flops
   ka, kb = jax.random.split(jax.random.key(0))
   a, b = jax.random.normal(ka, (n, n)), jax.random.normal(kb, (n, n))
   matmul = jax.jit(jnp.matmul)
@@ -138,7 +138,7 @@ def variant_config(base: ml_collections.ConfigDict, model: ml_collections.Config
 
 def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warmup: int) -> dict:
   import ld_mpc_jax as ldmpc
-  from ld_mpc_jax import flops
+  from ld_mpc_jax.bench import flops
   params = ldmpc.init_params(config, jax.random.key(0))
   plan = ldmpc.make_plan(config)
   z = ldmpc.encode(params, np.linspace(-1.0, 1.0, config.obs_dim, dtype=np.float32))
@@ -163,7 +163,8 @@ def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warm
 
 
 def run_mppi(repeats: int, warmup: int) -> dict:
-  from ld_mpc_jax import flops, mppi
+  from ld_mpc_jax import mppi
+  from ld_mpc_jax.bench import flops
   from ld_mpc_jax.models import count_params
   mppi_cfg, model_cfg = mppi.MPPIConfig(), mppi.TDMPC2Config()
   params = mppi.init_tdmpc2_params(model_cfg, jax.random.key(0))

@@ -5,7 +5,7 @@
 
 Traces `--calls` calls of the jitted plan (random parameters, after compilation and one warm-up)
 with jax.profiler and prints, in ms per call, the time of the XLA ops grouped by network and by
-kind of work (ld_mpc_jax/profiling.py); writes the numbers as JSON with --out. Method:
+kind of work (ld_mpc_jax/bench/profiling.py); writes the numbers as JSON with --out. Method:
 docs/benchmark.md.
 """
 
@@ -27,7 +27,7 @@ _OUT = flags.DEFINE_string('out', None, 'JSON output (optional).')
 
 def main(argv):
   del argv
-  from ld_mpc_jax import profiling
+  from ld_mpc_jax.bench import profiling
   result = profiling.profile_plan(_CONFIG.value, _CALLS.value)
   print(profiling.markdown(result))
   if _OUT.value:

@@ -5,6 +5,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 import ml_collections
+import optax
 
 from ld_mpc_jax import diffusion
 from ld_mpc_jax.models import Networks, dynamics_type, proposal_type
@@ -47,8 +48,8 @@ def two_hot_decode(logits: jnp.ndarray, vmin: float, vmax: float) -> jnp.ndarray
 
 
 def soft_cross_entropy(logits: jnp.ndarray, target_probs: jnp.ndarray) -> jnp.ndarray:
-  """-sum_k p_k log softmax(logits)_k over the last axis."""
-  return -jnp.sum(target_probs * jax.nn.log_softmax(logits, axis=-1), axis=-1)
+  """-sum_k p_k log softmax(logits)_k over the last axis (optax.softmax_cross_entropy)."""
+  return optax.softmax_cross_entropy(logits, target_probs)
 
 
 def discounted_return(rewards: jnp.ndarray, terminal_value: jnp.ndarray,

@@ -26,8 +26,9 @@ def make_optimizer(config: ml_collections.ConfigDict) -> optax.GradientTransform
   """Adam with linear warmup to a constant rate, after global-norm gradient clipping."""
   t = config.train
   warmup = max(t.warmup_steps, 1)
-  # Step 0 already uses lr / warmup (optax.linear_schedule from 0 would waste the first step).
-  schedule = lambda count: t.learning_rate * jnp.minimum(1.0, (count + 1) / warmup)
+  # lr * min(1, (count + 1) / warmup): step 0 already uses lr / warmup (a schedule from 0 would
+  # waste the first step), the full rate from step warmup - 1 on.
+  schedule = optax.linear_schedule(t.learning_rate / warmup, t.learning_rate, warmup - 1)
   return optax.chain(optax.clip_by_global_norm(t.grad_clip), optax.adam(schedule))
 
 

@@ -5,7 +5,8 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from ld_mpc_jax import flops, mppi
+from ld_mpc_jax import mppi
+from ld_mpc_jax.bench import flops
 from ld_mpc_jax.networks import TransformerBlock
 
 

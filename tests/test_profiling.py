@@ -1,10 +1,10 @@
-"""ld_mpc_jax.profiling: op classification, HLO parsing and a traced smoke plan."""
+"""ld_mpc_jax.bench.profiling: op classification, HLO parsing and a traced smoke plan."""
 
 import jax
 import jax.numpy as jnp
 import pytest
 
-from ld_mpc_jax import profiling
+from ld_mpc_jax.bench import profiling
 
 
 @pytest.mark.parametrize('op_name,is_matmul,expected', [

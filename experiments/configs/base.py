@@ -23,7 +23,7 @@ def get_config() -> ml_collections.ConfigDict:
   m.mlp_ratio = 4  # Standard transformer MLP expansion.
   m.dropout = 0.1
   # Report silent on proposal depth; 4 blocks keeps the proposal below the 5-block dynamics
-  # model; the reference plan is then 136 GFLOP per call (ld_mpc_jax.flops.plan_flops).
+  # model; the reference plan is then 136 GFLOP per call (ld_mpc_jax.bench.flops.plan_flops).
   m.proposal_blocks = 4
   m.dynamics_blocks = 5
   m.objective_blocks = 10
@@ -81,10 +81,9 @@ def get_config() -> ml_collections.ConfigDict:
   l.w_rew = 0.5
   l.w_val = 0.5
   l.w_actor = 1.0  # Behaviour-cloning loss of the actor prior.
-  # Value target for V(z_i): discounted rewards to the end of the window plus gamma^(H-i) times
-  # the EMA target network's V(z_H): H-step propagation per update instead of TD(0)'s one step,
-  # and the frozen-ish target avoids chasing its own output (TD-MPC2, DQN).
-  l.value_target = 'n_step_ema'
+  # Value target for V(z_i) (ld_mpc_jax.losses): discounted rewards to the end of the window plus
+  # gamma^(H-i) times the EMA target network's V(z_H): H-step propagation per update instead of
+  # TD(0)'s one step, and the frozen-ish target avoids chasing its own output (TD-MPC2, DQN).
 
   c.train = t = ml_collections.ConfigDict()
   t.batch_size = 512
