@@ -149,8 +149,27 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   """Trains LD-MPC on the task's offline dataset and evaluates it; returns the report.
 
   Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json,
-  metrics.csv, eval.csv, tb/ (TensorBoard), losses.png, success.png, report.json, report.md.
+  metrics.csv, eval.csv, tb/ (TensorBoard), losses.png, success.png, episodes.csv (one row per
+  evaluation episode), report.json and report.md. The returned report also holds the
+  per-episode records under 'records'.
   """
+  dataset, manager, state, prior_seconds = _prepare(config, workdir)
+  writer = SummaryWriter(os.path.join(workdir, 'tb'))
+  state, timer = _train(config, workdir, dataset, manager, state, prior_seconds, writer)
+  evaluated = _final_evaluation(config, state.ema_params, int(state.step), workdir, writer)
+  writer.close()
+  report = _report(config, dataset, state, prior_seconds, timer, *evaluated)
+  with open(os.path.join(workdir, 'report.json'), 'w') as f:
+    json.dump(report, f, indent=2)
+  with open(os.path.join(workdir, 'report.md'), 'w') as f:
+    f.write(_summary_md(report))
+  write_plots(workdir)
+  report['records'] = evaluated[-1]  # Per-episode records: in episodes.csv, not report.json.
+  return report
+
+
+def _prepare(config, workdir):
+  """Checks the config, loads (or collects) the data, restores the latest checkpoint."""
   validate_config(config)
   envs.check_task(config.task)
   os.makedirs(workdir, exist_ok=True)
@@ -159,112 +178,135 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
                                 action_repeat=config.eval.action_repeat)
   check_config_for_data(config, dataset)
   checkpointing.save_config(config, workdir)
-
   manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
   state = checkpointing.restore_latest(manager, config)
   if state is None:
     state = create_train_state(config, jax.random.key(config.seed))
-  start = int(state.step)
-  progress_path = os.path.join(workdir, PROGRESS_FILE)
   prior_seconds = 0.0
-  if start and os.path.exists(progress_path):
+  progress_path = os.path.join(workdir, PROGRESS_FILE)
+  if int(state.step) and os.path.exists(progress_path):
     with open(progress_path) as f:
       prior_seconds = json.load(f).get('train_seconds', 0.0)
+  return dataset, manager, state, prior_seconds
 
+
+class _Timer:
+  """Update steps per second between log points; the first interval (compilation) is not timed."""
+
+  def __init__(self, start_step: int):
+    self.steps, self.seconds, self.last_time, self.last_step = 0, 0.0, None, start_step
+
+  def tick(self, step: int) -> None:
+    now = time.perf_counter()
+    if self.last_time is not None:
+      self.steps += step - self.last_step
+      self.seconds += now - self.last_time
+    self.last_time, self.last_step = now, step
+
+  @property
+  def steps_per_s(self) -> float:
+    return self.steps / self.seconds if self.seconds else float('nan')
+
+
+def _train(config, workdir, dataset, manager, state, prior_seconds, writer):
+  """The update loop from the restored step: logs, checkpoints, periodic evaluations."""
+  t_cfg, start = config.train, int(state.step)
+  num_steps = t_cfg.num_steps
   update = make_update(config)
   # A resumed run draws fresh windows rather than replaying the first run's.
   buffer = data.ReplayBuffer(dataset, window_length(config),
                              seed=config.seed * 1_000_003 + start)
   train_key = jax.random.key(config.seed + 1)
-  writer = SummaryWriter(os.path.join(workdir, 'tb'))
-  t_cfg = config.train
-  num_steps = t_cfg.num_steps
-  evaluate = config.eval.episodes > 0  # eval.episodes = 0: train and checkpoint only.
-  timed_steps, timed_seconds, last_time, last_step = 0, 0.0, None, start
+  timer = _Timer(start)
   bar = tqdm.tqdm(range(start, num_steps), initial=start, total=num_steps, desc='train',
                   dynamic_ncols=True)
   for step in bar:
-    batch = buffer.sample(t_cfg.batch_size)
-    state, metrics = update(state, batch, jax.random.fold_in(train_key, step))
+    state, metrics = update(state, buffer.sample(t_cfg.batch_size),
+                            jax.random.fold_in(train_key, step))
     done = step + 1
     if done % t_cfg.log_every == 0 or done % t_cfg.checkpoint_every == 0 or done == num_steps:
-      metrics = jax.device_get(metrics)
-      now = time.perf_counter()
-      if last_time is not None:  # The first interval includes compilation: not timed.
-        timed_steps += done - last_step
-        timed_seconds += now - last_time
-      last_time, last_step = now, done
-      if not np.isfinite(metrics['loss']):
-        raise FloatingPointError(
-            f'non-finite loss {metrics["loss"]} at step {done}; stopping. The last good '
-            f'checkpoint (step {manager.latest_step()}) is kept in {workdir}/checkpoints.')
-      steps_per_s = timed_steps / timed_seconds if timed_seconds else float('nan')
-      eta = (num_steps - done) / steps_per_s if timed_seconds else float('nan')
-      bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=f'{steps_per_s:.2f}',
-                      eta_min=f'{eta / 60:.1f}')
-      row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
-             'steps_per_s': steps_per_s}
-      _append_csv(os.path.join(workdir, 'metrics.csv'), row)
-      for k, v in row.items():
-        if k != 'step' and np.isfinite(v):  # steps/s is NaN until the second log.
-          writer.add_scalar(f'train/{k}', v, done)
+      _log_metrics(workdir, writer, bar, timer, done, num_steps, jax.device_get(metrics),
+                   manager)
     if done % t_cfg.checkpoint_every == 0 or done == num_steps:
-      finite = jax.tree_util.tree_reduce(lambda ok, x: ok & jnp.all(jnp.isfinite(x)),
-                                         state.params, jnp.array(True))
-      if not bool(finite):  # One host sync per checkpoint.
-        raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
-                                 f'good checkpoint is step {manager.latest_step()}.')
-      manager.save(done, args=ocp.args.StandardSave(state))
-      with open(progress_path + '.tmp', 'w') as f:
-        json.dump({'step': done, 'train_seconds': prior_seconds + timed_seconds}, f)
-      os.replace(progress_path + '.tmp', progress_path)
-    if evaluate and done % t_cfg.eval_every == 0 and done != num_steps:
+      _save_checkpoint(workdir, manager, state, done, prior_seconds + timer.seconds)
+    if config.eval.episodes > 0 and done % t_cfg.eval_every == 0 and done != num_steps:
       _periodic_eval(config, state.ema_params, done, workdir, writer)
   bar.close()
   manager.wait_until_finished()
+  return state, timer
 
-  params = state.ema_params
-  summary, records = {}, []
-  if evaluate:
-    modes = ('plan',) + tuple(m for m in config.eval.get('baselines', ()) if m != 'plan')
-    records = evaluation_suite.evaluate_checkpoint(
-        config, params, workdir, int(state.step), modes, config.eval.splits, config.eval.seeds,
-        config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
-    summary = evaluation_suite.summarize(records)
-    _write_records(os.path.join(workdir, 'episodes.csv'), records)
-    first = summary[config.eval.splits[0]]['policies']
-    final = {**first['plan'], 'split': config.eval.splits[0]}
-    _log_eval(workdir, writer, num_steps, final)
-    baselines = {mode: {**first[mode], 'split': config.eval.splits[0]}
-                 for mode in modes if mode != 'plan'}
-  else:
+
+def _log_metrics(workdir, writer, bar, timer, done, num_steps, metrics, manager) -> None:
+  timer.tick(done)
+  if not np.isfinite(metrics['loss']):
+    raise FloatingPointError(
+        f'non-finite loss {metrics["loss"]} at step {done}; stopping. The last good '
+        f'checkpoint (step {manager.latest_step()}) is kept in {workdir}/checkpoints.')
+  eta = (num_steps - done) / timer.steps_per_s if timer.seconds else float('nan')
+  bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=f'{timer.steps_per_s:.2f}',
+                  eta_min=f'{eta / 60:.1f}')
+  row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
+         'steps_per_s': timer.steps_per_s}
+  _append_csv(os.path.join(workdir, 'metrics.csv'), row)
+  for k, v in row.items():
+    if k != 'step' and np.isfinite(v):  # steps/s is NaN until the second log.
+      writer.add_scalar(f'train/{k}', v, done)
+
+
+def _save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
+  finite = jax.tree_util.tree_reduce(lambda ok, x: ok & jnp.all(jnp.isfinite(x)),
+                                     state.params, jnp.array(True))
+  if not bool(finite):  # One host sync per checkpoint.
+    raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
+                             f'good checkpoint is step {manager.latest_step()}.')
+  manager.save(done, args=ocp.args.StandardSave(state))
+  path = os.path.join(workdir, PROGRESS_FILE)
+  with open(path + '.tmp', 'w') as f:
+    json.dump({'step': done, 'train_seconds': train_seconds}, f)
+  os.replace(path + '.tmp', path)
+
+
+def _final_evaluation(config, params, step, workdir, writer):
+  """Every policy on every goal split and evaluation seed: (final, baselines, summary, records).
+
+  `final` and `baselines` are the first split's (held-out goals by default) planner and other
+  policies.
+  """
+  if config.eval.episodes <= 0:  # eval.episodes = 0: train and checkpoint only.
     final = dict.fromkeys(('success_rate', 'success_ci95', 'mean_return', 'mean_length',
                            'decisions_per_s'))
-    baselines = {}
-  writer.close()
-  train_seconds = prior_seconds + timed_seconds
-  report = {
+    return final, {}, {}, []
+  modes = ('plan',) + tuple(m for m in config.eval.get('baselines', ()) if m != 'plan')
+  records = evaluation_suite.evaluate_checkpoint(
+      config, params, workdir, step, modes, config.eval.splits, config.eval.seeds,
+      config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
+  summary = evaluation_suite.summarize(records)
+  _write_records(os.path.join(workdir, 'episodes.csv'), records)
+  split = config.eval.splits[0]
+  first = summary[split]['policies']
+  final = {**first['plan'], 'split': split}
+  _log_eval(workdir, writer, step, final)
+  baselines = {m: {**first[m], 'split': split} for m in modes if m != 'plan'}
+  return final, baselines, summary, records
+
+
+def _report(config, dataset, state, prior_seconds, timer, final, baselines, summary, records):
+  del records
+  return {
       'task': config.task,
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
       'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
       'decisions_per_s': final['decisions_per_s'],
       'eval_episodes': config.eval.episodes, 'eval_seeds': list(config.eval.seeds),
       'baselines': baselines, 'evaluation': summary,
-      'train_seconds': train_seconds, 'steps': int(state.step),
-      'steps_per_s': (timed_steps / timed_seconds) if timed_seconds else float('nan'),
-      'num_params': count_params(params),
+      'train_seconds': prior_seconds + timer.seconds, 'steps': int(state.step),
+      'steps_per_s': timer.steps_per_s,
+      'num_params': count_params(state.ema_params),
       'dataset': {'preset': config.data.preset, 'episodes': dataset.num_episodes,
                   'transitions': dataset.num_transitions},
       'config': json.loads(config.to_json_best_effort()),
       'versions': versions(), 'git_commit': git_commit(),
   }
-  with open(os.path.join(workdir, 'report.json'), 'w') as f:
-    json.dump(report, f, indent=2)
-  with open(os.path.join(workdir, 'report.md'), 'w') as f:
-    f.write(_summary_md(report))
-  write_plots(workdir)
-  report['records'] = records  # Per-episode records: in episodes.csv, not in report.json.
-  return report
 
 
 def _log_eval(workdir, writer, step, result) -> None:
