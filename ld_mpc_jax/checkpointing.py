@@ -11,6 +11,9 @@ import orbax.checkpoint as ocp
 from ld_mpc_jax.train_state import TrainState, create_train_state
 
 CONFIG_FILE = 'config.json'
+# Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
+_EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=1,
+                      baselines=('actor', 'proposal'))
 
 
 def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointManager:
@@ -38,8 +41,12 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
   with open(path) as f:
     raw = json.load(f)
   config = ml_collections.ConfigDict(raw)
+  for name, default in _EVAL_DEFAULTS.items():  # Runs saved before these fields existed.
+    if name not in config.eval:
+      config.eval[name] = default
   config.model.actor_hidden = tuple(config.model.actor_hidden)
-  config.eval.noise_stds = tuple(config.eval.noise_stds)
+  for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
+    config.eval[name] = tuple(config.eval[name])
   return config
 
 

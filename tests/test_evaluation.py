@@ -127,6 +127,7 @@ def test_scripted_policy_on_real_env_is_deterministic():
 def test_real_video(tmp_path):
   res = evaluation.evaluate(
       lambda o: np.zeros(4, np.float32), 'door-open-v3', num_episodes=1,
-      max_episode_steps=6, video_path=str(tmp_path / 'v.gif'), image_size=64,
+      max_episode_steps=6, video_path=str(tmp_path / 'v.mp4'), image_size=64,
       progress=False)
+  assert res['video_path'] == str(tmp_path / 'v.mp4')  # imageio-ffmpeg: mp4, not a gif.
   assert os.path.getsize(res['video_path']) > 0
