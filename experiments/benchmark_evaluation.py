@@ -7,7 +7,8 @@
 For each policy mode, runs the same held-out episodes (evaluation seed 0) of a trained checkpoint
 (a) one at a time, one jitted call per decision (`agent.make_policy`), and (b) in lockstep,
 `--batch_size` environments with one jitted call per decision for all of them
-(`agent.BatchAgentPolicy`; the planner maps `--plan_chunk` environments per vmap). Times are wall
+(`agent.BatchAgentPolicy`; the planner maps `--plan_chunk` environments per vmap, or with 0 calls
+the single-environment planner once per environment). Times are wall
 clock of the whole evaluation loop, environment included, compilation excluded (both warm up
 first); medians over --repeats. Also reports whether both ways gave the same per-episode
 outcomes. Writes a JSON list and a markdown table beside it.
@@ -26,7 +27,7 @@ _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policy modes
 _EPISODES = flags.DEFINE_integer('episodes', 50, 'Episodes per evaluation.')
 _BATCH = flags.DEFINE_integer('batch_size', 50, 'Environments in lockstep.')
 _CHUNK = flags.DEFINE_integer('plan_chunk', None, 'Planner environments per vmap '
-                              '(default: config.eval.plan_chunk).')
+                              '(0: one call per environment; default: config.eval.plan_chunk).')
 _REPEATS = flags.DEFINE_integer('repeats', 1, 'Repeated measurements (median reported).')
 _OUT = flags.DEFINE_string('out', 'runs/benchmark/benchmark_evaluation.json', 'JSON output.')
 flags.mark_flag_as_required('workdir')
@@ -44,7 +45,7 @@ def main(argv):
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
   e = config.eval
-  chunk = _CHUNK.value or e.plan_chunk
+  chunk = e.plan_chunk if _CHUNK.value is None else _CHUNK.value
   episodes = evaluation_suite.episodes(config, 'held_out', 0, _EPISODES.value)
   kwargs = dict(action_repeat=e.action_repeat, max_episode_steps=e.max_episode_steps,
                 progress=False)

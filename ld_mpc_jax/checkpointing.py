@@ -12,7 +12,7 @@ from ld_mpc_jax.train_state import TrainState, create_train_state
 
 CONFIG_FILE = 'config.json'
 # Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
-_EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=1,
+_EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
                       baselines=('actor', 'proposal'))
 
 

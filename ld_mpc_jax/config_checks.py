@@ -69,9 +69,9 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     bad = set(e.get('splits', ())) - {'held_out', 'train'}
     if bad or not e.get('splits', ('held_out',)):
       raise ValueError(f'config.eval.splits must name held_out and/or train, got {e.splits}')
-    for name in ('batch_size', 'plan_chunk'):
-      if name in e and (not isinstance(e[name], int) or e[name] < 1):
-        raise ValueError(f'config.eval.{name} must be an integer >= 1, got {e[name]!r}')
+    for name, least in (('batch_size', 1), ('plan_chunk', 0)):
+      if name in e and (not isinstance(e[name], int) or e[name] < least):
+        raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
   _validate_variant(config)
   t = config.train
   if not 0.0 <= t.ema_decay < 1.0:

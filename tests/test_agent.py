@@ -36,7 +36,8 @@ def test_warm_started_policy_is_reproducible(smoke_config, smoke_params):
   np.testing.assert_array_equal(np.stack(runs[0]), np.stack(runs[1]))
 
 
-@pytest.mark.parametrize('mode,chunk', [('actor', None), ('plan', None), ('plan', 1)])
+@pytest.mark.parametrize('mode,chunk', [('actor', None), ('plan', None), ('plan', 1),
+                                        ('plan', 0)])
 def test_lockstep_batch_equals_one_at_a_time(smoke_config, smoke_params, mode, chunk):
   """N environments with one jitted call per decision give the episodes of one-at-a-time
   evaluation, for the actor and for the warm-started planner (fixed key schedule)."""

@@ -113,10 +113,11 @@ def get_config() -> ml_collections.ConfigDict:
   e.seeds = (0,)  # Evaluation seeds of the final evaluation (each: its own episodes and goals).
   # Environments stepped in lockstep: one jitted policy call per decision for all of them.
   e.batch_size = 50
-  # Planner environments per vmap inside that call (jax.lax.map's batch_size). On a 2-core CPU
-  # one at a time is fastest: a K = 64 plan already fills the cores, and wider batches leave
-  # the caches (experiments.benchmark_evaluation); on an accelerator, raise it.
-  e.plan_chunk = 1
+  # Planner environments per vmap inside that call (jax.lax.map's batch_size; 0: one jitted
+  # call per environment instead). On a 2-core CPU a K = 64 plan already fills the cores and
+  # batching planners is slower per environment (experiments.benchmark_evaluation: lax.map one
+  # at a time 0.56x), so the CPU default is 0; on an accelerator, use a large chunk.
+  e.plan_chunk = 0
   e.action_repeat = 2  # TD-MPC2's setting for Meta-World.
   e.max_episode_steps = 500
   e.noise_stds = (0.0, 0.01, 0.05, 0.1)
