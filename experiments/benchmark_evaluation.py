@@ -17,7 +17,6 @@ outcomes. Writes a JSON list and a markdown table beside it.
 import json
 import os
 import sys
-import time
 
 from absl import app, flags, logging
 import numpy as np
