@@ -4,7 +4,7 @@ on the learned model (config.mppi; the TD-MPC2-style baseline).
 Each is one jitted function of (params, obs, key, t, prev) that encodes the observation and
 acts, so a decision costs one dispatch. Keys follow a fixed schedule: episode e acts at decision
 t with fold_in(fold_in(key(seed), e.reset_seed), t), whether it runs alone (`make_policy`, the
-`policy(obs) -> action` interface) or with others in lockstep (`make_batch_policy`, one jitted
+`policy(obs) -> action` interface) or with others in lockstep (`BatchAgentPolicy`, one jitted
 call for N environments), so the two give the same episodes.
 """
 
@@ -107,6 +107,13 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
 _BATCH_ACTS = {}
 
 
+def _compile_single(act, params, obs: np.ndarray, key, warm: bool) -> None:
+  """Compiles a `make_act` function's first (cold) and later (warm) decisions."""
+  obs = jnp.asarray(obs, jnp.float32)
+  _, sequence = act(params, obs, key, 0, None)
+  jax.block_until_ready(act(params, obs, key, 1, sequence if warm else None))
+
+
 class BatchAgentPolicy:
   """N environments in lockstep with one jitted call per decision (an evaluation BatchPolicy).
 
@@ -136,10 +143,7 @@ class BatchAgentPolicy:
   def warmup(self, obs: np.ndarray) -> None:
     """Compiles the first (cold) and later (warm) decisions for this batch size."""
     if self.per_env:
-      key = episode_keys(self.seed, [0])[0]
-      _, seq = self.act(self.params, jnp.asarray(obs[0], jnp.float32), key, 0, None)
-      jax.block_until_ready(self.act(self.params, jnp.asarray(obs[0], jnp.float32), key, 1,
-                                     seq if self.warm else None))
+      _compile_single(self.act, self.params, obs[0], episode_keys(self.seed, [0])[0], self.warm)
       return
     obs = jnp.asarray(obs, jnp.float32)
     keys = episode_keys(self.seed, np.arange(obs.shape[0]))
@@ -195,10 +199,5 @@ def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', s
       state['key'] = episode_keys(seed, [episode.reset_seed])[0]
       state['t'] = 0
 
-  def warmup(obs: np.ndarray) -> None:
-    obs = jnp.asarray(obs, jnp.float32)
-    _, sequence = act(params, obs, state['key'], 0, None)
-    jax.block_until_ready(act(params, obs, state['key'], 1, sequence if warm else None))
-
-  policy.warmup = warmup
+  policy.warmup = lambda obs: _compile_single(act, params, obs, state['key'], warm)
   return policy, reset

@@ -158,13 +158,14 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   state, timer = _train(config, workdir, dataset, manager, state, prior_seconds, writer)
   evaluated = _final_evaluation(config, state.ema_params, int(state.step), workdir, writer)
   writer.close()
-  report = _report(config, dataset, state, prior_seconds, timer, *evaluated)
+  final, baselines, summary, records = evaluated
+  report = _report(config, dataset, state, prior_seconds, timer, final, baselines, summary)
   with open(os.path.join(workdir, 'report.json'), 'w') as f:
     json.dump(report, f, indent=2)
   with open(os.path.join(workdir, 'report.md'), 'w') as f:
     f.write(_summary_md(report))
   write_plots(workdir)
-  report['records'] = evaluated[-1]  # Per-episode records: in episodes.csv, not report.json.
+  report['records'] = records  # Per-episode records: in episodes.csv, not report.json.
   return report
 
 
@@ -290,8 +291,7 @@ def _final_evaluation(config, params, step, workdir, writer):
   return final, baselines, summary, records
 
 
-def _report(config, dataset, state, prior_seconds, timer, final, baselines, summary, records):
-  del records
+def _report(config, dataset, state, prior_seconds, timer, final, baselines, summary):
   return {
       'task': config.task,
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
