@@ -73,6 +73,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
       if name in e and (not isinstance(e[name], int) or e[name] < least):
         raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
   _validate_variant(config)
+  _validate_objective(config)
   t = config.train
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
@@ -110,3 +111,31 @@ def _validate_variant(config: ml_collections.ConfigDict) -> None:
   if guidance and p.get('guidance_dynamics_steps', 1) < 1:
     raise ValueError('config.plan.guidance_dynamics_steps must be >= 1, '
                      f'got {p.guidance_dynamics_steps}')
+
+
+def _validate_objective(config: ml_collections.ConfigDict) -> None:
+  """config.objective (ld_mpc_jax.critics) and the planner's robust-selection settings."""
+  p = config.plan
+  if p.get('pessimism', 0.0) < 0:
+    raise ValueError(f'config.plan.pessimism must be >= 0, got {p.pessimism}')
+  draws = p.get('dynamics_draws', 1)
+  if not isinstance(draws, int) or draws < 1:
+    raise ValueError(f'config.plan.dynamics_draws must be an integer >= 1, got {draws!r}')
+  if 'objective' not in config:
+    return
+  o = config.objective
+  if o.value not in ('expectile', 'behaviour'):
+    raise ValueError(f"config.objective.value must be 'expectile' or 'behaviour', got {o.value!r}")
+  if o.actor not in ('awr', 'bc'):
+    raise ValueError(f"config.objective.actor must be 'awr' or 'bc', got {o.actor!r}")
+  if not 0.0 < o.expectile < 1.0:
+    raise ValueError(f'config.objective.expectile must be in (0, 1), got {o.expectile}')
+  for name in ('num_values', 'num_q', 'rollout_steps'):
+    if not isinstance(o[name], int) or o[name] < 1:
+      raise ValueError(f'config.objective.{name} must be an integer >= 1, got {o[name]!r}')
+  if o.value_scale <= 0 or o.awr_max_weight <= 0 or o.awr_temperature < 0:
+    raise ValueError('config.objective.value_scale and awr_max_weight must be > 0 and '
+                     'awr_temperature >= 0')
+  if o.latent_rollout and config.model.get('dynamics_type', 'diffusion_ar') == 'diffusion_traj':
+    raise ValueError('config.objective.latent_rollout needs one-step dynamics; set it False '
+                     'with dynamics_type diffusion_traj')

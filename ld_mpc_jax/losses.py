@@ -8,7 +8,8 @@ import ml_collections
 import optax
 
 from ld_mpc_jax import diffusion
-from ld_mpc_jax.models import Networks, dynamics_type, proposal_type
+from ld_mpc_jax.critics import make_critic_loss, objective_settings
+from ld_mpc_jax.models import Networks, dynamics_type, make_transition, proposal_type
 
 
 def symlog(x: jnp.ndarray) -> jnp.ndarray:
@@ -94,6 +95,10 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   m, w, pred = config.model, config.loss, config.diffusion.prediction
   gamma, h = config.gamma, config.horizon
   kind_p, kind_d = proposal_type(config), dynamics_type(config)
+  o = objective_settings(config)
+  critic_loss = make_critic_loss(config, nets.critics) if nets.critics is not None else None
+  transition = (make_transition(config, nets, steps=o.rollout_steps, eta=0.0)
+                if o.latent_rollout else None)
 
   def dynamics_loss(params, z, action, key, rngs):
     """z [B, H+2, D], action [B, H+1, A] -> [] (mean over examples and latent features)."""
@@ -130,38 +135,80 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
                                             deterministic=False, rngs=rngs)
     return diffusion.denoising_loss(fn, a_in[:, None], key, pred).mean()
 
+  def model_rollout(params, z0, actions, key):
+    """Latents of the dynamics model from z0 [B, D] under actions [B, H, A] -> [B, H+1, D]."""
+    def step(z_cur, inputs):
+      a, i = inputs
+      z_next = transition(params, z_cur, a, jax.random.fold_in(key, i))
+      return z_next, z_next
+    _, zs = jax.lax.scan(step, z0, (jnp.swapaxes(actions, 0, 1), jnp.arange(h)))
+    return jnp.concatenate([z0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
+
+  def objective_losses(params, target_params, z, z_ema, action, reward, drop):
+    """Reward and behaviour-value cross-entropies on latents z [B, H+1 or H+2, D]."""
+    r_logits, v_logits = nets.objective.apply(
+        {'params': params['objective']}, z[:, :h + 1], action[:, :h], deterministic=False,
+        rngs=drop)
+    l_rew = soft_cross_entropy(r_logits, two_hot(reward[:, :h], m.num_bins, m.vmin,
+                                                 m.vmax)).mean()
+    if o.value != 'behaviour':
+      return l_rew, jnp.zeros(()), jnp.zeros(())
+    _, v_tgt_logits = nets.objective.apply({'params': target_params['objective']},
+                                           z_ema[:, 1:], action[:, 1:])
+    bootstrap = two_hot_decode(v_tgt_logits[:, -1], m.vmin, m.vmax)  # V_ema(z_{H+1}).
+    v_target = jax.lax.stop_gradient(n_step_targets(reward, bootstrap, gamma))  # [B, H+1]
+    l_val = soft_cross_entropy(v_logits, two_hot(v_target, m.num_bins, m.vmin, m.vmax)).mean()
+    return l_rew, l_val, v_target.mean()
+
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
-    k_dyn, k_act, k_drop = jax.random.split(key, 3)
+    k_dyn, k_act, k_drop, k_roll = jax.random.split(key, 4)
     drop = lambda i: {'dropout': jax.random.fold_in(k_drop, i)}  # One stream per network.
+    sg = jax.lax.stop_gradient
 
     z = nets.encoder.apply({'params': params['encoder']}, obs)  # [B, H+2, D]
+    z_ema = sg(nets.encoder.apply({'params': target_params['encoder']}, obs))
 
     l_dyn = dynamics_loss(params, z, action, k_dyn, drop(0))
     l_act = proposal_loss(params, z, action, k_act, drop(1))
 
-    # Sequence objective on (z_0, a_0, ..., z_H): rewards at a_i tokens, values at z_i tokens.
-    r_logits, v_logits = nets.objective.apply(
-        {'params': params['objective']}, z[:, :h + 1], action[:, :h], deterministic=False,
-        rngs=drop(2))
-    l_rew = soft_cross_entropy(r_logits, two_hot(reward[:, :h], m.num_bins, m.vmin,
-                                                 m.vmax)).mean()
+    metrics = {}
+    l_rew, l_val, v_target_mean = objective_losses(params, target_params, z, z_ema, action,
+                                                   reward, drop(2))
+    if o.value == 'behaviour':
+      metrics['value_target_mean'] = v_target_mean
+    z_model, l_cons = None, jnp.zeros(())
+    if o.latent_rollout:  # The objective also learns on the latents it scores when planning.
+      z_roll = model_rollout(params, z[:, 0], action[:, :h], k_roll)
+      l_cons = jnp.mean((z_roll[:, 1:] - sg(z[:, 1:h + 1])) ** 2)
+      z_model = sg(z_roll)
+      l_rew_m, l_val_m, _ = objective_losses(params, target_params, z_model, z_ema, action,
+                                             reward, drop(3))
+      l_rew, l_val = 0.5 * (l_rew + l_rew_m), 0.5 * (l_val + l_val_m)
 
-    z_tgt = nets.encoder.apply({'params': target_params['encoder']}, obs[:, 1:])
-    _, v_tgt_logits = nets.objective.apply({'params': target_params['objective']}, z_tgt,
-                                           action[:, 1:])
-    bootstrap = two_hot_decode(v_tgt_logits[:, -1], m.vmin, m.vmax)  # V_ema(z_{H+1}).
-    v_target = jax.lax.stop_gradient(n_step_targets(reward, bootstrap, gamma))  # [B, H+1]
-    l_val = soft_cross_entropy(v_logits, two_hot(v_target, m.num_bins, m.vmin, m.vmax)).mean()
-
-    a_pi = nets.actor.apply({'params': params['actor']}, z[:, :-1])
-    l_actor = jnp.mean(jnp.sum((a_pi - action) ** 2, axis=-1))
+    l_q = l_v = jnp.zeros(())
+    weights = jnp.ones(reward.shape)
+    if critic_loss is not None:
+      critic, weights, critic_metrics = critic_loss(params, target_params, z, z_ema, z_model,
+                                                    action, reward)
+      l_q, l_v = critic['q'], critic['v']
+      metrics.update(critic_metrics)
+    if o.actor == 'bc':
+      weights, z_actor = jnp.ones(reward.shape), z[:, :-1]
+    else:  # As TD-MPC2's policy loss, on detached latents: the weights do not drive the encoder.
+      z_actor = sg(z[:, :-1])
+    a_pi = nets.actor.apply({'params': params['actor']}, z_actor)
+    l_actor = jnp.mean(weights * jnp.sum((a_pi - action) ** 2, axis=-1))
 
     loss = (w.w_dyn * l_dyn + w.w_act * l_act + w.w_rew * l_rew + w.w_val * l_val
-            + w.w_actor * l_actor)
-    metrics = {'loss': loss, 'loss_dyn': l_dyn, 'loss_act': l_act, 'loss_rew': l_rew,
-               'loss_val': l_val, 'loss_actor': l_actor,
-               'value_target_mean': v_target.mean()}
+            + w.w_actor * l_actor + w.get('w_consistency', 0.0) * l_cons
+            + w.get('w_q', 0.0) * l_q + w.get('w_v', 0.0) * l_v)
+    metrics.update({'loss': loss, 'loss_dyn': l_dyn, 'loss_act': l_act, 'loss_rew': l_rew,
+                    'loss_val': l_val, 'loss_actor': l_actor})
+    if o.latent_rollout:
+      metrics['loss_consistency'] = l_cons
+    if critic_loss is not None:
+      metrics.update({'loss_q': l_q, 'loss_v': l_v})
     return loss, metrics
 
   return loss_fn

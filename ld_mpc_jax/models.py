@@ -14,14 +14,16 @@ and `config.model.dynamics_type` (the ablations of experiments/ablations.py):
 Single-step proposals are sampled inside the rollout, one action per visited latent.
 """
 
-from typing import NamedTuple
+from typing import NamedTuple, Optional
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import ml_collections
 
+from ld_mpc_jax import diffusion
 from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.critics import Critics, build_critics
 from ld_mpc_jax.networks import MLP, TimeEmbedding, Transformer, position_embedding
 
 
@@ -33,15 +35,38 @@ def rms_normalize(x: jnp.ndarray, eps: float = 1e-6) -> jnp.ndarray:
 class Encoder(nn.Module):
   """MLP encoder o [..., obs_dim] -> z [..., latent_dim] (39 -> 256 -> 512 in the reference).
 
-  The output is RMS-normalised: diffusion over z assumes unit-scale data, and a fixed norm keeps
-  the jointly trained latent from collapsing to zero.
+  With `normalize_obs`, observations are first standardised by the dataset's per-feature mean
+  and standard deviation, held as the parameters `obs_mean` and `obs_std` (set once from the
+  data by `set_obs_normalization`, never trained: gradients are stopped), so they travel with
+  the checkpoint. The output is RMS-normalised: diffusion over z assumes unit-scale data, and a
+  fixed norm keeps the jointly trained latent from collapsing to zero.
   """
   hidden: int
   latent_dim: int
+  normalize_obs: bool = False
 
   @nn.compact
   def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
+    if self.normalize_obs:
+      mean = self.param('obs_mean', nn.initializers.zeros, (obs.shape[-1],))
+      std = self.param('obs_std', nn.initializers.ones, (obs.shape[-1],))
+      obs = (obs - jax.lax.stop_gradient(mean)) / jax.lax.stop_gradient(std)
     return rms_normalize(MLP((self.hidden, self.latent_dim), name='mlp')(obs))
+
+
+# Smallest per-feature standard deviation used for normalisation: features that are constant in
+# the data (unused object slots) are then only centred.
+OBS_STD_FLOOR = 1e-2
+
+
+def set_obs_normalization(params: dict, obs: jnp.ndarray) -> dict:
+  """params with the encoder's obs_mean/obs_std set from observations [N, obs_dim]."""
+  if 'obs_mean' not in params['encoder']:
+    raise ValueError('the encoder has no observation normalisation (config.model.normalize_obs)')
+  obs = jnp.asarray(obs, jnp.float32)
+  encoder = dict(params['encoder'], obs_mean=obs.mean(0),
+                 obs_std=jnp.maximum(obs.std(0), OBS_STD_FLOOR))
+  return dict(params, encoder=encoder)
 
 
 class ActionProposal(nn.Module):
@@ -237,6 +262,7 @@ class Networks(NamedTuple):
   dynamics: nn.Module  # LatentDynamics, TrajectoryDynamics or MLPDynamics.
   objective: SequenceObjective
   actor: Actor
+  critics: Optional[Critics] = None  # Expectile V and Q ensembles (ld_mpc_jax.critics).
 
 
 def build_networks(config: ml_collections.ConfigDict) -> Networks:
@@ -258,20 +284,56 @@ def build_networks(config: ml_collections.ConfigDict) -> Networks:
       'mlp': lambda: MLPDynamics(m.width, m.latent_dim),
   }[dynamics_type(config)]()
   return Networks(
-      encoder=Encoder(m.encoder_hidden, m.latent_dim),
+      encoder=Encoder(m.encoder_hidden, m.latent_dim, m.get('normalize_obs', False)),
       proposal=proposal,
       dynamics=dynamics,
       objective=SequenceObjective(num_blocks=m.objective_blocks, num_bins=m.num_bins, **common),
       actor=Actor(tuple(m.actor_hidden), config.action_dim),
+      critics=build_critics(config),
   )
 
 
+def normalizes_dynamics(config: ml_collections.ConfigDict) -> bool:
+  """config.model.normalize_dynamics (False for configs saved before it existed)."""
+  return config.model.get('normalize_dynamics', False)
+
+
+def make_transition(config: ml_collections.ConfigDict, nets: Networks,
+                    steps: Optional[int] = None, eta: Optional[float] = None):
+  """One-step dynamics kinds: returns step(params, z [N, D], a [N, A], key) -> z_next [N, D].
+
+  Diffusion dynamics sample z_next in `steps` denoising steps with `eta` (default: the
+  planner's `plan.dynamics_steps` and `plan.dynamics_eta`). With `model.normalize_dynamics`
+  the sample is RMS-normalised like the encoder's output, so that the objective scores
+  latents on the manifold it was trained on.
+  """
+  p, d = config.plan, config.diffusion
+  steps = p.dynamics_steps if steps is None else steps
+  eta = p.dynamics_eta if eta is None else eta
+  normalize = rms_normalize if normalizes_dynamics(config) else (lambda x: x)
+
+  def step(params, z_cur, a_cur, key):
+    dyn_vars = {'params': params['dynamics']}
+    if dynamics_type(config) == 'mlp':
+      return nets.dynamics.apply(dyn_vars, z_cur, a_cur)
+    cond = nets.dynamics.apply(dyn_vars, z_cur, a_cur, method=LatentDynamics.embed_cond)
+    model_fn = lambda x_t, t: nets.dynamics.apply(dyn_vars, x_t, t, cond,
+                                                  method=LatentDynamics.denoise)
+    x_init = jax.random.normal(jax.random.fold_in(key, 0), z_cur.shape)
+    return normalize(diffusion.sample(model_fn, x_init, jax.random.fold_in(key, 1), steps, eta,
+                                      d.prediction))
+
+  return step
+
+
 def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
-  """Initial parameters: {'encoder', 'proposal', 'dynamics', 'objective', 'actor'} -> pytree."""
+  """Initial parameters: {'encoder', 'proposal', 'dynamics', 'objective', 'actor'} -> pytree,
+  plus 'critics' when the config uses them (ld_mpc_jax.critics.uses_critics)."""
   validate_config(config)
   nets = build_networks(config)
   h, d, a = config.horizon, config.model.latent_dim, config.action_dim
-  keys = dict(zip(Networks._fields, jax.random.split(key, len(Networks._fields))))
+  names = Networks._fields[:5]  # The critics' key is apart, so the others do not depend on it.
+  keys = dict(zip(names, jax.random.split(key, len(names))), critics=jax.random.fold_in(key, 1))
   obs = jnp.zeros((1, config.obs_dim))
   z, t = jnp.zeros((1, d)), jnp.zeros((1,))
   proposal_args = {
@@ -284,7 +346,7 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
       'diffusion_traj': (jnp.zeros((1, h, d)), t, z, jnp.zeros((1, h, a))),
       'mlp': (z, jnp.zeros((1, a))),
   }[dynamics_type(config)]
-  return {
+  params = {
       'encoder': nets.encoder.init(keys['encoder'], obs)['params'],
       'proposal': nets.proposal.init(keys['proposal'], *proposal_args)['params'],
       'dynamics': nets.dynamics.init(keys['dynamics'], *dynamics_args)['params'],
@@ -292,6 +354,9 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
                                        jnp.zeros((1, h, a)))['params'],
       'actor': nets.actor.init(keys['actor'], z)['params'],
   }
+  if nets.critics is not None:
+    params['critics'] = nets.critics.init(keys['critics'], z, jnp.zeros((1, a)))['params']
+  return params
 
 
 def count_params(params) -> int:
@@ -315,4 +380,4 @@ def encode(params: dict, obs: jnp.ndarray) -> jnp.ndarray:
 def _apply_encoder(enc_params: dict, obs: jnp.ndarray) -> jnp.ndarray:
   hidden = enc_params['mlp']['dense_0']['kernel'].shape[1]
   latent = enc_params['mlp']['dense_1']['kernel'].shape[1]
-  return Encoder(hidden, latent).apply({'params': enc_params}, obs)
+  return Encoder(hidden, latent, 'obs_mean' in enc_params).apply({'params': enc_params}, obs)

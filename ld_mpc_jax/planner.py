@@ -8,8 +8,12 @@ One call of `plan`:
      actor-prior candidates take a_i = Actor(z_hat_i) along their own rollout;
      (the ablation kinds of ld_mpc_jax.models swap in single-step proposals drawn inside the
      rollout, MLP dynamics, or whole-trajectory latent diffusion);
-  3. scores each with J = sum_{i<H} gamma^i r_i + gamma^H V(z_H) from the sequence objective model;
-  4. returns the first action of the argmax candidate, clipped to [-1, 1].
+  3. scores each with J = sum_{i<H} gamma^i r_i + gamma^H V(z_H): rewards from the sequence
+     objective model, V(z_H) from the expectile value ensemble of z_H alone, pessimistic by
+     `plan.pessimism` standard deviations (ld_mpc_jax.critics); with `plan.dynamics_draws` > 1,
+     J is averaged over that many rollouts of the same candidates;
+  4. returns the first action of the argmax candidate, clipped to [-1, 1], and which kind of
+     candidate it was (diffusion proposal or actor prior).
 """
 
 from typing import Callable, Optional
@@ -21,9 +25,11 @@ import ml_collections
 
 from ld_mpc_jax import diffusion
 from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.critics import make_terminal_value, objective_settings
 from ld_mpc_jax.losses import discounted_return, two_hot_decode
-from ld_mpc_jax.models import (ActionProposal, LatentDynamics, Networks, TrajectoryDynamics,
-                               build_networks, dynamics_type, proposal_type)
+from ld_mpc_jax.models import (ActionProposal, Networks, TrajectoryDynamics, build_networks,
+                               dynamics_type, make_transition, normalizes_dynamics, proposal_type,
+                               rms_normalize)
 
 # score_fn(params, latents [K, H+1, D], actions [K, H, A]) -> returns [K].
 ScoreFn = Callable[[dict, jnp.ndarray, jnp.ndarray], jnp.ndarray]
@@ -37,16 +43,30 @@ class PlanOutput:
   scores: jnp.ndarray  # [K] J of every candidate.
   candidates: jnp.ndarray  # [K, H, A] every candidate action sequence.
   index: jnp.ndarray  # [] argmax of scores.
+  kind: jnp.ndarray  # [] which kind of candidate won: an index into CANDIDATE_KINDS.
+
+
+# The candidates of one plan: the proposal's first, then the actor prior's (plan.num_prior_...).
+CANDIDATE_KINDS = ('proposal', 'actor_prior')
 
 
 def make_objective_score(config: ml_collections.ConfigDict, nets: Networks) -> ScoreFn:
-  """J from the learned sequence objective: two-hot rewards and terminal value, decoded."""
+  """J = sum_i gamma^i r_i + gamma^H V(z_H): rewards from the sequence objective (two-hot,
+  decoded); V from the expectile ensemble of z_H alone, mean - `plan.pessimism` x std over its
+  members (`objective.value` 'expectile'), or the objective's own behaviour-value head."""
   m, gamma = config.model, config.gamma
+  if objective_settings(config).value == 'expectile':
+    terminal = make_terminal_value(config, nets.critics, config.plan.get('pessimism', 0.0))
+  else:
+    terminal = None
 
   def score(params, latents, actions):
     r_logits, v_logits = nets.objective.apply({'params': params['objective']}, latents, actions)
     rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [K, H]
-    value = two_hot_decode(v_logits[..., -1, :], m.vmin, m.vmax)  # [K]
+    if terminal is None:
+      value = two_hot_decode(v_logits[..., -1, :], m.vmin, m.vmax)  # [K]
+    else:
+      value = terminal(params, latents[..., -1, :])
     return discounted_return(rewards, value, gamma)
 
   return score
@@ -145,24 +165,6 @@ def shift_sequence(sequence: jnp.ndarray) -> jnp.ndarray:
   return jnp.concatenate([sequence[1:], sequence[-1:]], axis=0)
 
 
-def make_transition(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
-  """One-step dynamics kinds: returns step(params, z [N, D], a [N, A], key) -> z_next [N, D]."""
-  p, d = config.plan, config.diffusion
-
-  def step(params, z_cur, a_cur, key):
-    dyn_vars = {'params': params['dynamics']}
-    if dynamics_type(config) == 'mlp':
-      return nets.dynamics.apply(dyn_vars, z_cur, a_cur)
-    cond = nets.dynamics.apply(dyn_vars, z_cur, a_cur, method=LatentDynamics.embed_cond)
-    model_fn = lambda x_t, t: nets.dynamics.apply(dyn_vars, x_t, t, cond,
-                                                  method=LatentDynamics.denoise)
-    x_init = jax.random.normal(jax.random.fold_in(key, 0), z_cur.shape)
-    return diffusion.sample(model_fn, x_init, jax.random.fold_in(key, 1), p.dynamics_steps,
-                            p.dynamics_eta, d.prediction)
-
-  return step
-
-
 def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   """Returns rollout(params, z [D], proposals, key) -> (actions [K, H, A], latents [K, H+1, D]).
 
@@ -188,6 +190,8 @@ def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     x_init = jax.random.normal(jax.random.fold_in(key, 0), (k, h) + z.shape)
     zs = diffusion.sample(model_fn, x_init, jax.random.fold_in(key, 1), p.dynamics_steps,
                           p.dynamics_eta, d.prediction)
+    if normalizes_dynamics(config):
+      zs = rms_normalize(zs)
     latents = jnp.concatenate([jnp.broadcast_to(z, (k, 1) + z.shape), zs], axis=1)
     return proposals, latents
 
@@ -208,8 +212,9 @@ def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
         a_prop = inputs[0]
       if num_prior:
         a_pi = nets.actor.apply({'params': params['actor']}, z_cur[num:])
-        if p.prior_noise_std > 0:
+        if p.prior_noise_std > 0:  # Diverse prior candidates; the first one is the actor's own.
           noise = jax.random.normal(jax.random.fold_in(step_key, 2), a_pi.shape)
+          noise = noise.at[0].set(0.0)
           a_pi = jnp.clip(a_pi + p.prior_noise_std * noise, -1.0, 1.0)
         a_cur = jnp.concatenate([a_prop, a_pi], axis=0)
       else:
@@ -246,6 +251,7 @@ def make_plan(config: ml_collections.ConfigDict,
   propose = make_propose(config, nets)
   rollout = make_rollout(config, nets)
   sequence_proposal = proposal_type(config) == 'diffusion_seq'
+  draws = p.get('dynamics_draws', 1)
 
   def plan(params, z, key, prev_sequence=None) -> PlanOutput:
     if z.shape != (d,):
@@ -267,9 +273,15 @@ def make_plan(config: ml_collections.ConfigDict,
       proposals = k - num_prior
     actions, latents = rollout(params, z, proposals, dyn_key)
     scores = score_fn(params, latents, actions)
+    if draws > 1:  # J averaged over independent dynamics draws of the same candidates.
+      def redraw(i):
+        acts, lats = rollout(params, z, proposals, jax.random.fold_in(dyn_key, i))
+        return score_fn(params, lats, acts)
+      scores = (scores + jax.lax.map(redraw, jnp.arange(1, draws)).sum(0)) / draws
     index = jnp.argmax(scores)
     sequence = actions[index]
     return PlanOutput(action=jnp.clip(sequence[0], -1.0, 1.0), sequence=sequence,
-                      scores=scores, candidates=actions, index=index)
+                      scores=scores, candidates=actions, index=index,
+                      kind=(index >= k - num_prior).astype(jnp.int32))
 
   return jax.jit(plan)

@@ -182,7 +182,7 @@ def _prepare(config, workdir):
   manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
   state = checkpointing.restore_latest(manager, config)
   if state is None:
-    state = create_train_state(config, jax.random.key(config.seed))
+    state = create_train_state(config, jax.random.key(config.seed), dataset.observations)
   prior_seconds = 0.0
   progress_path = os.path.join(workdir, PROGRESS_FILE)
   if int(state.step) and os.path.exists(progress_path):

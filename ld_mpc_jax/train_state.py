@@ -1,6 +1,6 @@
 """Train state and the jitted update step."""
 
-from typing import Any, Callable
+from typing import Any, Callable, Optional
 
 import flax
 import jax
@@ -10,7 +10,7 @@ import optax
 
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.losses import make_loss_fn
-from ld_mpc_jax.models import build_networks, init_params
+from ld_mpc_jax.models import build_networks, init_params, set_obs_normalization
 
 
 @flax.struct.dataclass
@@ -32,9 +32,16 @@ def make_optimizer(config: ml_collections.ConfigDict) -> optax.GradientTransform
   return optax.chain(optax.clip_by_global_norm(t.grad_clip), optax.adam(schedule))
 
 
-def create_train_state(config: ml_collections.ConfigDict, key: jax.Array) -> TrainState:
-  """Fresh parameters; the EMA starts as a copy of them."""
+def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
+                       obs: Optional[jnp.ndarray] = None) -> TrainState:
+  """Fresh parameters; the EMA starts as a copy of them.
+
+  obs [N, obs_dim]: the dataset's observations, whose mean and std the encoder normalises with
+  (`config.model.normalize_obs`); None leaves the identity normalisation (mean 0, std 1).
+  """
   params = init_params(config, key)
+  if obs is not None and config.model.get('normalize_obs', False):
+    params = set_obs_normalization(params, obs)
   return TrainState(params=params, opt_state=make_optimizer(config).init(params),
                     ema_params=jax.tree_util.tree_map(jnp.copy, params),
                     step=jnp.zeros((), jnp.int32))

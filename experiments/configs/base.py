@@ -32,6 +32,12 @@ def get_config() -> ml_collections.ConfigDict:
   # with autoregressive latent diffusion dynamics; the others exist for the ablations.
   m.proposal_type = 'diffusion_seq'  # | 'diffusion_step' | 'mlp'
   m.dynamics_type = 'diffusion_ar'  # | 'diffusion_traj' | 'mlp'
+  # Standardise observations by the dataset's mean and std (stored with the parameters), as
+  # offline RL does for state inputs (IQL, TD3+BC); Meta-World features differ in scale.
+  m.normalize_obs = True
+  # RMS-normalise the dynamics model's samples like the encoder's output, so that the objective
+  # scores latents on the manifold it was trained on (TD-MPC2 normalises both with SimNorm).
+  m.normalize_dynamics = True
   m.num_bins = 101  # Two-hot bins over symlog values on [vmin, vmax], as TD-MPC2.
   m.vmin = -10.0
   m.vmax = 10.0
@@ -62,6 +68,10 @@ def get_config() -> ml_collections.ConfigDict:
   # along the gradient of J, scored under a cheap rollout of guidance_dynamics_steps per step.
   p.guidance_scale = 0.0
   p.guidance_dynamics_steps = 1
+  # Robust selection: V(z_H) is the value ensemble's mean minus `pessimism` standard deviations
+  # (uncertainty penalties as in MOPO and PBRL), against the optimiser's curse of an argmax.
+  p.pessimism = 1.0
+  p.dynamics_draws = 1  # J averaged over this many dynamics rollouts per candidate.
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
@@ -73,6 +83,27 @@ def get_config() -> ml_collections.ConfigDict:
   mp.min_std = 0.05
   mp.max_std = 2.0
 
+  # What the objective values and how the actor prior is extracted (ld_mpc_jax.critics).
+  c.objective = o = ml_collections.ConfigDict()
+  # IQL (Kostrikov et al. 2022): V(z) an upper expectile of Q(z, a) over the data's actions, Q by
+  # one-step TD against the EMA target: the value of the best in-support policy, not of the
+  # behaviour policy. 'behaviour': n-step returns read from the sequence objective (ablation).
+  o.value = 'expectile'
+  o.expectile = 0.7  # IQL's tau for MuJoCo, Kitchen and Adroit (0.9 for AntMaze).
+  o.num_values = 5  # Value ensemble for the pessimism penalty (TD-MPC2 also keeps 5 heads).
+  o.num_q = 2  # Clipped double Q for V's target (IQL, TD3).
+  o.hidden = (256, 256)  # MLP widths of each V and Q head (TD-MPC2's Q MLP).
+  o.value_scale = 100.0  # Values are regressed in these units (returns reach hundreds).
+  # Actor prior: advantage-weighted regression (IQL eq. 7) or plain behaviour cloning ('bc').
+  o.actor = 'awr'
+  # IQL's beta is 3 for rewards of a few units per step; Meta-World's reach 10, so 1.
+  o.awr_temperature = 1.0
+  o.awr_max_weight = 100.0  # IQL's clip of the exponentiated advantage.
+  # Train reward and value heads on the dynamics model's own H-step latent rollouts as well as on
+  # encoder latents, with a latent-consistency loss on the rollout (TD-MPC2).
+  o.latent_rollout = True
+  o.rollout_steps = 1  # Denoising steps per transition of that rollout (deterministic DDIM).
+
   c.loss = l = ml_collections.ConfigDict()
   l.w_dyn = 1.0  # Latent dynamics denoising loss.
   l.w_act = 1.0  # Action-proposal denoising loss.
@@ -80,10 +111,13 @@ def get_config() -> ml_collections.ConfigDict:
   # consistency loss; 0.5 keeps them from dominating the two MSE-scale diffusion losses.
   l.w_rew = 0.5
   l.w_val = 0.5
-  l.w_actor = 1.0  # Behaviour-cloning loss of the actor prior.
-  # Value target for V(z_i) (ld_mpc_jax.losses): discounted rewards to the end of the window plus
-  # gamma^(H-i) times the EMA target network's V(z_H): H-step propagation per update instead of
-  # TD(0)'s one step, and the frozen-ish target avoids chasing its own output (TD-MPC2, DQN).
+  l.w_actor = 1.0  # Behaviour-cloning (or advantage-weighted) loss of the actor prior.
+  l.w_q = 1.0  # Critics (objective.value 'expectile'): TD loss of Q and expectile loss of V,
+  l.w_v = 1.0  # both MSE-scale in value_scale units.
+  l.w_consistency = 1.0  # Latent consistency of the dynamics rollout (objective.latent_rollout).
+  # Behaviour value target for V(z_i) (objective.value 'behaviour', ld_mpc_jax.losses):
+  # discounted rewards to the end of the window plus gamma^(H-i) times the EMA target network's
+  # V(z_H) (TD-MPC2, DQN).
 
   c.train = t = ml_collections.ConfigDict()
   t.batch_size = 512

@@ -27,6 +27,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset == 'cpu':
     _resize(c, width=128, heads=4, blocks=2)
     c.model.actor_hidden = (128, 128)
+    c.objective.hidden = (128, 128)
     c.model.dropout = 0.0  # Short training on plentiful data: dropout only slows fitting.
     # The fast planner (README, Results): 4 deterministic DDIM steps for the proposal, 1 per
     # transition, 16 of the 64 candidates from the actor prior, and after the first step of an
@@ -49,6 +50,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     # evaluations) fits in about two hours on a 2-core CPU.
     _resize(c, width=64, heads=4, blocks=1)
     c.model.actor_hidden = (64, 64)
+    c.objective.hidden = (64, 64)
     c.model.dropout = 0.0
     c.plan.num_candidates = 32
     c.plan.action_steps = 4
@@ -67,6 +69,8 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset == 'smoke':
     _resize(c, width=16, heads=2, blocks=1)
     c.model.actor_hidden = (16,)
+    c.objective.hidden = (16,)
+    c.objective.num_values = 3
     c.model.num_bins = 11
     c.plan.num_candidates = 4
     c.plan.action_steps = 2

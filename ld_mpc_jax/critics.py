@@ -1,0 +1,151 @@
+"""Values of the best policy in the data's support, on latents: IQL-style expectile regression.
+
+The sequence objective's own value head (`config.objective.value = 'behaviour'`) regresses
+n-step returns of the data, so it values the behaviour policy, and it reads V(z_H) through a
+causal transformer that also sees the action prefix. With `value = 'expectile'` (the default)
+the terminal value comes from an ensemble of MLPs of z_H alone, trained as in IQL (Kostrikov et
+al. 2022, "Offline RL with Implicit Q-Learning"):
+  L_Q = E (r_t + gamma V_ema(z'_{t+1}) - Q(z_t, a_t))^2                    (TD, EMA target)
+  L_V = E L_tau(min_j Q_ema(z'_t, a_t) - V(z_t)),  L_tau(u) = |tau - 1(u < 0)| u^2
+where z' are the EMA encoder's latents. An upper expectile (tau > 0.5) of Q over the data's
+actions approaches the value of the best action the data contain, without querying Q outside
+them. The actor prior is then extracted by advantage-weighted regression (AWR, Peng et al. 2019;
+IQL eq. 7): weights min(exp(beta (Q_ema - V)), w_max) on the behaviour-cloning error.
+
+Values are predicted in units of `config.objective.value_scale` (Meta-World rewards are up to
+10 per step, so returns reach hundreds); expectile regression is equivariant to that scale.
+"""
+
+from typing import Callable, Dict, Optional
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import ml_collections
+
+from ld_mpc_jax.networks import MLP
+
+VALUE_KINDS = ('expectile', 'behaviour')
+ACTOR_KINDS = ('awr', 'bc')
+# Objective settings of experiments/configs/base.py for configs saved before they existed: the
+# behaviour value of the sequence objective, a BC actor, no latent rollouts in the loss.
+LEGACY_OBJECTIVE = dict(value='behaviour', actor='bc', latent_rollout=False, num_values=1,
+                        num_q=2, hidden=(256, 256), expectile=0.7, value_scale=100.0,
+                        awr_temperature=1.0, awr_max_weight=100.0, rollout_steps=1)
+
+
+def objective_settings(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """config.objective, with the legacy settings for configs saved before it existed."""
+  if 'objective' in config:
+    return config.objective
+  return ml_collections.ConfigDict(LEGACY_OBJECTIVE)
+
+
+def uses_critics(config: ml_collections.ConfigDict) -> bool:
+  """Whether the model has Q and V ensembles (expectile values or an AWR actor)."""
+  o = objective_settings(config)
+  return o.value == 'expectile' or o.actor == 'awr'
+
+
+class Ensemble(nn.Module):
+  """`num` independent MLPs with scalar output: x [..., d] -> [num, ...]."""
+  hidden: tuple
+  num: int
+
+  @nn.compact
+  def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
+    heads = nn.vmap(MLP, variable_axes={'params': 0}, split_rngs={'params': True},
+                    in_axes=None, out_axes=0, axis_size=self.num)
+    return heads(tuple(self.hidden) + (1,), name='heads')(x)[..., 0]
+
+
+class Critics(nn.Module):
+  """V(z) ensemble and Q(z, a) ensemble, in value_scale units."""
+  hidden: tuple
+  num_values: int
+  num_q: int
+
+  def setup(self):
+    self.v = Ensemble(self.hidden, self.num_values)
+    self.q = Ensemble(self.hidden, self.num_q)
+
+  def value(self, z: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D] -> [num_values, ...]."""
+    return self.v(z)
+
+  def q_value(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D], a [..., A] -> [num_q, ...]."""
+    return self.q(jnp.concatenate([z, a], axis=-1))
+
+  def __call__(self, z, a):
+    return self.value(z), self.q_value(z, a)
+
+
+def build_critics(config: ml_collections.ConfigDict) -> Optional[Critics]:
+  if not uses_critics(config):
+    return None
+  o = objective_settings(config)
+  return Critics(tuple(o.hidden), o.num_values, o.num_q)
+
+
+def expectile_loss(diff: jnp.ndarray, expectile: float) -> jnp.ndarray:
+  """L_tau(u) = |tau - 1(u < 0)| u^2, elementwise; diff = target - prediction."""
+  weight = jnp.where(diff < 0, 1.0 - expectile, expectile)
+  return weight * diff ** 2
+
+
+def awr_weights(advantage: jnp.ndarray, temperature: float, max_weight: float) -> jnp.ndarray:
+  """min(exp(temperature * advantage), max_weight), elementwise (IQL's clip at 100)."""
+  return jnp.minimum(jnp.exp(temperature * advantage), max_weight)
+
+
+def pessimistic(values: jnp.ndarray, pessimism: float) -> jnp.ndarray:
+  """Ensemble [E, ...] -> mean - pessimism * std over members [...] (std 0 for one member)."""
+  return jnp.mean(values, axis=0) - pessimism * jnp.std(values, axis=0)
+
+
+def make_terminal_value(config: ml_collections.ConfigDict, critics: Critics,
+                        pessimism: float = 0.0) -> Callable:
+  """value(params, z [..., D]) -> [...]: the expectile ensemble's mean - pessimism * std,
+  in reward units. It sees the latent alone, never the actions that led to it."""
+  scale = objective_settings(config).value_scale
+
+  def value(params, z):
+    v = critics.apply({'params': params['critics']}, z, method=Critics.value)
+    return scale * pessimistic(v, pessimism)
+
+  return value
+
+
+def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics) -> Callable:
+  """Returns critic_loss(params, target_params, z, z_ema, z_model, action, reward).
+
+  z, z_ema [B, H+2, D]: online and EMA encoder latents of the window; z_model [B, H+1, D] or
+  None: the dynamics model's latents from z_0 under the data's actions (stop-gradient), on which
+  V is trained as well, since that is where the planner reads it. action [B, H+1, A], reward
+  [B, H+1]. -> (losses {'q', 'v'}, awr_weights [B, H+1], metrics).
+  """
+  o, gamma, h = objective_settings(config), config.gamma, config.horizon
+  apply = lambda p, *args, method: critics.apply({'params': p['critics']}, *args, method=method)
+
+  def critic_loss(params, target_params, z, z_ema, z_model, action, reward):
+    sg = jax.lax.stop_gradient
+    z_t, ze_t = z[:, :h + 1], z_ema[:, :h + 1]
+    v_next = jnp.mean(apply(target_params, z_ema[:, 1:], method=Critics.value), axis=0)
+    q_target = sg(reward / o.value_scale + gamma * v_next)  # [B, H+1]
+    q = apply(params, z_t, action, method=Critics.q_value)  # [num_q, B, H+1]
+    l_q = jnp.mean((q - q_target) ** 2)
+    q_ema = sg(jnp.min(apply(target_params, ze_t, action, method=Critics.q_value), axis=0))
+    v = apply(params, z_t, method=Critics.value)  # [num_values, B, H+1]
+    l_v = jnp.mean(expectile_loss(q_ema - v, o.expectile))
+    if z_model is not None:
+      v_model = apply(params, z_model, method=Critics.value)
+      l_v = 0.5 * (l_v + jnp.mean(expectile_loss(q_ema - v_model, o.expectile)))
+    advantage = o.value_scale * (q_ema - sg(jnp.mean(v, axis=0)))  # reward units
+    weights = awr_weights(advantage, o.awr_temperature, o.awr_max_weight)
+    metrics: Dict[str, jnp.ndarray] = {
+        'q_mean': o.value_scale * jnp.mean(q), 'v_mean': o.value_scale * jnp.mean(v),
+        'advantage_std': jnp.std(advantage), 'awr_weight_mean': jnp.mean(weights)}
+    return {'q': l_q, 'v': l_v}, sg(weights), metrics
+
+  return critic_loss
