@@ -1,0 +1,159 @@
+"""Expectile values, AWR weights, the pessimistic terminal value and which candidate kind wins."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import pytest
+
+from experiments.overrides import with_overrides
+from ld_mpc_jax import critics, models, planner
+from ld_mpc_jax.losses import discounted_return, two_hot_decode
+
+
+def test_expectile_loss_hand_computed():
+  diff = jnp.array([2.0, -2.0, 0.5, 0.0])
+  np.testing.assert_allclose(critics.expectile_loss(diff, 0.9),
+                             [0.9 * 4.0, 0.1 * 4.0, 0.9 * 0.25, 0.0], rtol=1e-6)
+  # tau = 0.5 is half the squared error.
+  np.testing.assert_allclose(critics.expectile_loss(diff, 0.5), 0.5 * diff ** 2, rtol=1e-6)
+
+
+def test_awr_weights_and_pessimism_hand_computed():
+  np.testing.assert_allclose(critics.awr_weights(jnp.array([0.0, 1.0, 10.0]), 2.0, 100.0),
+                             [1.0, np.exp(2.0), 100.0], rtol=1e-6)
+  ens = jnp.array([[1.0, 2.0], [3.0, 2.0]])  # 2 members x 2 states
+  np.testing.assert_allclose(critics.pessimistic(ens, 0.5), [2.0 - 0.5, 2.0], rtol=1e-6)
+
+
+def _toy_values(smoke_config, expectile: float, steps: int = 600):
+  """Trains the critics on a toy MDP whose data make the behaviour value mis-rank two actions.
+
+  States (one-hot latents): s0, good, bad, T (absorbing, reward 0). From s0, action 'left'
+  leads to good and 'right' to bad, both with reward 0. In good the data hold the expert action
+  (reward 10) in 1 of 10 windows and random actions (reward 0) in the others; in bad every
+  action earns 3. The behaviour policy's value of good is 1, below bad's 3; the best in-support
+  policy gets 10 from good. Returns (V [4 states], Q(s0, left), Q(s0, right)).
+  """
+  config = with_overrides(smoke_config, {'horizon': 1, 'gamma': 0.9,
+                                         'objective.expectile': expectile,
+                                         'objective.value_scale': 10.0,
+                                         'objective.num_values': 2,
+                                         'objective.hidden': (32,)})
+  eye = jnp.eye(4)
+  s0, good, bad, term = eye
+  left, right = jnp.array([1.0, 0, 0, 0]), jnp.array([-1.0, 0, 0, 0])
+  expert, rand = jnp.array([0, 1.0, 0, 0]), jnp.array([0, -1.0, 0, 0])
+  windows = ([((s0, good, term), (left, expert), (0.0, 10.0))]
+             + [((s0, good, term), (left, rand), (0.0, 0.0))] * 9
+             + [((s0, bad, term), (right, rand), (0.0, 3.0))] * 10
+             + [((term, term, term), (rand, rand), (0.0, 0.0))] * 5)
+  z = jnp.stack([jnp.stack(w[0]) for w in windows])  # [B, H+2 = 3, 4]
+  action = jnp.stack([jnp.stack(w[1]) for w in windows])  # [B, H+1 = 2, 4]
+  reward = jnp.array([w[2] for w in windows])
+  net = critics.build_critics(config)
+  params = {'critics': net.init(jax.random.key(0), z[:, 0], action[:, 0])['params']}
+  loss_fn = critics.make_critic_loss(config, net)
+  tx = optax.adam(1e-2)
+
+  @jax.jit
+  def step(carry, _):
+    params, target, opt = carry
+    def total(p):
+      losses, _, _ = loss_fn(p, target, z, z, None, action, reward)
+      return losses['q'] + losses['v']
+    grads = jax.grad(total)(params)
+    updates, opt = tx.update(grads, opt, params)
+    params = optax.apply_updates(params, updates)
+    target = optax.incremental_update(params, target, 0.1)
+    return (params, target, opt), None
+
+  (params, _, _), _ = jax.lax.scan(step, (params, params, tx.init(params)), None, length=steps)
+  v = critics.make_terminal_value(config, net)(params, eye)
+  q = 10.0 * net.apply({'params': params['critics']}, jnp.stack([s0, s0]),
+                       jnp.stack([left, right]), method=critics.Critics.q_value).mean(0)
+  return np.asarray(v), float(q[0]), float(q[1])
+
+
+def test_expectile_value_ranks_what_the_behaviour_value_misranks(smoke_config):
+  v_beh, left_beh, right_beh = _toy_values(smoke_config, 0.5)  # tau = 0.5: the mean return.
+  assert v_beh[1] == pytest.approx(1.0, abs=0.4) and v_beh[2] == pytest.approx(3.0, abs=0.4)
+  assert left_beh < right_beh  # The behaviour value prefers 'right'.
+  v_exp, left_exp, right_exp = _toy_values(smoke_config, 0.9)
+  # The 0.9-expectile of {10 w.p. 0.1, 0 w.p. 0.9} is 5: good now beats bad's 3.
+  assert v_exp[1] > v_exp[2] + 1.0
+  assert left_exp > right_exp
+  assert abs(v_exp[3]) < 0.5  # The absorbing state's value stays 0.
+
+
+def _objective_terminal_part(config, params, latents, actions):
+  """J minus its discounted rewards: gamma^H times the terminal value the planner uses."""
+  nets = models.build_networks(config)
+  score = planner.make_objective_score(config, nets)
+  r_logits, _ = nets.objective.apply({'params': params['objective']}, latents, actions)
+  rewards = two_hot_decode(r_logits, config.model.vmin, config.model.vmax)
+  return score(params, latents, actions) - discounted_return(rewards, 0.0, config.gamma)
+
+
+@pytest.mark.parametrize('value', ['expectile', 'behaviour'])
+def test_terminal_value_cannot_see_the_action_prefix(smoke_config, value):
+  config = with_overrides(smoke_config, {'objective.value': value})
+  params = models.init_params(config, jax.random.key(0))
+  k, h, d, a = 3, config.horizon, config.model.latent_dim, config.action_dim
+  latents = jax.random.normal(jax.random.key(1), (k, h + 1, d))
+  actions = jax.random.uniform(jax.random.key(2), (k, h, a), minval=-1, maxval=1)
+  changed = actions.at[:, 0].set(-actions[:, 0])  # Only a_0 changes; z_H is the same.
+  before = _objective_terminal_part(config, params, latents, actions)
+  after = _objective_terminal_part(config, params, latents, changed)
+  if value == 'expectile':
+    np.testing.assert_allclose(before, after, rtol=1e-5, atol=1e-5)
+  else:  # The behaviour value is read through the causal transformer, which sees a_0.
+    assert float(jnp.max(jnp.abs(before - after))) > 1e-4
+
+
+def test_plan_reports_which_kind_of_candidate_won(smoke_config, smoke_params):
+  config = with_overrides(smoke_config, {'plan.num_candidates': 4,
+                                         'plan.num_prior_candidates': 2})
+  z = models.encode(smoke_params, np.zeros(config.obs_dim))
+  last = planner.make_plan(config, lambda p, lat, act: jnp.arange(act.shape[0], dtype=float))
+  first = planner.make_plan(config, lambda p, lat, act: -jnp.arange(act.shape[0], dtype=float))
+  key = jax.random.key(0)
+  assert planner.CANDIDATE_KINDS[int(last(smoke_params, z, key).kind)] == 'actor_prior'
+  assert planner.CANDIDATE_KINDS[int(first(smoke_params, z, key).kind)] == 'proposal'
+
+
+def test_actor_prior_candidates_are_diverse_and_keep_the_actor(smoke_config, smoke_params):
+  config = with_overrides(smoke_config, {'plan.num_candidates': 4, 'plan.num_prior_candidates': 3,
+                                         'plan.prior_noise_std': 0.3})
+  nets = models.build_networks(config)
+  z = models.encode(smoke_params, np.ones(config.obs_dim))
+  out = planner.make_plan(config)(smoke_params, z, jax.random.key(0))
+  prior = out.candidates[1:]  # [3, H, A]
+  actor = nets.actor.apply({'params': smoke_params['actor']}, z)
+  np.testing.assert_allclose(prior[0, 0], actor, rtol=1e-5, atol=1e-6)  # The actor's own.
+  assert float(jnp.abs(prior[1, 0] - prior[2, 0]).max()) > 1e-3  # The others differ.
+
+
+def test_dynamics_draws_average_the_scores(smoke_config, smoke_params):
+  """With 2 draws and the proposal fixed by the key, J is the mean over two rollouts."""
+  one = planner.make_plan(smoke_config)
+  two = planner.make_plan(with_overrides(smoke_config, {'plan.dynamics_draws': 2}))
+  z = models.encode(smoke_params, np.ones(smoke_config.obs_dim))
+  a, b = one(smoke_params, z, jax.random.key(0)), two(smoke_params, z, jax.random.key(0))
+  np.testing.assert_allclose(a.candidates, b.candidates)
+  assert float(jnp.abs(a.scores - b.scores).max()) > 1e-6
+
+
+def test_observation_normalisation_is_stored_in_the_parameters(smoke_config):
+  obs = np.random.default_rng(0).normal(3.0, 2.0, size=(500, smoke_config.obs_dim))
+  obs[:, 5] = 0.25  # A constant feature is only centred.
+  params = models.set_obs_normalization(models.init_params(smoke_config, jax.random.key(0)),
+                                        obs)
+  np.testing.assert_allclose(params['encoder']['obs_mean'], obs.mean(0), rtol=1e-4)
+  assert float(params['encoder']['obs_std'][5]) == pytest.approx(models.OBS_STD_FLOOR)
+  plain = dict(params['encoder'])
+  mean, std = plain.pop('obs_mean'), plain.pop('obs_std')
+  enc = models.Encoder(smoke_config.model.encoder_hidden, smoke_config.model.latent_dim)
+  np.testing.assert_allclose(models.encode(params, obs[:4]),
+                             enc.apply({'params': plain}, (obs[:4] - mean) / std),
+                             rtol=1e-4, atol=1e-5)
