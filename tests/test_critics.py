@@ -1,6 +1,7 @@
 """Expectile values, AWR weights, the pessimistic terminal value and which candidate kind wins."""
 
 import jax
+import ml_collections
 import jax.numpy as jnp
 import numpy as np
 import optax
@@ -157,3 +158,44 @@ def test_observation_normalisation_is_stored_in_the_parameters(smoke_config):
   np.testing.assert_allclose(models.encode(params, obs[:4]),
                              enc.apply({'params': plain}, (obs[:4] - mean) / std),
                              rtol=1e-4, atol=1e-5)
+
+
+def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
+  """A run saved before config.objective existed: no critics, no normalisation, same planner."""
+  legacy = smoke_config.to_dict()
+  del legacy['objective']
+  for name in ('normalize_obs', 'normalize_dynamics'):
+    del legacy['model'][name]
+  for name in ('pessimism', 'dynamics_draws'):
+    del legacy['plan'][name]
+  legacy = ml_collections.ConfigDict(legacy)
+  params = models.init_params(legacy, jax.random.key(0))
+  assert 'critics' not in params and 'obs_mean' not in params['encoder']
+  out = planner.make_plan(legacy)(params, models.encode(params, np.ones(39)), jax.random.key(1))
+  assert out.scores.shape == (legacy.plan.num_candidates,)
+  explicit = with_overrides(legacy, {})
+  explicit.objective = ml_collections.ConfigDict(critics.LEGACY_OBJECTIVE)
+  assert not critics.uses_critics(explicit)
+
+
+def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
+  from experiments import diagnose_objective
+  from ld_mpc_jax import data
+  length, gamma = 110, smoke_config.gamma
+
+  class OneEpisode:
+    num_episodes = 1
+
+    def episode(self, e):
+      rng = np.random.default_rng(e)
+      return dict(obs=rng.normal(size=(length + 1, 39)), action=rng.uniform(-1, 1, (length, 4)),
+                  reward=np.ones(length), success=np.zeros(length, bool))
+
+  monkeypatch.setattr(data, 'get_or_collect', lambda *a, **k: OneEpisode())
+  obs, actions, returns = diagnose_objective.held_out_windows(smoke_config, 1, stride=5)
+  h = smoke_config.horizon
+  assert obs.shape == (2, h + 1, 39) and actions.shape == (2, h, 4)  # starts 0 and 5 (< 110-100)
+  np.testing.assert_allclose(returns, [(1 - gamma ** (length - t)) / (1 - gamma) for t in (0, 5)])
+  corr = diagnose_objective.objective_correlation(smoke_config, smoke_params, obs, actions,
+                                                  returns)
+  assert corr['windows'] == 2 and abs(corr['spearman_model']) <= 1.0

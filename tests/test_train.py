@@ -51,6 +51,13 @@ def test_smoke_run_end_to_end(tmp_path, data_dir):
   # The evaluation entry point reloads the run.
   config, params, step = checkpointing.load_for_evaluation(workdir)
   assert step == 4 and config.model.width == 16
+  # The observation normalisation is the dataset's, and travels with the checkpoint.
+  from ld_mpc_jax import data
+  d = config.data
+  ds = data.get_or_collect(config.task, d.preset, d.episodes, d.seed, d.dir, action_repeat=2)
+  np.testing.assert_allclose(params['encoder']['obs_mean'], ds.observations.mean(0), rtol=1e-4,
+                             atol=1e-5)
+  assert 'critics' in params
   result = train.run_evaluation(config, params, 'actor', 1, seed=0)
   assert result['num_episodes'] == 1
   # Both goal splits, held-out first, every policy on the same episodes, records on disk.

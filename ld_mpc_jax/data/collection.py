@@ -10,6 +10,7 @@ the env factory's action repeat, and record per-step success flags.
 Presets (D4RL-like; the levels are data, see PRESETS):
   expert: the scripted policy with a little noise.
   medium: heavier noise and many random actions.
+  weak:   mostly random actions, no near-expert episode.
   mixed:  a quarter each of four levels, from expert-like to mostly random.
 """
 
@@ -29,6 +30,9 @@ from ld_mpc_jax.envs import metaworld_env
 PRESETS: Dict[str, Sequence[Dict[str, float]]] = {
     'expert': (dict(noise_std=0.1, random_prob=0.0, fraction=1.0),),
     'medium': (dict(noise_std=0.5, random_prob=0.65, fraction=1.0),),
+    # No near-expert episode: every decision is noisy and 85% are random (door-open: 15% of
+    # 20 episodes succeed by chance, docs/data.md).
+    'weak': (dict(noise_std=1.0, random_prob=0.85, fraction=1.0),),
     'mixed': (
         dict(noise_std=0.1, random_prob=0.0, fraction=0.25),
         dict(noise_std=0.5, random_prob=0.5, fraction=0.25),
@@ -94,7 +98,7 @@ def collect(task: str, preset: str, episodes: int, seed: int = 0,
 
   Args:
     task: Meta-World v3 task name.
-    preset: key of PRESETS ('expert', 'medium', 'mixed').
+    preset: key of PRESETS ('expert', 'medium', 'weak', 'mixed').
     episodes: number of episodes.
     seed: MT1 seed of the environment (its 50 goal configurations) and base of
       the per-episode seeds (stream 'collect' of `episode_seeds`).
