@@ -29,115 +29,13 @@ _DATA_EPISODES = flags.DEFINE_integer('data_episodes', 20, 'Held-out dataset epi
 _STRIDE = flags.DEFINE_integer('stride', 5, 'Decisions between window starts.')
 flags.mark_flag_as_required('workdir')
 
-_HORIZON_MARGIN = 100  # Decisions of return a window needs after its start (1 / (1 - gamma)).
-
-
-def held_out_windows(config, data_episodes: int, stride: int):
-  """(obs [N, H+1, obs_dim], actions [N, H, A], returns [N]) from held-out dataset episodes."""
-  import numpy as np
-  from ld_mpc_jax import data
-  d, h = config.data, config.horizon
-  ds = data.get_or_collect(config.task, d.preset, data_episodes, d.seed + 1000, d.dir,
-                           action_repeat=config.eval.action_repeat)
-  obs, acts, rets = [], [], []
-  for e in range(ds.num_episodes):
-    ep = ds.episode(e)
-    rewards = ep['reward']
-    returns = np.zeros(len(rewards) + 1)
-    for t in range(len(rewards) - 1, -1, -1):
-      returns[t] = rewards[t] + config.gamma * returns[t + 1]
-    for t in range(0, max(len(rewards) - _HORIZON_MARGIN, 1), stride):
-      if t + h <= len(rewards):
-        obs.append(ep['obs'][t:t + h + 1])
-        acts.append(ep['action'][t:t + h])
-        rets.append(returns[t])
-  return np.stack(obs), np.stack(acts), np.asarray(rets)
-
-
-def objective_correlation(config, params, obs, actions, returns) -> dict:
-  """Spearman of J (dynamics rollout and encoder latents) against Monte Carlo returns."""
-  import jax
-  import jax.numpy as jnp
-  from scipy import stats as sps
-  from experiments.overrides import with_overrides
-  from ld_mpc_jax import models, planner
-  nets = models.build_networks(config)
-  score = planner.make_objective_score(config, nets)
-  rollout = planner.make_rollout(with_overrides(config, {'plan.num_prior_candidates': 0}), nets)
-
-  @jax.jit
-  def both(obs, actions, key):
-    z = models.encode(params, obs)  # [N, H+1, D]
-    j_encoder = score(params, z, actions)
-    def model_j(z0, seq, k):
-      acts, latents = rollout(params, z0, seq[None], k)
-      return score(params, latents, acts)[0]
-    keys = jax.random.split(key, obs.shape[0])
-    return jax.vmap(model_j)(z[:, 0], actions, keys), j_encoder
-
-  j_model, j_encoder = map(jnp.asarray, both(jnp.asarray(obs, jnp.float32),
-                                             jnp.asarray(actions, jnp.float32),
-                                             jax.random.key(0)))
-  rho = lambda j: float(sps.spearmanr(j, returns).statistic)
-  return dict(windows=int(len(returns)), spearman_model=rho(j_model),
-              spearman_encoder=rho(j_encoder))
-
-
-def candidate_wins(config, params, obs) -> dict:
-  """Fraction of plans won by each candidate kind, planning from each state obs [N, obs_dim]."""
-  import jax
-  import numpy as np
-  from ld_mpc_jax import models, planner
-  plan = planner.make_plan(config)
-  z = models.encode(params, obs)
-  kinds = [int(plan(params, z[i], jax.random.key(i)).kind) for i in range(len(obs))]
-  counts = np.bincount(kinds, minlength=len(planner.CANDIDATE_KINDS))
-  return {kind: float(c / len(kinds)) for kind, c in zip(planner.CANDIDATE_KINDS, counts)}
-
-
-def success_by_k(config, params, ks, episodes: int, seed: int) -> list:
-  """Planner success on held-out goals per K, paired with the largest K."""
-  from experiments.overrides import with_overrides
-  from ld_mpc_jax import evaluation_suite, stats
-  p = config.plan
-  rows, outcomes = [], {}
-  for k in ks:
-    prior = round(p.num_prior_candidates * k / p.num_candidates) if k > 1 else 0
-    cfg = with_overrides(config, {'plan.num_candidates': k, 'plan.num_prior_candidates': prior})
-    r = evaluation_suite.evaluate_policy(cfg, params, 'plan', episodes, seed, 'held_out')
-    outcomes[k] = [rec['success'] for rec in sorted(r['records'], key=lambda x: x['episode'])]
-    rows.append(dict(k=k, prior=prior, successes=r['successes'], episodes=episodes,
-                     success_rate=r['success_rate'], success_ci95=r['success_ci95']))
-  top = max(ks)
-  for row in rows:
-    row['vs_largest_k'] = stats.mcnemar_exact(outcomes[row['k']], outcomes[top])
-  return rows
-
-
-def markdown(report: dict) -> str:
-  c = report['correlation']
-  lines = [f"# Objective diagnostics: {report['workdir']} (step {report['step']})", '',
-           f"Spearman rank correlation of J with Monte Carlo returns, {c['windows']} windows of "
-           'held-out dataset episodes: dynamics-model rollout '
-           f"{c['spearman_model']:.3f}, encoder latents {c['spearman_encoder']:.3f}.", '',
-           '| K | actor-prior candidates | held-out success | 95% CI | vs largest K '
-           '(only this K / only largest) | p |', '| ---: | ---: | --- | --- | --- | ---: |']
-  for r in report['success_by_k']:
-    m = r['vs_largest_k']
-    lines.append(f"| {r['k']} | {r['prior']} | {r['successes']}/{r['episodes']} = "
-                 f"{r['success_rate']:.2f} | [{r['success_ci95'][0]:.2f}, "
-                 f"{r['success_ci95'][1]:.2f}] | {m['a_only']} / {m['b_only']} | "
-                 f"{m['p_value']:.2g} |")
-  wins = ', '.join(f'{k} {v:.2f}' for k, v in report['candidate_wins'].items())
-  lines += ['', f'Winning candidate kinds (K = {report["k"]}, planning from the windows\' start '
-            f'states): {wins}.', '']
-  return '\n'.join(lines)
-
 
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax import checkpointing
+  from ld_mpc_jax.diagnostics import (candidate_wins, held_out_windows, markdown,
+                                      objective_correlation, success_by_k)
   try:
     ks = sorted({int(k) for k in _KS.value})
     if not ks or ks[0] < 1:

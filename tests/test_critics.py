@@ -179,7 +179,7 @@ def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
 
 
 def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
-  from experiments import diagnose_objective
+  from ld_mpc_jax import diagnostics as diagnose_objective
   from ld_mpc_jax import data
   length, gamma = 110, smoke_config.gamma
 
