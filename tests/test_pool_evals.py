@@ -34,3 +34,16 @@ def test_main_rejects_files_without_records(tmp_path, capsys):
   with pytest.raises(SystemExit) as err:
     pool_evals.main([str(path)])
   assert err.value.code == 2 and 'no per-episode records' in capsys.readouterr().err
+
+
+def test_compare_sweeps_pairs_the_same_episodes():
+  from experiments import compare_sweeps
+  rec = lambda run, ep, policy, success: dict(run=run, split='held_out', eval_seed=0,
+                                              episode=ep, policy=policy, success=success)
+  a = {'records': [rec(0, 0, 'plan', 1), rec(0, 1, 'plan', 1), rec(1, 0, 'plan', 1),
+                   rec(2, 5, 'plan', 1)]}
+  b = {'records': [rec(0, 0, 'plan', 0), rec(0, 1, 'plan', 1), rec(1, 0, 'plan', 0),
+                   rec(1, 0, 'actor', 1)]}
+  (row,) = compare_sweeps.paired_rows(a, b, ['plan', 'actor'], 'held_out')
+  assert (row['episodes'], row['a'], row['b'], row['a_only'], row['b_only']) == (3, 3, 1, 2, 0)
+  assert row['seeds'] == [0, 1] and row['p_value'] == 0.5

@@ -1,0 +1,70 @@
+"""Pairs two sweeps of the same task and evaluation episodes: does a config change help?
+
+  python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policy=plan] [--split=held_out]
+
+A and B are `experiments.sweep` outputs (for example the same preset with and without a config
+override). An episode of A pairs with the episode of B with the same training seed, goal split,
+evaluation seed and episode index: the same goal and reset seed, a checkpoint trained with the
+same seed under each config. Prints both success rates over the paired episodes and the exact
+McNemar test on the discordant pairs, per policy.
+"""
+
+import json
+import sys
+
+from absl import app, flags
+
+from ld_mpc_jax import stats
+
+_POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'], 'Policies to pair.')
+_SPLIT = flags.DEFINE_string('split', 'held_out', 'Goal split.')
+
+
+def paired_rows(a: dict, b: dict, policies, split: str) -> list:
+  """One row per policy: episodes, success of A and B on them, McNemar (A only, B only, p)."""
+  rows = []
+  for policy in policies:
+    pick = lambda sweep: {tuple(r[k] for k in stats.EPISODE_KEY): r['success']
+                          for r in sweep['records']
+                          if r['policy'] == policy and r['split'] == split}
+    ra, rb = pick(a), pick(b)
+    keys = sorted(set(ra) & set(rb))
+    if not keys:
+      continue
+    test = stats.mcnemar_exact([ra[k] for k in keys], [rb[k] for k in keys])
+    rows.append(dict(policy=policy, episodes=len(keys), a=sum(ra[k] for k in keys),
+                     b=sum(rb[k] for k in keys), **test,
+                     seeds=sorted({k[0] for k in keys})))
+  return rows
+
+
+def main(argv):
+  if len(argv) != 3:
+    print('usage: python -m experiments.compare_sweeps A/sweep.json B/sweep.json',
+          file=sys.stderr)
+    raise SystemExit(2)
+  sweeps = []
+  for path in argv[1:]:
+    try:
+      with open(path) as f:
+        sweeps.append(json.load(f))
+    except (OSError, json.JSONDecodeError) as err:
+      print(f'error: cannot read {path}: {err}', file=sys.stderr)
+      raise SystemExit(2) from None
+  rows = paired_rows(*sweeps, _POLICIES.value, _SPLIT.value)
+  if not rows:
+    print(f'error: no paired {_SPLIT.value} episodes between {argv[1]} and {argv[2]}',
+          file=sys.stderr)
+    raise SystemExit(2)
+  print(f'A = {argv[1]}\nB = {argv[2]}\n')
+  print('| policy | training seeds | paired episodes | A | B | only A | only B | p |')
+  print('| --- | --- | ---: | --- | --- | ---: | ---: | ---: |')
+  for r in rows:
+    n = r['episodes']
+    print(f"| {r['policy']} | {','.join(map(str, r['seeds']))} | {n} | {r['a']}/{n} = "
+          f"{r['a'] / n:.2f} | {r['b']}/{n} = {r['b'] / n:.2f} | {r['a_only']} | "
+          f"{r['b_only']} | {r['p_value']:.2g} |")
+
+
+if __name__ == '__main__':
+  app.run(main)
