@@ -29,6 +29,7 @@ import numpy as np
 
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
+from ld_mpc_jax.bench.hardware import device_info, measure_peak  # Shared with benchmark_training.
 
 
 # name -> overrides (dotted config field -> value, or a function of the config for values that
@@ -68,37 +69,6 @@ _VARIANTS = flags.DEFINE_list('variants', list(VARIANTS), f'Subset of {list(VARI
 _WIDTHS = flags.DEFINE_list('widths', list(WIDTHS), f'Subset of {list(WIDTHS)}.')
 _PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
 _PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
-
-
-def device_info() -> dict:
-  """The machine: CPU model and core count, or the accelerator's device kind."""
-  dev = jax.devices()[0]
-  info = {'platform': dev.platform, 'device_kind': dev.device_kind,
-          'cpu_count': os.cpu_count(), 'jax': jax.__version__,
-          'loadavg_1min_at_start': os.getloadavg()[0]}
-  try:
-    with open('/proc/cpuinfo') as f:
-      info['cpu_model'] = next(l.split(':', 1)[1].strip() for l in f if l.startswith('model name'))
-  except (OSError, StopIteration):
-    info['cpu_model'] = 'unknown'
-  info['name'] = (f"{info['cpu_model']}, {info['cpu_count']} cores" if dev.platform == 'cpu'
-                  else f'{dev.device_kind} ({dev.platform})')
-  return info
-
-
-def measure_peak(n: int, repeats: int) -> float:
-  """Median GFLOP/s of an [n, n] x [n, n] float32 matmul."""
-  from ld_mpc_jax.bench.flops import matmul_flops
-  ka, kb = jax.random.split(jax.random.key(0))
-  a, b = jax.random.normal(ka, (n, n)), jax.random.normal(kb, (n, n))
-  matmul = jax.jit(jnp.matmul)
-  matmul(a, b).block_until_ready()
-  times = []
-  for _ in range(repeats):
-    t0 = time.perf_counter()
-    matmul(a, b).block_until_ready()
-    times.append(time.perf_counter() - t0)
-  return matmul_flops(n) / float(np.median(times)) / 1e9
 
 
 def time_calls(fn, params, z, keys, carry_fn=None, carry=None, warmup: int = 2):

@@ -46,12 +46,15 @@ def main(argv):
         'plan', 'actor', 'proposal', 'mppi'}
     if bad:
       raise ValueError(f'unknown split or mode {sorted(bad)}')
+    splits = evaluation_suite.available_splits(config, _SPLITS.value)  # No train split for
+    if splits != tuple(_SPLITS.value):  # TD-MPC2 data: its goals were random per episode.
+      print(f'goal splits {list(splits)} only: the data were not collected on MT1 goals')
   except (ValueError, FileNotFoundError) as err:
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
   episodes = _EPISODES.value or config.eval.episodes
   records = evaluation_suite.evaluate_checkpoint(
-      config, params, None, step, _MODES.value, _SPLITS.value, seeds, episodes,
+      config, params, None, step, _MODES.value, splits, seeds, episodes,
       run=config.seed)
   summary = evaluation_suite.summarize(records)
   print(evaluation_suite.markdown(summary))

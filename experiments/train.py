@@ -1,6 +1,10 @@
 """Trains and evaluates LD-MPC.
 
   python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_cpu
+  python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_tdmpc2 \
+      --config.data.source=tdmpc2 --config.data.path='mt80/chunk_*.pt'   # TD-MPC2's data
+  python -m experiments.train --config=door_open.py --workdir=runs/door_open_dp \
+      --config.train.data_parallel=True     # batch split over all devices (docs/scaling.md)
 
 A bare config name resolves to experiments/configs/<name>; `:preset` selects a preset; any field
 can be overridden, e.g. --config.task=drawer-open-v3 --config.train.num_steps=2000.
@@ -17,23 +21,40 @@ from experiments.configs import resolve_config_arg
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
                                           lock_config=True)
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Run directory (checkpoints, logs, report).')
+# Several processes (hosts) training one model: docs/scaling.md. None: detected from the cluster
+# environment (SLURM, Open MPI, Cloud TPU) by jax.distributed.initialize.
+_DISTRIBUTED = flags.DEFINE_bool('distributed', False, 'Call jax.distributed.initialize first.')
+_COORDINATOR = flags.DEFINE_string('coordinator_address', None, 'host:port of process 0.')
+_NUM_PROCESSES = flags.DEFINE_integer('num_processes', None, 'Number of processes.')
+_PROCESS_ID = flags.DEFINE_integer('process_id', None, 'This process, 0..num_processes-1.')
 flags.mark_flags_as_required(['config', 'workdir'])
 
 
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
+  import jax
+  if _DISTRIBUTED.value:  # Before anything touches a device.
+    jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
+                               num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
   from ld_mpc_jax.config_checks import validate_config
+  from ld_mpc_jax.data import DatasetError, sources
   from ld_mpc_jax.envs import check_task
   from ld_mpc_jax.train import train_and_evaluate
   try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
     validate_config(_CONFIG.value)
     check_task(_CONFIG.value.task)
+    sources.check_source(_CONFIG.value)
   except ValueError as err:
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
-  train_and_evaluate(_CONFIG.value, _WORKDIR.value)
-  print(open(os.path.join(_WORKDIR.value, 'report.md')).read())
+  try:
+    train_and_evaluate(_CONFIG.value, _WORKDIR.value)
+  except DatasetError as err:  # Data that do not fit the config: also one line.
+    print(f'error: {err}', file=sys.stderr)
+    sys.exit(2)
+  if jax.process_index() == 0:  # The one process that writes the report.
+    print(open(os.path.join(_WORKDIR.value, 'report.md')).read())
 
 
 if __name__ == '__main__':

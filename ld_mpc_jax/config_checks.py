@@ -72,6 +72,13 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     for name, least in (('batch_size', 1), ('plan_chunk', 0)):
       if name in e and (not isinstance(e[name], int) or e[name] < least):
         raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
+  if 'data' in config:
+    source = config.data.get('source', 'metaworld')
+    if source not in ('metaworld', 'tdmpc2'):  # ld_mpc_jax.data.sources.SOURCES
+      raise ValueError(f"config.data.source must be 'metaworld' or 'tdmpc2', got {source!r}")
+    if source == 'tdmpc2' and not config.data.get('path'):
+      raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
+                       'pattern or directory)')
   _validate_variant(config)
   _validate_objective(config)
   t = config.train
@@ -128,6 +135,9 @@ def _validate_objective(config: ml_collections.ConfigDict) -> None:
     raise ValueError(f"config.objective.value must be 'expectile' or 'behaviour', got {o.value!r}")
   if o.actor not in ('awr', 'bc'):
     raise ValueError(f"config.objective.actor must be 'awr' or 'bc', got {o.actor!r}")
+  if o.get('td_target', 'one_step') not in ('one_step', 'window'):
+    raise ValueError(f"config.objective.td_target must be 'one_step' or 'window', "
+                     f'got {o.td_target!r}')
   if not 0.0 < o.expectile < 1.0:
     raise ValueError(f'config.objective.expectile must be in (0, 1), got {o.expectile}')
   for name in ('num_values', 'num_q', 'rollout_steps'):

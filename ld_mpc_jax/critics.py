@@ -6,6 +6,8 @@ causal transformer that also sees the action prefix. With `value = 'expectile'` 
 the terminal value comes from an ensemble of MLPs of z_H alone, trained as in IQL (Kostrikov et
 al. 2022, "Offline RL with Implicit Q-Learning"):
   L_Q = E (r_t + gamma V_ema(z'_{t+1}) - Q(z_t, a_t))^2                    (TD, EMA target)
+(or, with `objective.td_target = 'window'`, the discounted rewards to the end of the training
+window plus V_ema there: faster propagation, with the data's actions after the first),
   L_V = E L_tau(min_j Q_ema(z'_t, a_t) - V(z_t)),  L_tau(u) = |tau - 1(u < 0)| u^2
 where z' are the EMA encoder's latents. An upper expectile (tau > 0.5) of Q over the data's
 actions approaches the value of the best action the data contain, without querying Q outside
@@ -99,6 +101,15 @@ def awr_weights(advantage: jnp.ndarray, temperature: float, max_weight: float) -
   return jnp.minimum(jnp.exp(temperature * advantage), max_weight)
 
 
+def window_returns(rewards: jnp.ndarray, bootstrap: jnp.ndarray, gamma: float) -> jnp.ndarray:
+  """sum_{j>=i} gamma^(j-i) r_j + gamma^(T-i) bootstrap for each i: rewards [B, T] -> [B, T]."""
+  def step(carry, r):
+    g = r + gamma * carry
+    return g, g
+  _, out = jax.lax.scan(step, bootstrap, rewards.T, reverse=True)
+  return out.T
+
+
 def pessimistic(values: jnp.ndarray, pessimism: float) -> jnp.ndarray:
   """Ensemble [E, ...] -> mean - pessimism * std over members [...] (std 0 for one member)."""
   return jnp.mean(values, axis=0) - pessimism * jnp.std(values, axis=0)
@@ -132,7 +143,10 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics) -> Cal
     sg = jax.lax.stop_gradient
     z_t, ze_t = z[:, :h + 1], z_ema[:, :h + 1]
     v_next = jnp.mean(apply(target_params, z_ema[:, 1:], method=Critics.value), axis=0)
-    q_target = sg(reward / o.value_scale + gamma * v_next)  # [B, H+1]
+    if o.get('td_target', 'one_step') == 'window':  # n-step: rewards to the window's end.
+      q_target = sg(window_returns(reward / o.value_scale, v_next[:, -1], gamma))
+    else:
+      q_target = sg(reward / o.value_scale + gamma * v_next)  # [B, H+1]
     q = apply(params, z_t, action, method=Critics.q_value)  # [num_q, B, H+1]
     l_q = jnp.mean((q - q_target) ** 2)
     q_ema = sg(jnp.min(apply(target_params, ze_t, action, method=Critics.q_value), axis=0))

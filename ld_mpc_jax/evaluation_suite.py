@@ -33,10 +33,31 @@ def _dataset_goals(task, preset, episodes, seed, data_dir, action_repeat):
 
 
 def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Optional[int]]:
-  """(goal vectors [E, 6] of the training data's episode starts, the data's MT1 seed)."""
+  """(goal vectors [E, 6] of the training data's episode starts, the data's MT1 seed).
+
+  TD-MPC2 data (config.data.source 'tdmpc2') drew a random goal per episode, not MT1 goals: their
+  goal vectors come from the observations as for any data, and the MT1 seed is None.
+  """
   d = config.data
+  if data.sources.source(config) == 'tdmpc2':
+    return goals.dataset_goal_vectors(data.load_for_config(config)), None
   return _dataset_goals(config.task, d.preset, d.episodes, d.seed, d.dir,
                         config.eval.action_repeat)
+
+
+def available_splits(config: ml_collections.ConfigDict, splits: Sequence[str]) -> Tuple[str, ...]:
+  """`splits` less 'train' when the data were not collected on MT1 goals (TD-MPC2's data).
+
+  Raises:
+    ValueError: nothing left (only the train split was asked for).
+  """
+  if 'train' not in splits or dataset_goals(config)[1] is not None:
+    return tuple(splits)
+  kept = tuple(s for s in splits if s != 'train')
+  if not kept:
+    raise ValueError('the train goal split needs data collected on MT1 goals '
+                     '(config.data.source=metaworld); evaluate on held_out')
+  return kept
 
 
 def episodes(config: ml_collections.ConfigDict, split: str, seed: int,

@@ -16,7 +16,7 @@ import orbax.checkpoint as ocp
 from tensorboardX import SummaryWriter
 import tqdm
 
-from ld_mpc_jax import checkpointing, data, envs, evaluation_suite
+from ld_mpc_jax import checkpointing, data, envs, evaluation_suite, sharding
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
@@ -65,7 +65,27 @@ def git_commit() -> str | None:
     return None
 
 
+def _primary() -> bool:
+  """Whether this process writes the run's logs and report (process 0 of a multi-process run).
+
+  Every process trains and evaluates alike; checkpoints are saved by all of them together.
+  """
+  return jax.process_index() == 0
+
+
+class _NoWriter:
+  """SummaryWriter stand-in for processes other than 0."""
+
+  def add_scalar(self, *args, **kwargs):
+    pass
+
+  def close(self):
+    pass
+
+
 def _append_csv(path: str, row: Dict[str, Any]) -> None:
+  if not _primary():
+    return
   new = not os.path.exists(path)
   with open(path, 'a', newline='') as f:
     writer = csv.DictWriter(f, fieldnames=list(row))
@@ -83,6 +103,8 @@ def _read_csv(path: str):
 
 def write_plots(workdir: str) -> None:
   """losses.png and success.png from metrics.csv and eval.csv."""
+  if not _primary():
+    return
   import matplotlib
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt
@@ -154,16 +176,18 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   per-episode records under 'records'.
   """
   dataset, manager, state, prior_seconds = _prepare(config, workdir)
-  writer = SummaryWriter(os.path.join(workdir, 'tb'))
+  writer = SummaryWriter(os.path.join(workdir, 'tb')) if _primary() else _NoWriter()
   state, timer = _train(config, workdir, dataset, manager, state, prior_seconds, writer)
-  evaluated = _final_evaluation(config, state.ema_params, int(state.step), workdir, writer)
+  evaluated = _final_evaluation(config, sharding.unreplicate(state.ema_params), int(state.step),
+                                workdir, writer)
   writer.close()
   final, baselines, summary, records = evaluated
   report = _report(config, dataset, state, prior_seconds, timer, final, baselines, summary)
-  with open(os.path.join(workdir, 'report.json'), 'w') as f:
-    json.dump(report, f, indent=2)
-  with open(os.path.join(workdir, 'report.md'), 'w') as f:
-    f.write(_summary_md(report))
+  if _primary():
+    with open(os.path.join(workdir, 'report.json'), 'w') as f:
+      json.dump(report, f, indent=2)
+    with open(os.path.join(workdir, 'report.md'), 'w') as f:
+      f.write(_summary_md(report))
   write_plots(workdir)
   report['records'] = records  # Per-episode records: in episodes.csv, not report.json.
   return report
@@ -174,9 +198,7 @@ def _prepare(config, workdir):
   validate_config(config)
   envs.check_task(config.task)
   os.makedirs(workdir, exist_ok=True)
-  dataset = data.get_or_collect(config.task, config.data.preset, config.data.episodes,
-                                config.data.seed, config.data.dir,
-                                action_repeat=config.eval.action_repeat)
+  dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
   check_config_for_data(config, dataset)
   checkpointing.save_config(config, workdir)
   manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
@@ -213,16 +235,23 @@ def _train(config, workdir, dataset, manager, state, prior_seconds, writer):
   """The update loop from the restored step: logs, checkpoints, periodic evaluations."""
   t_cfg, start = config.train, int(state.step)
   num_steps = t_cfg.num_steps
-  update = make_update(config)
-  # A resumed run draws fresh windows rather than replaying the first run's.
-  buffer = data.ReplayBuffer(dataset, window_length(config),
-                             seed=config.seed * 1_000_003 + start)
+  mesh = sharding.make_mesh() if t_cfg.get('data_parallel', False) else None
+  update = make_update(config, mesh)
+  batch_size, put = t_cfg.batch_size, lambda batch: batch
+  if mesh is not None:  # Each process samples its share; the state lives on every device.
+    batch_size = sharding.local_batch_size(t_cfg.batch_size, mesh)
+    put = lambda batch: sharding.shard_batch(batch, mesh)
+    state = sharding.replicate(state, mesh)
+  # A resumed run draws fresh windows rather than replaying the first run's; so does every
+  # process of a multi-process run (process 0 draws what a single-process run draws).
+  buffer = data.ReplayBuffer(dataset, window_length(config), seed=(
+      config.seed * 1_000_003 + start + 999_983 * jax.process_index()))
   train_key = jax.random.key(config.seed + 1)
   timer = _Timer(start)
   bar = tqdm.tqdm(range(start, num_steps), initial=start, total=num_steps, desc='train',
                   dynamic_ncols=True)
   for step in bar:
-    state, metrics = update(state, buffer.sample(t_cfg.batch_size),
+    state, metrics = update(state, put(buffer.sample(batch_size)),
                             jax.random.fold_in(train_key, step))
     done = step + 1
     if done % t_cfg.log_every == 0 or done % t_cfg.checkpoint_every == 0 or done == num_steps:
@@ -231,7 +260,7 @@ def _train(config, workdir, dataset, manager, state, prior_seconds, writer):
     if done % t_cfg.checkpoint_every == 0 or done == num_steps:
       _save_checkpoint(workdir, manager, state, done, prior_seconds + timer.seconds)
     if config.eval.episodes > 0 and done % t_cfg.eval_every == 0 and done != num_steps:
-      _periodic_eval(config, state.ema_params, done, workdir, writer)
+      _periodic_eval(config, sharding.unreplicate(state.ema_params), done, workdir, writer)
   bar.close()
   manager.wait_until_finished()
   return state, timer
@@ -260,7 +289,9 @@ def _save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
   if not bool(finite):  # One host sync per checkpoint.
     raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
                              f'good checkpoint is step {manager.latest_step()}.')
-  manager.save(done, args=ocp.args.StandardSave(state))
+  manager.save(done, args=ocp.args.StandardSave(state))  # All processes: orbax coordinates.
+  if not _primary():
+    return
   path = os.path.join(workdir, PROGRESS_FILE)
   with open(path + '.tmp', 'w') as f:
     json.dump({'step': done, 'train_seconds': train_seconds}, f)
@@ -278,12 +309,17 @@ def _final_evaluation(config, params, step, workdir, writer):
                            'decisions_per_s'))
     return final, {}, {}, []
   modes = ('plan',) + tuple(m for m in config.eval.get('baselines', ()) if m != 'plan')
+  splits = evaluation_suite.available_splits(config, config.eval.splits)
+  if splits != tuple(config.eval.splits):
+    tqdm.tqdm.write(f'goal splits {list(splits)} only: the data were not collected on MT1 '
+                    'goals, so there is no train split')
   records = evaluation_suite.evaluate_checkpoint(
-      config, params, workdir, step, modes, config.eval.splits, config.eval.seeds,
+      config, params, workdir, step, modes, splits, config.eval.seeds,
       config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
   summary = evaluation_suite.summarize(records)
-  _write_records(os.path.join(workdir, 'episodes.csv'), records)
-  split = config.eval.splits[0]
+  if _primary():
+    _write_records(os.path.join(workdir, 'episodes.csv'), records)
+  split = splits[0]
   first = summary[split]['policies']
   final = {**first['plan'], 'split': split}
   _log_eval(workdir, writer, step, final)
@@ -302,7 +338,8 @@ def _report(config, dataset, state, prior_seconds, timer, final, baselines, summ
       'train_seconds': prior_seconds + timer.seconds, 'steps': int(state.step),
       'steps_per_s': timer.steps_per_s,
       'num_params': count_params(state.ema_params),
-      'dataset': {'preset': config.data.preset, 'episodes': dataset.num_episodes,
+      'dataset': {'source': data.sources.source(config), 'preset': config.data.preset,
+                  'path': config.data.get('path'), 'episodes': dataset.num_episodes,
                   'transitions': dataset.num_transitions},
       'config': json.loads(config.to_json_best_effort()),
       'versions': versions(), 'git_commit': git_commit(),

@@ -5,9 +5,11 @@ from typing import Any, Callable, Optional
 import flax
 import jax
 import jax.numpy as jnp
+from jax.sharding import Mesh
 import ml_collections
 import optax
 
+from ld_mpc_jax import sharding
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.losses import make_loss_fn
 from ld_mpc_jax.models import build_networks, init_params, set_obs_normalization
@@ -52,12 +54,17 @@ def ema_update(ema_params, params, decay: float):
   return optax.incremental_update(params, ema_params, step_size=1.0 - decay)
 
 
-def make_update(config: ml_collections.ConfigDict) -> Callable:
+def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted update(state, batch, key) -> (state, metrics); `state` is donated.
 
   batch: obs [B, H+2, obs_dim], action [B, H+1, A], reward [B, H+1] (float32): windows of
   T = H + 1 steps plus one for the value bootstrap (see losses.make_loss_fn).
   Metrics are a dict of scalars, including the gradient norm before clipping.
+
+  With `config.train.data_parallel` (or a `mesh` given), the same update is compiled for a 1-D
+  device mesh (default: all devices, ld_mpc_jax.sharding): the batch split along its first
+  axis, state, key and metrics replicated. Pass the state through `sharding.replicate` and the
+  batch through `sharding.shard_batch`. Otherwise it is a plain single-device jit.
   """
   validate_config(config)
   nets = build_networks(config)
@@ -84,4 +91,10 @@ def make_update(config: ml_collections.ConfigDict) -> Callable:
                            step=state.step + 1)
     return new_state, metrics
 
-  return jax.jit(update, donate_argnums=0)
+  if mesh is None and not config.train.get('data_parallel', False):
+    return jax.jit(update, donate_argnums=0)
+  mesh = sharding.make_mesh() if mesh is None else mesh
+  sharding.local_batch_size(config.train.batch_size, mesh)  # Raises if B % devices != 0.
+  rep = sharding.replicated(mesh)
+  return jax.jit(update, in_shardings=(rep, sharding.batch_sharded(mesh), rep),
+                 out_shardings=(rep, rep), donate_argnums=0)

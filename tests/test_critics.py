@@ -199,3 +199,10 @@ def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
   corr = diagnose_objective.objective_correlation(smoke_config, smoke_params, obs, actions,
                                                   returns)
   assert corr['windows'] == 2 and abs(corr['spearman_model']) <= 1.0
+
+
+def test_window_returns_hand_computed():
+  r = jnp.array([[1.0, 2.0, 3.0]])
+  out = critics.window_returns(r, jnp.array([10.0]), 0.5)
+  # i = 2: 3 + 0.5 * 10 = 8; i = 1: 2 + 0.5 * 8 = 6; i = 0: 1 + 0.5 * 6 = 4.
+  np.testing.assert_allclose(out, [[4.0, 6.0, 8.0]])

@@ -90,6 +90,9 @@ def get_config() -> ml_collections.ConfigDict:
   # behaviour policy. 'behaviour': n-step returns read from the sequence objective (ablation).
   o.value = 'expectile'
   o.expectile = 0.7  # IQL's tau for MuJoCo, Kitchen and Adroit (0.9 for AntMaze).
+  # Q's target: 'one_step' r_t + gamma V(z_{t+1}) (IQL), or 'window': discounted rewards to the
+  # end of the training window plus V there (n-step, faster propagation in short trainings).
+  o.td_target = 'one_step'
   o.num_values = 5  # Value ensemble for the pessimism penalty (TD-MPC2 also keeps 5 heads).
   o.num_q = 2  # Clipped double Q for V's target (IQL, TD3).
   o.hidden = (256, 256)  # MLP widths of each V and Q head (TD-MPC2's Q MLP).
@@ -130,12 +133,20 @@ def get_config() -> ml_collections.ConfigDict:
   t.eval_every = 10_000
   t.checkpoint_every = 1_000
   t.max_checkpoints = 3
+  # Split each batch over all devices (jax.sharding mesh, state replicated; ld_mpc_jax.sharding).
+  # Off: a plain single-device jit, which is what one device needs.
+  t.data_parallel = False
 
   c.data = ml_collections.ConfigDict()
   c.data.preset = 'mixed'
   c.data.episodes = 200
   c.data.seed = 0
   c.data.dir = 'data_cache'
+  # 'metaworld': scripted episodes collected here (preset/episodes/seed/dir); 'tdmpc2': TD-MPC2's
+  # published mt80 chunks, the largest public Meta-World offline data (ld_mpc_jax.data.sources).
+  c.data.source = 'metaworld'
+  # TD-MPC2 chunk files (a file, a glob pattern or a directory of *.pt); only for source tdmpc2.
+  c.data.path = ''
 
   c.eval = e = ml_collections.ConfigDict()
   e.episodes = 50  # Final evaluation (Meta-World protocol), per split and evaluation seed.

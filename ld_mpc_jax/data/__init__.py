@@ -10,11 +10,13 @@ from ld_mpc_jax.data.dataset import FORMAT_VERSION
 from ld_mpc_jax.data.dataset import load
 from ld_mpc_jax.data.dataset import save
 from ld_mpc_jax.data.replay import ReplayBuffer
+from ld_mpc_jax.data.sources import load_for_config
+from ld_mpc_jax.data.sources import SOURCES
 from ld_mpc_jax.data.tdmpc2 import load_tdmpc2
 from ld_mpc_jax.data.tdmpc2 import TASK_SETS
 
 __all__ = [
     'collect', 'get_or_collect', 'PRESETS', 'summary', 'Dataset',
     'DatasetError', 'FORMAT_VERSION', 'load', 'save', 'ReplayBuffer',
-    'load_tdmpc2', 'TASK_SETS',
+    'load_tdmpc2', 'TASK_SETS', 'load_for_config', 'SOURCES',
 ]

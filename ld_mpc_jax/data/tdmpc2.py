@@ -100,13 +100,35 @@ def true_dims(task: str, dims: Optional[Dict[str, Tuple[int, int]]] = None
                    f'pass dims={{{task!r}: (obs_dim, act_dim)}}.')
 
 
+def from_metaworld_v3(task: str) -> str:
+  """TD-MPC2's name of a Meta-World v3 task: 'door-open-v3' -> 'mw-door-open'.
+
+  TD-MPC2's data were collected on the Meta-World v2 version of the same task.
+  """
+  name = 'mw-' + task[:-len('-v3')] if task.endswith('-v3') else None
+  if name not in _MW50:
+    raise ValueError(f'{task!r} is not a Meta-World v3 task that TD-MPC2 mt80 has; TD-MPC2 '
+                     "names map as 'mw-door-open' <-> 'door-open-v3'.")
+  return name
+
+
+def to_metaworld_v3(task: str) -> str:
+  """This project's (v3) name of a TD-MPC2 Meta-World task: 'mw-door-open' -> 'door-open-v3'."""
+  if task not in _MW50:
+    raise ValueError(f'{task!r} is not one of TD-MPC2\'s 50 Meta-World tasks (mw-*).')
+  return task[len('mw-'):] + '-v3'
+
+
 def _chunk_files(paths: Union[str, Sequence[str]]) -> List[str]:
   if isinstance(paths, (str, os.PathLike)):
     paths = [os.fspath(paths)]
   files = []
   for p in paths:
-    files.extend(sorted(glob.glob(os.path.join(p, '*.pt')))
-                 if os.path.isdir(p) else [p])
+    if any(c in p for c in '*?['):  # A glob pattern such as 'chunks/chunk_*.pt'.
+      files.extend(sorted(glob.glob(p)))
+    else:
+      files.extend(sorted(glob.glob(os.path.join(p, '*.pt')))
+                   if os.path.isdir(p) else [p])
   if not files:
     raise dataset_lib.DatasetError(f'No TD-MPC2 chunk files (*.pt) in {paths}.')
   return files
@@ -127,7 +149,8 @@ def load_tdmpc2(paths: Union[str, Sequence[str]], task_set: str,
   """Loads the episodes of `tasks` from TD-MPC2 chunk files.
 
   Args:
-    paths: a chunk file, a directory of `*.pt` chunks, or a list of either.
+    paths: a chunk file, a glob pattern of chunk files, a directory of `*.pt` chunks, or a
+      list of these.
     task_set: 'mt30' or 'mt80' (which task list the files index into).
     tasks: TD-MPC2 task names to keep, e.g. ['mw-door-open']; kept task k gets
       task id k.

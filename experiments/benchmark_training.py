@@ -1,0 +1,85 @@
+"""Training benchmark: time and FLOPs of one update step, and the bound ratio against the peak.
+
+  python -m experiments.benchmark_training                       # :cpu preset and reference
+  python -m experiments.benchmark_training --configs=door_open.py:cpu --repeats=20
+  python -m experiments.benchmark_training --configs=door_open.py:smoke --repeats=2 --out=b.json
+  python -m experiments.benchmark_training --data_parallel       # batch split over all devices
+
+Each --configs entry is a config file with an optional :preset, as for experiments.train.
+Parameters are random and batches synthetic. Writes a JSON list, one entry per config (name,
+step_ms {median, min, max, n} after compilation and warm-up, gflop per step from XLA's cost
+analysis with the scans unrolled, peak_gflops measured in this run, bound_ratio = measured time /
+FLOP-bound time, devices), and a markdown table next to it (.md). Method: docs/scaling.md.
+"""
+
+import importlib.util
+import json
+import os
+import sys
+
+from absl import app, flags
+
+from experiments.configs import CONFIG_DIR
+
+_CONFIGS = flags.DEFINE_list('configs', ['door_open.py:cpu', 'door_open.py'],
+                             'Config files with optional :preset (the reference has none).')
+_REPEATS = flags.DEFINE_integer('repeats', 10, 'Timed update steps per config (after warm-up).')
+_WARMUP = flags.DEFINE_integer('warmup', 2, 'Untimed steps after compilation.')
+_OVERRIDE = flags.DEFINE_multi_string('set', [], 'Override for every config, e.g. '
+                                      'train.batch_size=256.')
+_DATA_PARALLEL = flags.DEFINE_bool('data_parallel', False, 'Split the batch over all devices.')
+_OUT = flags.DEFINE_string('out', 'benchmark_training.json', 'JSON output; .md written beside.')
+_PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
+_PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
+
+
+def load_config(spec: str):
+  """'door_open.py:cpu' (or a path) -> get_config('cpu') of that file."""
+  path, _, preset = spec.partition(':')
+  if not os.path.exists(path):
+    path = os.path.join(CONFIG_DIR, path)
+  module_spec = importlib.util.spec_from_file_location('_benchmark_config', path)
+  module = importlib.util.module_from_spec(module_spec)
+  module_spec.loader.exec_module(module)
+  return module.get_config(preset or None)
+
+
+def main(argv):
+  del argv
+  from experiments.overrides import parse_items, with_overrides
+  from ld_mpc_jax.bench import hardware, training
+  from ld_mpc_jax.config_checks import validate_config
+  configs = {}
+  try:
+    for spec in _CONFIGS.value:
+      configs[spec] = with_overrides(load_config(spec), parse_items(_OVERRIDE.value))
+      validate_config(configs[spec])
+  except (ValueError, FileNotFoundError) as err:
+    print(f'error: {err}', file=sys.stderr)
+    sys.exit(2)
+  device = hardware.device_info()
+  print(f"device: {device['name']} x {device['device_count']}; load average "
+        f"{device['loadavg_1min_at_start']:.2f}")
+  peak = hardware.measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
+  print(f'peak: {peak:.1f} GFLOP/s ({_PEAK_SIZE.value}^2 float32 matmul)', flush=True)
+  entries = []
+  for spec, config in configs.items():
+    entry = training.benchmark_update(spec, config, _REPEATS.value, _WARMUP.value,
+                                      data_parallel=_DATA_PARALLEL.value)
+    entries.append(entry)
+    print(f"{spec}: compile {entry['compile_s']:.1f} s, {entry['gflop']:.2f} GFLOP/step "
+          f"(cost analysis with scan bodies once: {entry['gflop_xla_once']:.2f})", flush=True)
+  peak = max(peak, hardware.measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value))
+  entries = [training.finish(e, peak, device) for e in entries]
+  table = training.markdown(entries)
+  print(table)
+  os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)
+  with open(_OUT.value, 'w') as f:
+    json.dump(entries, f, indent=1)
+  with open(os.path.splitext(_OUT.value)[0] + '.md', 'w') as f:
+    f.write(table)
+  print(f'wrote {_OUT.value} and {os.path.splitext(_OUT.value)[0]}.md')
+
+
+if __name__ == '__main__':
+  app.run(main)

@@ -1,0 +1,76 @@
+"""Training benchmark: FLOPs with scans unrolled (hand-checked) and the launcher's JSON."""
+
+import json
+import os
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ld_mpc_jax.bench import training
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _scans(x, w):
+  """A scan of 5 steps [8, 16] @ [16, 16], each with a reversed inner scan of 3 such steps."""
+  def inner(c, _):
+    return c @ w, None
+
+  def outer(c, y):
+    c, _ = jax.lax.scan(inner, c + y, None, length=3, reverse=True)
+    return c, c.sum()
+  return jax.lax.scan(outer, x, jnp.ones((5,) + x.shape))
+
+
+def test_unrolled_flops_count_every_iteration_and_keep_values():
+  x, w = jnp.ones((8, 16)), jnp.eye(16) * 0.5
+  matmul = 2 * 8 * 16 * 16  # One [8, 16] @ [16, 16]: 4096 FLOPs.
+  out = training.unrolled_flops(_scans, x, w)
+  # 5 x 3 = 15 matmuls; the element-wise adds and sums (5 x 2 x 128) are 2% of that.
+  assert 15 * matmul <= out['total'] <= 15 * matmul + 5 * 2 * 128
+  assert out['xla_once'] < 1.1 * matmul  # Compiled: each loop body counted once.
+  # The unrolled program computes what the scanned one does, gradients (backward scans) too.
+  loss = lambda x, w: _scans(x, w)[1].sum()
+  for fn in (_scans, jax.grad(loss, argnums=1)):
+    closed = jax.make_jaxpr(fn)(x, w)
+    got = training._eval_unrolled(closed.jaxpr, closed.consts, x, w)
+    for a, b in zip(got, jax.tree_util.tree_leaves(fn(x, w))):
+      np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-6)
+  grad = training.unrolled_flops(jax.grad(loss, argnums=1), x, w)
+  # 15 products forward, 15 backward for dL/dw and 14 for dL/dcarry (none into x, not
+  # differentiated), plus a few thousand element-wise FLOPs.
+  assert 44 * matmul <= grad['total'] <= 44 * matmul + 2000
+
+
+def test_finish_bound_ratio():
+  entry = training.finish(dict(step_s=[0.03, 0.01, 0.02], gflop=2.0, devices=2), 100.0)
+  assert entry['step_ms'] == dict(median=20.0, min=10.0, max=30.0, n=3)
+  # FLOP-bound time: 2 GFLOP / (100 GFLOP/s x 2 devices) = 10 ms; measured 20 ms.
+  np.testing.assert_allclose(entry['bound_ratio'], 2.0)
+  np.testing.assert_allclose(entry['achieved_gflops'], 100.0)
+
+
+def test_benchmark_training_writes_json(tmp_path):
+  out = str(tmp_path / 'bench.json')
+  cmd = [sys.executable, '-m', 'experiments.benchmark_training', '--configs=door_open.py:smoke',
+         '--repeats=2', '--warmup=1', f'--out={out}', '--peak_size=256', '--peak_repeats=2']
+  done = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)
+  assert done.returncode == 0, done.stderr[-3000:]
+  with open(out) as f:
+    entries = json.load(f)
+  assert isinstance(entries, list) and len(entries) == 1
+  e = entries[0]
+  for key in ('name', 'step_ms', 'gflop', 'peak_gflops', 'bound_ratio', 'devices'):
+    assert key in e, key
+  assert e['name'] == 'door_open.py:smoke' and e['devices'] == 1 and e['batch_size'] == 8
+  assert set(e['step_ms']) == {'median', 'min', 'max', 'n'} and e['step_ms']['n'] == 2
+  assert 0 < e['step_ms']['min'] <= e['step_ms']['median'] <= e['step_ms']['max']
+  assert e['gflop'] > 0 and e['peak_gflops'] > 0
+  # The update's scans (latent rollout, value targets) add iterations the compiled count misses.
+  assert e['gflop'] > e['gflop_xla_once'] > 0
+  bound_ms = e['gflop'] / e['peak_gflops'] * 1e3
+  np.testing.assert_allclose(e['bound_ratio'], e['step_ms']['median'] / bound_ms, rtol=1e-9)
+  assert os.path.getsize(os.path.splitext(out)[0] + '.md') > 0
