@@ -175,6 +175,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   evaluation episode), report.json and report.md. The returned report also holds the
   per-episode records under 'records'.
   """
+  commit = git_commit()  # The code this process runs: HEAD may move while it trains.
   dataset, manager, state, prior_seconds = _prepare(config, workdir)
   writer = SummaryWriter(os.path.join(workdir, 'tb')) if _primary() else _NoWriter()
   state, timer = _train(config, workdir, dataset, manager, state, prior_seconds, writer)
@@ -182,7 +183,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
                                 workdir, writer)
   writer.close()
   final, baselines, summary, records = evaluated
-  report = _report(config, dataset, state, prior_seconds, timer, final, baselines, summary)
+  report = _report(config, dataset, state, prior_seconds, timer, final, baselines, summary,
+                   commit)
   if _primary():
     with open(os.path.join(workdir, 'report.json'), 'w') as f:
       json.dump(report, f, indent=2)
@@ -327,7 +329,7 @@ def _final_evaluation(config, params, step, workdir, writer):
   return final, baselines, summary, records
 
 
-def _report(config, dataset, state, prior_seconds, timer, final, baselines, summary):
+def _report(config, dataset, state, prior_seconds, timer, final, baselines, summary, commit):
   return {
       'task': config.task,
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
@@ -342,7 +344,7 @@ def _report(config, dataset, state, prior_seconds, timer, final, baselines, summ
                   'path': config.data.get('path'), 'episodes': dataset.num_episodes,
                   'transitions': dataset.num_transitions},
       'config': json.loads(config.to_json_best_effort()),
-      'versions': versions(), 'git_commit': git_commit(),
+      'versions': versions(), 'git_commit': commit,
   }
 
 
