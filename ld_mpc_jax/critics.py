@@ -6,8 +6,9 @@ causal transformer that also sees the action prefix. With `value = 'expectile'` 
 the terminal value comes from an ensemble of MLPs of z_H alone, trained as in IQL (Kostrikov et
 al. 2022, "Offline RL with Implicit Q-Learning"):
   L_Q = E (r_t + gamma V_ema(z'_{t+1}) - Q(z_t, a_t))^2                    (TD, EMA target)
-(or, with `objective.td_target = 'window'`, the discounted rewards to the end of the training
-window plus V_ema there: faster propagation, with the data's actions after the first),
+(`objective.td_target = 'one_step'`; the default 'window' regresses Q onto the discounted rewards
+to the end of the training window plus V_ema there: n-step propagation, with the data's actions
+after the first, which short trainings need),
   L_V = E L_tau(min_j Q_ema(z'_t, a_t) - V(z_t)),  L_tau(u) = |tau - 1(u < 0)| u^2
 where z' are the EMA encoder's latents. An upper expectile (tau > 0.5) of Q over the data's
 actions approaches the value of the best action the data contain, without querying Q outside
