@@ -15,7 +15,6 @@ next to it (.md). Method: docs/benchmark.md.
 
 import dataclasses
 import importlib.util
-import json
 import os
 import sys
 import time
@@ -29,6 +28,7 @@ import numpy as np
 
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
+from ld_mpc_jax import bench
 from ld_mpc_jax.bench.hardware import device_info, measure_peak  # Shared with benchmark_training.
 
 
@@ -233,12 +233,7 @@ def main(argv):
   entries = finish(entries, max(peak, peak_end), device)
   table = markdown(entries)
   print(table)
-  os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)
-  with open(_OUT.value, 'w') as f:
-    json.dump(entries, f, indent=1)
-  with open(os.path.splitext(_OUT.value)[0] + '.md', 'w') as f:
-    f.write(table)
-  print(f'wrote {_OUT.value} and {os.path.splitext(_OUT.value)[0]}.md')
+  bench.write_results(_OUT.value, entries, table)
 
 
 if __name__ == '__main__':

@@ -13,7 +13,6 @@ FLOP-bound time, devices), and a markdown table next to it (.md). Method: docs/s
 """
 
 import importlib.util
-import json
 import os
 import sys
 
@@ -47,6 +46,7 @@ def load_config(spec: str):
 def main(argv):
   del argv
   from experiments.overrides import parse_items, with_overrides
+  from ld_mpc_jax import bench
   from ld_mpc_jax.bench import hardware, training
   from ld_mpc_jax.config_checks import validate_config
   configs = {}
@@ -73,12 +73,7 @@ def main(argv):
   entries = [training.finish(e, peak, device) for e in entries]
   table = training.markdown(entries)
   print(table)
-  os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)
-  with open(_OUT.value, 'w') as f:
-    json.dump(entries, f, indent=1)
-  with open(os.path.splitext(_OUT.value)[0] + '.md', 'w') as f:
-    f.write(table)
-  print(f'wrote {_OUT.value} and {os.path.splitext(_OUT.value)[0]}.md')
+  bench.write_results(_OUT.value, entries, table)
 
 
 if __name__ == '__main__':

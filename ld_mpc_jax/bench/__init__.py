@@ -2,3 +2,15 @@
 
 Only the benchmark launchers (experiments.benchmark_planning, experiments.profile_plan) use them.
 """
+
+
+def write_results(out: str, entries: list, table: str) -> None:
+  """Writes benchmark entries to `out` (JSON) and their markdown table beside it (.md)."""
+  import json
+  import os
+  os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+  with open(out, 'w') as f:
+    json.dump(entries, f, indent=1)
+  with open(os.path.splitext(out)[0] + '.md', 'w') as f:
+    f.write(table)
+  print(f'wrote {out} and {os.path.splitext(out)[0]}.md')
