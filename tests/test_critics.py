@@ -34,9 +34,12 @@ def _toy_values(smoke_config, expectile: float, steps: int = 600):
   leads to good and 'right' to bad, both with reward 0. In good the data hold the expert action
   (reward 10) in 1 of 10 windows and random actions (reward 0) in the others; in bad every
   action earns 3. The behaviour policy's value of good is 1, below bad's 3; the best in-support
-  policy gets 10 from good. Returns (V [4 states], Q(s0, left), Q(s0, right)).
+  policy gets 10 from good. Q by one-step TD (IQL): the 'window' target would follow the data's
+  own action out of good and value 'left' by the behaviour again. Returns (V [4 states],
+  Q(s0, left), Q(s0, right)).
   """
   config = with_overrides(smoke_config, {'horizon': 1, 'gamma': 0.9,
+                                         'objective.td_target': 'one_step',
                                          'objective.expectile': expectile,
                                          'objective.value_scale': 10.0,
                                          'objective.num_values': 2,
