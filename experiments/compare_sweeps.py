@@ -9,11 +9,11 @@ same seed under each config. Prints both success rates over the paired episodes 
 McNemar test on the discordant pairs, per policy.
 """
 
-import json
 import sys
 
 from absl import app, flags
 
+from experiments.pool_evals import read_json
 from ld_mpc_jax import stats
 
 _POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'], 'Policies to pair.')
@@ -43,14 +43,7 @@ def main(argv):
     print('usage: python -m experiments.compare_sweeps A/sweep.json B/sweep.json',
           file=sys.stderr)
     raise SystemExit(2)
-  sweeps = []
-  for path in argv[1:]:
-    try:
-      with open(path) as f:
-        sweeps.append(json.load(f))
-    except (OSError, json.JSONDecodeError) as err:
-      print(f'error: cannot read {path}: {err}', file=sys.stderr)
-      raise SystemExit(2) from None
+  sweeps = [read_json(path) for path in argv[1:]]
   rows = paired_rows(*sweeps, _POLICIES.value, _SPLIT.value)
   if not rows:
     print(f'error: no paired {_SPLIT.value} episodes between {argv[1]} and {argv[2]}',

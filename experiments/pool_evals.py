@@ -23,18 +23,23 @@ def pool(results: list, names: list) -> dict:
   return evaluation_suite.summarize(records)
 
 
+def read_json(path: str) -> dict:
+  """The JSON file at `path`; a file that cannot be read ends the program with one line, code 2."""
+  try:
+    with open(path) as f:
+      return json.load(f)
+  except (OSError, json.JSONDecodeError) as err:
+    print(f'error: cannot read {path}: {err}', file=sys.stderr)
+    raise SystemExit(2) from None
+
+
 def main(paths: list) -> None:
   if not paths:
     print(__doc__.strip().splitlines()[0], file=sys.stderr)
     raise SystemExit(2)
   results = []
   for path in paths:
-    try:
-      with open(path) as f:
-        results.append(json.load(f))
-    except (OSError, json.JSONDecodeError) as err:
-      print(f'error: cannot read {path}: {err}', file=sys.stderr)
-      raise SystemExit(2) from None
+    results.append(read_json(path))
     if 'records' not in results[-1]:
       print(f'error: {path} has no per-episode records (written by an older evaluate?)',
             file=sys.stderr)

@@ -187,7 +187,6 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
       l_rew, l_val = 0.5 * (l_rew + l_rew_m), 0.5 * (l_val + l_val_m)
 
     l_q = l_v = jnp.zeros(())
-    weights = jnp.ones(reward.shape)
     if critic_loss is not None:
       critic, weights, critic_metrics = critic_loss(params, target_params, z, z_ema, z_model,
                                                     action, reward)
