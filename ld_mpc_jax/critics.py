@@ -103,12 +103,15 @@ def awr_weights(advantage: jnp.ndarray, temperature: float, max_weight: float) -
 
 
 def window_returns(rewards: jnp.ndarray, bootstrap: jnp.ndarray, gamma: float) -> jnp.ndarray:
-  """sum_{j>=i} gamma^(j-i) r_j + gamma^(T-i) bootstrap for each i: rewards [B, T] -> [B, T]."""
+  """Targets sum_{j>=i} gamma^(j-i) r_j + gamma^(T-i) bootstrap for every i < T.
+
+  rewards [..., T], bootstrap [...] (value after the last reward) -> [..., T].
+  """
   def step(carry, r):
     g = r + gamma * carry
     return g, g
-  _, out = jax.lax.scan(step, bootstrap, rewards.T, reverse=True)
-  return out.T
+  _, out = jax.lax.scan(step, bootstrap, jnp.moveaxis(rewards, -1, 0), reverse=True)
+  return jnp.moveaxis(out, 0, -1)
 
 
 def pessimistic(values: jnp.ndarray, pessimism: float) -> jnp.ndarray:

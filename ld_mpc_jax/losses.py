@@ -8,7 +8,7 @@ import ml_collections
 import optax
 
 from ld_mpc_jax import diffusion
-from ld_mpc_jax.critics import make_critic_loss, objective_settings
+from ld_mpc_jax.critics import make_critic_loss, objective_settings, window_returns
 from ld_mpc_jax.models import Networks, dynamics_type, make_transition, proposal_type
 
 
@@ -61,16 +61,7 @@ def discounted_return(rewards: jnp.ndarray, terminal_value: jnp.ndarray,
   return jnp.sum(rewards * discounts, axis=-1) + gamma ** horizon * terminal_value
 
 
-def n_step_targets(rewards: jnp.ndarray, bootstrap: jnp.ndarray, gamma: float) -> jnp.ndarray:
-  """Targets for V(z_i), i < H: sum_{j=i}^{H-1} gamma^(j-i) r_j + gamma^(H-i) bootstrap.
-
-  rewards [..., H], bootstrap [...] (value of z_H) -> [..., H].
-  """
-  def step(carry, r):
-    g = r + gamma * carry
-    return g, g
-  _, out = jax.lax.scan(step, bootstrap, jnp.moveaxis(rewards, -1, 0), reverse=True)
-  return jnp.moveaxis(out, 0, -1)
+n_step_targets = window_returns  # The behaviour value's targets (ld_mpc_jax.critics).
 
 
 def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
