@@ -25,7 +25,6 @@ it stopped.
 """
 
 import json
-import math
 import os
 import sys
 import time
@@ -33,7 +32,9 @@ import time
 from absl import app, flags, logging
 from ml_collections import config_flags
 import numpy as np
+import scipy.stats
 
+from experiments import cli
 from experiments.configs import CONFIG_DIR
 from experiments.overrides import with_overrides
 
@@ -73,9 +74,9 @@ def seed_interval(values) -> list:
   values = np.asarray(values, float)
   if len(values) < 2:
     return [float(values.mean())] * 2
-  t975 = {2: 12.706, 3: 4.303, 4: 3.182, 5: 2.776}.get(len(values), 1.96)
-  half = t975 * values.std(ddof=1) / math.sqrt(len(values))
-  return [max(0.0, float(values.mean() - half)), min(1.0, float(values.mean() + half))]
+  lo, hi = scipy.stats.t.interval(0.95, len(values) - 1, loc=values.mean(),
+                                  scale=scipy.stats.sem(values))
+  return [max(0.0, float(lo)), min(1.0, float(hi))]
 
 
 def runs(seeds: int, expert: bool):
@@ -193,9 +194,11 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   root, episodes = _WORKDIR.value, _EPISODES.value
-  unknown = set(_VARIANTS.value) - set(VARIANTS)
-  if unknown:
-    raise app.UsageError(f'unknown variants {sorted(unknown)}; choose from {list(VARIANTS)}')
+  with cli.one_line_errors():
+    cli.check_subset('variants', _VARIANTS.value, VARIANTS)
+    if _SEEDS.value < 1 or _EPISODES.value < 1:
+      raise ValueError(f'--seeds and --episodes must be >= 1, got {_SEEDS.value}, '
+                       f'{_EPISODES.value}')
   base = _CONFIG.value
   os.makedirs(root, exist_ok=True)
   clock_path = os.path.join(root, 'wall_seconds.json')

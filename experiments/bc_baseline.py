@@ -19,7 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from ld_mpc_jax import evaluation
+from experiments import cli
+from ld_mpc_jax import envs, evaluation
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import replay
 from ld_mpc_jax.networks.mlp import MLP
@@ -29,7 +30,7 @@ _PRESET = flags.DEFINE_enum('preset', 'mixed', list(collection.PRESETS),
                             'Dataset preset.')
 _EPISODES = flags.DEFINE_integer('episodes', 200, 'Dataset episodes.')
 _SEED = flags.DEFINE_integer('seed', 0, 'Data, training and evaluation seed.')
-_DATA_DIR = flags.DEFINE_string('data_dir', '/work/runs/data', 'Dataset cache.')
+_DATA_DIR = flags.DEFINE_string('data_dir', 'data_cache', 'Dataset cache.')
 _STEPS = flags.DEFINE_integer('steps', 20000, 'Gradient steps.')
 _BATCH = flags.DEFINE_integer('batch_size', 256, 'Batch size.')
 _LR = flags.DEFINE_float('lr', 3e-4, 'Adam learning rate.')
@@ -71,6 +72,11 @@ def train_bc(ds, steps, batch_size, lr, hidden, seed):
 
 def main(argv):
   del argv
+  with cli.one_line_errors():
+    envs.check_task(_TASK.value)
+    for name in ('episodes', 'steps', 'batch_size', 'hidden', 'eval_episodes'):
+      if flags.FLAGS[name].value < 1:
+        raise ValueError(f'--{name} must be >= 1, got {flags.FLAGS[name].value}')
   ds = collection.get_or_collect(_TASK.value, _PRESET.value, _EPISODES.value,
                                  _SEED.value, _DATA_DIR.value)
   start = time.time()

@@ -16,10 +16,11 @@ outcomes. Writes a JSON list and a markdown table beside it.
 
 import json
 import os
-import sys
 
 from absl import app, flags, logging
 import numpy as np
+
+from experiments import cli
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory (a checkpoint).')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policy modes.')
@@ -38,11 +39,8 @@ def main(argv):
   import jax
   from ld_mpc_jax import checkpointing, evaluation, evaluation_suite
   from ld_mpc_jax.agent import BatchAgentPolicy, make_policy
-  try:
+  with cli.one_line_errors():
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
-  except FileNotFoundError as err:
-    print(f'error: {err}', file=sys.stderr)
-    sys.exit(2)
   e = config.eval
   chunk = e.plan_chunk if _CHUNK.value is None else _CHUNK.value
   episodes = evaluation_suite.episodes(config, 'held_out', 0, _EPISODES.value)

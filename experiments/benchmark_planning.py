@@ -26,6 +26,7 @@ import ml_collections
 from ml_collections import config_flags
 import numpy as np
 
+from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
 from ld_mpc_jax import bench
@@ -201,10 +202,11 @@ def load_preset(preset):
 
 def main(argv):
   del argv
-  unknown = set(_VARIANTS.value) - set(VARIANTS) | set(_WIDTHS.value) - set(WIDTHS)
-  if unknown:
-    raise app.UsageError(f'unknown variants/widths {sorted(unknown)}; variants: '
-                         f'{list(VARIANTS)}, widths: {list(WIDTHS)}')
+  with cli.one_line_errors():
+    cli.check_subset('variants', _VARIANTS.value, VARIANTS)
+    cli.check_subset('widths', _WIDTHS.value, WIDTHS)
+    if _REPEATS.value < 1:
+      raise ValueError(f'--repeats must be >= 1, got {_REPEATS.value}')
   base = _CONFIG.value
   device = device_info()
   print(f"device: {device['name']}; load average {device['loadavg_1min_at_start']:.2f}")

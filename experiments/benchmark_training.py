@@ -14,10 +14,10 @@ FLOP-bound time, devices), and a markdown table next to it (.md). Method: docs/s
 
 import importlib.util
 import os
-import sys
 
 from absl import app, flags
 
+from experiments import cli
 from experiments.configs import CONFIG_DIR
 
 _CONFIGS = flags.DEFINE_list('configs', ['door_open.py:cpu', 'door_open.py'],
@@ -50,13 +50,10 @@ def main(argv):
   from ld_mpc_jax.bench import hardware, training
   from ld_mpc_jax.config_checks import validate_config
   configs = {}
-  try:
+  with cli.one_line_errors():
     for spec in _CONFIGS.value:
       configs[spec] = with_overrides(load_config(spec), parse_items(_OVERRIDE.value))
       validate_config(configs[spec])
-  except (ValueError, FileNotFoundError) as err:
-    print(f'error: {err}', file=sys.stderr)
-    sys.exit(2)
   device = hardware.device_info()
   print(f"device: {device['name']} x {device['device_count']}; load average "
         f"{device['loadavg_1min_at_start']:.2f}")

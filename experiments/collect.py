@@ -16,7 +16,8 @@ from absl import app
 from absl import flags
 import numpy as np
 
-from ld_mpc_jax import evaluation
+from experiments import cli
+from ld_mpc_jax import envs, evaluation
 from ld_mpc_jax.data import collection as collect_lib
 from ld_mpc_jax.data import dataset as dataset_lib
 
@@ -53,6 +54,11 @@ def scripted_under_protocol(task, preset, episodes, seed, action_repeat):
 
 def main(argv):
   del argv
+  with cli.one_line_errors():
+    envs.check_task(_TASK.value)
+    for name in ('episodes', 'action_repeat'):
+      if flags.FLAGS[name].value < 1:
+        raise ValueError(f'--{name} must be >= 1, got {flags.FLAGS[name].value}')
   ds = collect_lib.collect(_TASK.value, _PRESET.value, _EPISODES.value,
                            seed=_SEED.value,
                            action_repeat=_ACTION_REPEAT.value)

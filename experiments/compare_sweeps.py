@@ -13,6 +13,7 @@ import sys
 
 from absl import app, flags
 
+from experiments import cli
 from experiments.pool_evals import read_json
 from ld_mpc_jax import stats
 
@@ -46,9 +47,7 @@ def main(argv):
   sweeps = [read_json(path) for path in argv[1:]]
   rows = paired_rows(*sweeps, _POLICIES.value, _SPLIT.value)
   if not rows:
-    print(f'error: no paired {_SPLIT.value} episodes between {argv[1]} and {argv[2]}',
-          file=sys.stderr)
-    raise SystemExit(2)
+    cli.fail(f'no paired {_SPLIT.value} episodes between {argv[1]} and {argv[2]}')
   print(f'A = {argv[1]}\nB = {argv[2]}\n')
   print('| policy | training seeds | paired episodes | A | B | only A | only B | p |')
   print('| --- | --- | ---: | --- | --- | ---: | ---: | ---: |')

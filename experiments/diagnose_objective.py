@@ -17,9 +17,10 @@ Writes <workdir>/diagnose_objective.json and .md, and prints the tables:
 
 import json
 import os
-import sys
 
 from absl import app, flags, logging
+
+from experiments import cli
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory.')
 _KS = flags.DEFINE_list('ks', ['1', '4', '16', '64'], 'Candidate counts K to evaluate.')
@@ -36,14 +37,11 @@ def main(argv):
   from ld_mpc_jax import checkpointing
   from ld_mpc_jax.diagnostics import (candidate_wins, held_out_windows, markdown,
                                       objective_correlation, success_by_k)
-  try:
+  with cli.one_line_errors():
     ks = sorted({int(k) for k in _KS.value})
     if not ks or ks[0] < 1:
       raise ValueError(f'--ks must be integers >= 1, got {_KS.value}')
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
-  except (ValueError, FileNotFoundError) as err:
-    print(f'error: {err}', file=sys.stderr)
-    sys.exit(2)
   obs, actions, returns = held_out_windows(config, _DATA_EPISODES.value, _STRIDE.value)
   report = dict(workdir=_WORKDIR.value, step=step, k=config.plan.num_candidates,
                 correlation=objective_correlation(config, params, obs, actions, returns),

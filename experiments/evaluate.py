@@ -13,9 +13,10 @@ imageio-ffmpeg; rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless ma
 
 import json
 import os
-import sys
 
 from absl import app, flags, logging
+
+from experiments import cli
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory.')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
@@ -37,7 +38,7 @@ def main(argv):
   from ld_mpc_jax.config_checks import validate_config
   from ld_mpc_jax.train import git_commit, run_evaluation
   from experiments.overrides import parse_items, with_overrides
-  try:
+  with cli.one_line_errors():
     seeds = [int(s) for s in _SEEDS.value]
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
     config = with_overrides(config, parse_items(_OVERRIDE.value))
@@ -49,9 +50,6 @@ def main(argv):
     splits = evaluation_suite.available_splits(config, _SPLITS.value)  # No train split for
     if splits != tuple(_SPLITS.value):  # TD-MPC2 data: its goals were random per episode.
       print(f'goal splits {list(splits)} only: the data were not collected on MT1 goals')
-  except (ValueError, FileNotFoundError) as err:
-    print(f'error: {err}', file=sys.stderr)
-    sys.exit(2)
   episodes = _EPISODES.value or config.eval.episodes
   records = evaluation_suite.evaluate_checkpoint(
       config, params, None, step, _MODES.value, splits, seeds, episodes,

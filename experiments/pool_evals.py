@@ -11,6 +11,7 @@ episodes.
 import json
 import sys
 
+from experiments import cli
 from ld_mpc_jax import evaluation_suite
 
 
@@ -29,8 +30,7 @@ def read_json(path: str) -> dict:
     with open(path) as f:
       return json.load(f)
   except (OSError, json.JSONDecodeError) as err:
-    print(f'error: cannot read {path}: {err}', file=sys.stderr)
-    raise SystemExit(2) from None
+    cli.fail(f'cannot read {path}: {err}')
 
 
 def main(paths: list) -> None:
@@ -41,9 +41,7 @@ def main(paths: list) -> None:
   for path in paths:
     results.append(read_json(path))
     if 'records' not in results[-1]:
-      print(f'error: {path} has no per-episode records (written by an older evaluate?)',
-            file=sys.stderr)
-      raise SystemExit(2)
+      cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
   print(evaluation_suite.markdown(pool(results, paths)), end='')
 
 

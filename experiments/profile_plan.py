@@ -16,6 +16,7 @@ import sys
 from absl import app, flags
 from ml_collections import config_flags
 
+from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 
 _CONFIG = config_flags.DEFINE_config_file(
@@ -28,6 +29,11 @@ _OUT = flags.DEFINE_string('out', None, 'JSON output (optional).')
 def main(argv):
   del argv
   from ld_mpc_jax.bench import profiling
+  from ld_mpc_jax.config_checks import validate_config
+  with cli.one_line_errors():
+    validate_config(_CONFIG.value)
+    if _CALLS.value < 1:
+      raise ValueError(f'--calls must be >= 1, got {_CALLS.value}')
   result = profiling.profile_plan(_CONFIG.value, _CALLS.value)
   print(profiling.markdown(result))
   if _OUT.value:

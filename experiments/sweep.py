@@ -18,6 +18,7 @@ import sys
 from absl import app, flags, logging
 from ml_collections import config_flags
 
+from experiments import cli
 from experiments.configs import resolve_config_arg
 
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
@@ -62,8 +63,7 @@ def main(argv):
     seeds = [int(s) for s in _SEEDS.value]
     eval_seeds = tuple(int(s) for s in _EVAL_SEEDS.value)
   except ValueError as err:
-    print(f'error: --seeds and --eval_seeds take integers ({err})', file=sys.stderr)
-    sys.exit(2)
+    cli.fail(f'--seeds and --eval_seeds take integers ({err})')
   config_arg = os.path.basename(
       next(a for a in sys.argv if a.startswith('--config='))[len('--config='):])
   root = _WORKDIR.value or default_workdir(config_arg)
@@ -71,8 +71,7 @@ def main(argv):
   for seed in seeds:
     config = with_overrides(_CONFIG.value, {'seed': seed, 'eval.seeds': eval_seeds})
     if config.eval.episodes < 1:
-      print('error: config.eval.episodes must be >= 1 for a sweep', file=sys.stderr)
-      sys.exit(2)
+      cli.fail('config.eval.episodes must be >= 1 for a sweep')
     print(f'== training seed {seed}: {os.path.join(root, f"seed{seed}")}')
     report = train_and_evaluate(config, os.path.join(root, f'seed{seed}'))
     records.extend(report['records'])

@@ -1,0 +1,27 @@
+"""Launcher helpers: bad input gives one line on stderr and exit code 2, never a traceback."""
+
+import contextlib
+import sys
+from typing import Iterable, NoReturn, Type
+
+
+def fail(message) -> NoReturn:
+  """Prints `error: message` on stderr and exits with code 2 (bad input)."""
+  print(f'error: {message}', file=sys.stderr)
+  sys.exit(2)
+
+
+@contextlib.contextmanager
+def one_line_errors(errors: Iterable[Type[BaseException]] = (ValueError, FileNotFoundError)):
+  """Turns `errors` raised inside the block into `fail`. Wrap input checks, not long work."""
+  try:
+    yield
+  except tuple(errors) as err:
+    fail(err)
+
+
+def check_subset(name: str, chosen: Iterable[str], valid: Iterable[str]) -> None:
+  """ValueError naming the unknown entries of a list flag."""
+  unknown = sorted(set(chosen) - set(valid))
+  if unknown:
+    raise ValueError(f'unknown {name} {unknown}; choose from {list(valid)}')

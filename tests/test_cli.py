@@ -1,0 +1,38 @@
+"""Launchers: bad input gives one line on stderr and exit code 2, before any work starts."""
+
+import os
+import re
+import subprocess
+import sys
+
+import pytest
+
+from experiments import cli
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@pytest.mark.parametrize('args,message', [
+    (['experiments.collect', '--task=door-openn-v3', '--out=x.npz'], "'door-openn-v3'"),
+    (['experiments.bc_baseline', '--steps=0'], '--steps must be >= 1, got 0'),
+    (['experiments.ablations', '--variants=ldmpc,nope'], "unknown variants ['nope']"),
+    (['experiments.benchmark_planning', '--widths=huge'], "unknown widths ['huge']"),
+])
+def test_bad_flag_is_one_line_and_exit_code_2(tmp_path, args, message):
+  done = subprocess.run([sys.executable, '-m', *args], cwd=tmp_path, capture_output=True,
+                        text=True, timeout=120, env=dict(os.environ, PYTHONPATH=REPO))
+  assert done.returncode == 2, done.stderr[-2000:]
+  log = re.compile(r'^([IWEF]\d{4} |WARNING)')  # absl/library log lines are not the message.
+  lines = [l for l in done.stderr.splitlines() if l.strip() and not log.match(l)]
+  assert len(lines) == 1 and lines[0].startswith('error: ') and message in lines[0], lines
+  assert not os.listdir(tmp_path)  # Nothing was written.
+
+
+def test_one_line_errors_passes_other_exceptions_through():
+  with pytest.raises(SystemExit) as exit_info:
+    with cli.one_line_errors():
+      raise FileNotFoundError('no checkpoint in runs/x')
+  assert exit_info.value.code == 2
+  with pytest.raises(KeyError):  # A bug, not bad input: its traceback is kept.
+    with cli.one_line_errors():
+      raise KeyError('params')
