@@ -160,6 +160,8 @@ class _Run:
     self.writer = SummaryWriter(os.path.join(workdir, 'tb')) if train._primary() else (
         train._NoWriter())
     self.metrics = {}
+    self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
+                         unit='env step', dynamic_ncols=True)
 
   def learning(self) -> bool:
     return self.counters['env_steps'] >= self.learn_start
@@ -208,6 +210,7 @@ class _Run:
                             ('success', info['success'])):
           eps[i][name].append(np.copy(value))
         self.counters['env_steps'] += info['substeps']
+        self.bar.update(info['substeps'])
         active[i] = not (terminated or truncated)
       t += 1
       if planner:
@@ -271,8 +274,6 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
   o, c = config.online, run.counters
   if run.source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.
     run.evaluate()
-  bar = tqdm.tqdm(total=o.env_steps, initial=c['env_steps'], desc='online', unit='env step',
-                  dynamic_ncols=True)
   while c['env_steps'] < o.env_steps:
     start, before = time.perf_counter(), c['env_steps']
     planner, episodes = run.wave()
@@ -280,14 +281,14 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
     seconds = time.perf_counter() - start
     c['train_seconds'] += seconds
     run.log(planner, episodes, seconds, c['env_steps'] - before)
-    bar.update(c['env_steps'] - before)
-    bar.set_postfix(updates=c['updates'], success=np.mean([e['success'].any() for e in episodes]))
+    run.bar.set_postfix(updates=c['updates'],
+                        success=np.mean([e['success'].any() for e in episodes]))
     if c['env_steps'] // o.eval_every > before // o.eval_every and c['env_steps'] < o.env_steps:
       run.evaluate()  # The last one is the final evaluation.
     if (c['env_steps'] // o.checkpoint_every > before // o.checkpoint_every
         or c['env_steps'] >= o.env_steps):
       run.checkpoint()
-  bar.close()
+  run.bar.close()
   final, baselines, summary, records = train._final_evaluation(
       config, run.state.ema_params, c['env_steps'], workdir, run.writer)
   run.writer.close()
