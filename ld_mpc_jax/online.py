@@ -346,14 +346,7 @@ def _summary_md(report: Dict[str, Any]) -> str:
               f"[{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}] | {r['mean_return']:.1f} |"
               for r in report['curve']]
     lines.append('')
-  if report['evaluation']:
-    lines += [f"Final evaluation: {report['eval_episodes']} episodes per policy, goal split and "
-              f"evaluation seed (seeds {', '.join(map(str, report['eval_seeds']))}); the same "
-              'episodes for every policy. Held-out goals: configurations no training episode '
-              'starts from.', '', evaluation_suite.markdown(report['evaluation'])]
-  else:
-    lines.append('Not evaluated (eval.episodes = 0).')
-  lines += ['', f"git commit {report['git_commit']}."]
+  lines += train.evaluation_md_lines(report, 'Final evaluation, EMA parameters: ', 'training')
   return '\n'.join(lines) + '\n'
 
 

@@ -149,15 +149,22 @@ def _summary_md(report: Dict[str, Any]) -> str:
   lines = [f"# LD-MPC on {report['task']}", '',
            f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
            f"({speed}); {report['num_params']:,} parameters.", '']
+  return '\n'.join(lines + evaluation_md_lines(report, 'EMA parameters; ', 'dataset')) + '\n'
+
+
+def evaluation_md_lines(report: Dict[str, Any], lead: str, trained_on: str):
+  """report.md's final-evaluation paragraph and tables, and its commit line (a list of lines).
+
+  `lead` starts the paragraph; held-out goals are those no `trained_on` episode starts from.
+  """
   if report['evaluation']:
-    lines += [f"EMA parameters; {report['eval_episodes']} episodes per policy, goal split and "
-              f"evaluation seed (seeds {', '.join(map(str, report['eval_seeds']))}); the same "
-              'episodes for every policy. Held-out goals: configurations no dataset episode '
-              'starts from.', '', evaluation_suite.markdown(report['evaluation'])]
+    lines = [f"{lead}{report['eval_episodes']} episodes per policy, goal split and "
+             f"evaluation seed (seeds {', '.join(map(str, report['eval_seeds']))}); the same "
+             f'episodes for every policy. Held-out goals: configurations no {trained_on} episode '
+             'starts from.', '', evaluation_suite.markdown(report['evaluation'])]
   else:
-    lines.append('Not evaluated (eval.episodes = 0).')
-  lines += ['', f"git commit {report['git_commit']}."]
-  return '\n'.join(lines) + '\n'
+    lines = ['Not evaluated (eval.episodes = 0).']
+  return lines + ['', f"git commit {report['git_commit']}."]
 
 
 def _write_records(path: str, records) -> None:
