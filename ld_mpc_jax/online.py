@@ -28,6 +28,7 @@ import time
 from typing import Any, Dict, List, Optional
 
 import jax
+import jax.numpy as jnp
 import ml_collections
 import numpy as np
 import tqdm
@@ -176,7 +177,8 @@ class _Run:
     if not c.get('normalized', True):
       obs = np.concatenate([ep['obs'] for ep in self.buffer.episodes])
       params = set_obs_normalization(self.state.params, obs)
-      self.state = self.state.replace(params=params, ema_params=params)
+      self.state = self.state.replace(  # Copies: the update donates both trees.
+          params=params, ema_params=jax.tree_util.tree_map(jnp.copy, params))
       c['normalized'] = True
     target = int(self.config.online.update_ratio * c['env_steps'])
     while c['updates'] < target:
