@@ -71,8 +71,8 @@ def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collection
     raise ValueError(f'config.online.init_from={path!r} has no checkpoint')
   shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, checkpointing.abstract_state(c))
   if shapes(source) != shapes(config):
-    fields = [f'model.{k}' for k in config.model
-              if source.model.get(k) != config.model[k] and k != 'dropout']
+    fields = [f'model.{k}' for k in config.model if k != 'dropout' and  # JSON: lists = tuples.
+              json.dumps(source.model.get(k)) != json.dumps(config.model[k])]
     raise ValueError(f'config.online.init_from={path!r} has other networks than this config '
                      f'(differs in {", ".join(fields) or "objective/horizon"})')
   return source
