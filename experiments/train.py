@@ -5,6 +5,7 @@
       --config.data.source=tdmpc2 --config.data.path='mt80/chunk_*.pt'   # TD-MPC2's data
   python -m experiments.train --config=door_open.py --workdir=runs/door_open_dp \
       --config.train.data_parallel=True     # batch split over all devices (docs/scaling.md)
+  python -m experiments.train --config=door_open_online.py:cpu --workdir=runs/online_cpu  # online
 
 A bare config name resolves to experiments/configs/<name>; `:preset` selects a preset; any field
 can be overridden, e.g. --config.task=drawer-open-v3 --config.train.num_steps=2000.
@@ -37,7 +38,7 @@ def main(argv):
   if _DISTRIBUTED.value:  # Before anything touches a device.
     jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
-  from ld_mpc_jax.config_checks import validate_config
+  from ld_mpc_jax.config_checks import online_enabled, validate_config
   from ld_mpc_jax.data import DatasetError, sources
   from ld_mpc_jax.envs import check_task
   from ld_mpc_jax.train import train_and_evaluate
@@ -45,6 +46,9 @@ def main(argv):
     validate_config(_CONFIG.value)
     check_task(_CONFIG.value.task)
     sources.check_source(_CONFIG.value)
+    if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
+      from ld_mpc_jax.online import check_init_from
+      check_init_from(_CONFIG.value)
   except ValueError as err:
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)

@@ -81,6 +81,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                        'pattern or directory)')
   _validate_variant(config)
   _validate_objective(config)
+  _validate_online(config)
   t = config.train
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
@@ -149,3 +150,31 @@ def _validate_objective(config: ml_collections.ConfigDict) -> None:
   if o.latent_rollout and config.model.get('dynamics_type', 'diffusion_ar') == 'diffusion_traj':
     raise ValueError('config.objective.latent_rollout needs one-step dynamics; set it False '
                      'with dynamics_type diffusion_traj')
+
+
+def online_enabled(config: ml_collections.ConfigDict) -> bool:
+  """Whether config asks for online training (`config.online.enabled`, ld_mpc_jax.online)."""
+  return 'online' in config and bool(config.online.get('enabled', False))
+
+
+def _validate_online(config: ml_collections.ConfigDict) -> None:
+  """config.online (ld_mpc_jax.online), when online training is enabled."""
+  if not online_enabled(config):
+    return
+  o = config.online
+  for name, least in (('env_steps', 1), ('num_envs', 1), ('episode_steps', 1),
+                      ('checkpoint_every', 1), ('eval_every', 1), ('seed_steps', 0),
+                      ('plan_chunk', 0)):
+    if not isinstance(o[name], int) or isinstance(o[name], bool) or o[name] < least:
+      raise ValueError(f'config.online.{name} must be an integer >= {least}, got {o[name]!r}')
+  for name in ('update_ratio', 'action_noise_std', 'prior_noise_std'):
+    if o[name] < 0:
+      raise ValueError(f'config.online.{name} must be >= 0, got {o[name]}')
+  decisions = -(-o.episode_steps // config.eval.action_repeat)
+  if decisions < config.horizon + 1:
+    raise ValueError(f'config.online.episode_steps ({o.episode_steps}) gives episodes of '
+                     f'{decisions} decisions; training windows need horizon + 1 = '
+                     f'{config.horizon + 1}')
+  if not o.init_from and o.seed_steps < 1:
+    raise ValueError('config.online.seed_steps must be >= 1 from scratch (no online.init_from): '
+                     'the first updates need seed episodes')

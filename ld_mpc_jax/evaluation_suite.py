@@ -19,6 +19,7 @@ import numpy as np
 
 from ld_mpc_jax import data, evaluation, stats
 from ld_mpc_jax.agent import BatchAgentPolicy
+from ld_mpc_jax.config_checks import online_enabled
 from ld_mpc_jax.envs import goals
 
 POLICY_NAMES = {'plan': 'planner', 'actor': 'actor prior', 'proposal': 'proposal alone',
@@ -36,9 +37,13 @@ def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Option
   """(goal vectors [E, 6] of the training data's episode starts, the data's MT1 seed).
 
   TD-MPC2 data (config.data.source 'tdmpc2') drew a random goal per episode, not MT1 goals: their
-  goal vectors come from the observations as for any data, and the MT1 seed is None.
+  goal vectors come from the observations as for any data, and the MT1 seed is None. Online
+  training from scratch (config.online, no init_from) has no dataset: its episodes start from
+  the 50 goals of MT1 seed `data.seed`, which are then the training goals.
   """
   d = config.data
+  if online_enabled(config) and not config.online.init_from:
+    return goals.mt1_goals(config.task, d.seed)[1], d.seed
   if data.sources.source(config) == 'tdmpc2':
     return goals.dataset_goal_vectors(data.load_for_config(config)), None
   return _dataset_goals(config.task, d.preset, d.episodes, d.seed, d.dir,

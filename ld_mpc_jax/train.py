@@ -17,7 +17,7 @@ from tensorboardX import SummaryWriter
 import tqdm
 
 from ld_mpc_jax import checkpointing, data, envs, evaluation_suite, sharding
-from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.config_checks import online_enabled, validate_config
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
 
@@ -102,7 +102,7 @@ def _read_csv(path: str):
 
 
 def write_plots(workdir: str) -> None:
-  """losses.png and success.png from metrics.csv and eval.csv."""
+  """losses.png and success.png from metrics.csv and eval.csv (those that exist)."""
   if not _primary():
     return
   import matplotlib
@@ -119,6 +119,9 @@ def write_plots(workdir: str) -> None:
     fig.tight_layout(); fig.savefig(os.path.join(workdir, 'losses.png'), dpi=100)
     plt.close(fig)
   rows = _read_csv(os.path.join(workdir, 'eval.csv'))
+  # Online runs (ld_mpc_jax.online writes online.csv) evaluate at environment steps.
+  x_label = ('environment step' if os.path.exists(os.path.join(workdir, 'online.csv'))
+             else 'update step')
   if rows:
     fig, ax = plt.subplots(figsize=(7, 4))
     steps = np.array([int(r['step']) for r in rows])
@@ -126,7 +129,7 @@ def write_plots(workdir: str) -> None:
     lo, hi = np.array([float(r['ci_lo']) for r in rows]), np.array([float(r['ci_hi']) for r in rows])
     ax.plot(steps, rate, 'o-', label='planner, held-out goals (EMA params)')
     ax.fill_between(steps, lo, hi, alpha=0.2, label='95% Wilson interval')
-    ax.set_xlabel('update step'); ax.set_ylabel('success rate'); ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel(x_label); ax.set_ylabel('success rate'); ax.set_ylim(-0.02, 1.02)
     ax.legend(); fig.tight_layout(); fig.savefig(os.path.join(workdir, 'success.png'), dpi=100)
     plt.close(fig)
 
@@ -146,15 +149,22 @@ def _summary_md(report: Dict[str, Any]) -> str:
   lines = [f"# LD-MPC on {report['task']}", '',
            f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
            f"({speed}); {report['num_params']:,} parameters.", '']
+  return '\n'.join(lines + evaluation_md_lines(report, 'EMA parameters; ', 'dataset')) + '\n'
+
+
+def evaluation_md_lines(report: Dict[str, Any], lead: str, trained_on: str):
+  """report.md's final-evaluation paragraph and tables, and its commit line (a list of lines).
+
+  `lead` starts the paragraph; held-out goals are those no `trained_on` episode starts from.
+  """
   if report['evaluation']:
-    lines += [f"EMA parameters; {report['eval_episodes']} episodes per policy, goal split and "
-              f"evaluation seed (seeds {', '.join(map(str, report['eval_seeds']))}); the same "
-              'episodes for every policy. Held-out goals: configurations no dataset episode '
-              'starts from.', '', evaluation_suite.markdown(report['evaluation'])]
+    lines = [f"{lead}{report['eval_episodes']} episodes per policy, goal split and "
+             f"evaluation seed (seeds {', '.join(map(str, report['eval_seeds']))}); the same "
+             f'episodes for every policy. Held-out goals: configurations no {trained_on} episode '
+             'starts from.', '', evaluation_suite.markdown(report['evaluation'])]
   else:
-    lines.append('Not evaluated (eval.episodes = 0).')
-  lines += ['', f"git commit {report['git_commit']}."]
-  return '\n'.join(lines) + '\n'
+    lines = ['Not evaluated (eval.episodes = 0).']
+  return lines + ['', f"git commit {report['git_commit']}."]
 
 
 def _write_records(path: str, records) -> None:
@@ -174,7 +184,12 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   metrics.csv, eval.csv, tb/ (TensorBoard), losses.png, success.png, episodes.csv (one row per
   evaluation episode), report.json and report.md. The returned report also holds the
   per-episode records under 'records'.
+
+  With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.online.train_online`).
   """
+  if online_enabled(config):
+    from ld_mpc_jax import online  # pylint: disable=g-import-not-at-top (it imports this module)
+    return online.train_online(config, workdir)
   commit = git_commit()  # The code this process runs: HEAD may move while it trains.
   dataset, manager, state, prior_seconds = _prepare(config, workdir)
   writer = SummaryWriter(os.path.join(workdir, 'tb')) if _primary() else _NoWriter()
