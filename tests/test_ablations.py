@@ -13,8 +13,9 @@ from ld_mpc_jax import agent, models, planner
 from ld_mpc_jax.train_state import create_train_state, make_update
 
 
-def _batch(config, b=4):
-  h, rng = config.horizon, np.random.default_rng(0)
+def _batch(config):
+  """The preset's batch shape: the default variant's update is then the one other tests compile."""
+  b, h, rng = config.train.batch_size, config.horizon, np.random.default_rng(0)
   return {'obs': jnp.asarray(rng.normal(size=(b, h + 2, config.obs_dim)), jnp.float32),
           'action': jnp.asarray(rng.uniform(-1, 1, size=(b, h + 2 - 1, config.action_dim)),
                                 jnp.float32),

@@ -56,7 +56,8 @@ def test_finish_bound_ratio():
 def test_benchmark_training_writes_json(tmp_path):
   out = str(tmp_path / 'bench.json')
   cmd = [sys.executable, '-m', 'experiments.benchmark_training', '--configs=door_open.py:smoke',
-         '--repeats=2', '--warmup=1', f'--out={out}', '--peak_size=256', '--peak_repeats=2']
+         '--repeats=2', '--warmup=1', f'--out={out}', '--peak_size=256', '--peak_repeats=2',
+         '--set=objective.latent_rollout=False']  # Less to compile; value targets still scan.
   done = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)
   assert done.returncode == 0, done.stderr[-3000:]
   with open(out) as f:
@@ -69,7 +70,7 @@ def test_benchmark_training_writes_json(tmp_path):
   assert set(e['step_ms']) == {'median', 'min', 'max', 'n'} and e['step_ms']['n'] == 2
   assert 0 < e['step_ms']['min'] <= e['step_ms']['median'] <= e['step_ms']['max']
   assert e['gflop'] > 0 and e['peak_gflops'] > 0
-  # The update's scans (latent rollout, value targets) add iterations the compiled count misses.
+  # The update's scans (the value targets') add iterations the compiled count misses.
   assert e['gflop'] > e['gflop_xla_once'] > 0
   bound_ms = e['gflop'] / e['peak_gflops'] * 1e3
   np.testing.assert_allclose(e['bound_ratio'], e['step_ms']['median'] / bound_ms, rtol=1e-9)

@@ -1,7 +1,6 @@
 """Online training at smoke size: acting, buffer, updates, checkpoints, SIGKILL and resume, noise.
 
-The runs go through the launcher in subprocesses sharing one persistent compilation cache, so
-the update and the planner compile once for the module.
+The runs go through the launcher in subprocesses that share the session's compilation cache.
 """
 
 import json
@@ -26,16 +25,17 @@ ENV_STEPS = 200  # Five waves of 2 episodes x 20 environment steps; the first on
 
 
 @pytest.fixture(scope='module')
-def launch(tmp_path_factory):
-  """launch(workdir) -> Popen of the smoke online job (no evaluation), one compilation cache."""
-  env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=str(tmp_path_factory.mktemp('jax_cache')),
-             JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS='0')
+def launch():
+  """launch(workdir) -> Popen of the smoke online job (no evaluation).
 
+  The subprocesses inherit the session's compilation cache (conftest.py), so the update and the
+  planner compile once for all of them.
+  """
   def start(workdir):
     cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open_online.py:smoke',
            f'--workdir={workdir}', f'--config.online.env_steps={ENV_STEPS}',
            '--config.eval.episodes=0']
-    return subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
+    return subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
   return start
 
