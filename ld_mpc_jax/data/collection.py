@@ -149,10 +149,13 @@ def collect(task: str, preset: str, episodes: int, seed: int = 0,
 
 
 def dataset_path(data_dir: str, task: str, preset: str, episodes: int,
-                 seed: int, action_repeat: int) -> str:
-  """Cache file name of a collected dataset."""
+                 seed: int, action_repeat: int,
+                 max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH) -> str:
+  """Cache file name of a collected dataset (episodes shorter than Meta-World's: `_T<steps>`)."""
+  steps = ('' if max_episode_steps == metaworld_env.METAWORLD_MAX_PATH_LENGTH
+           else f'_T{max_episode_steps}')
   return os.path.join(
-      data_dir, f'{task}_{preset}_{episodes}ep_seed{seed}_ar{action_repeat}.npz')
+      data_dir, f'{task}_{preset}_{episodes}ep_seed{seed}_ar{action_repeat}{steps}.npz')
 
 
 def get_or_collect(task: str, preset: str, episodes: int, seed: int,
@@ -165,7 +168,7 @@ def get_or_collect(task: str, preset: str, episodes: int, seed: int,
   A cached file that fails validation, or whose metadata does not match the
   request, is replaced (with a warning).
   """
-  path = dataset_path(data_dir, task, preset, episodes, seed, action_repeat)
+  path = dataset_path(data_dir, task, preset, episodes, seed, action_repeat, max_episode_steps)
   want = dict(collector_version=COLLECTOR_VERSION, task=task, preset=preset, episodes=episodes,
               seed=seed,
               action_repeat=action_repeat, max_episode_steps=max_episode_steps)
