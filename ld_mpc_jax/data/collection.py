@@ -14,6 +14,7 @@ Presets (D4RL-like; the levels are data, see PRESETS):
   mixed:  a quarter each of four levels, from expert-like to mostly random.
 """
 
+import json
 import os
 import time
 import warnings
@@ -192,3 +193,15 @@ def summary(ds: dataset_lib.Dataset) -> Dict[str, Optional[float]]:
   return dict(episodes=ds.num_episodes, transitions=ds.num_transitions,
               success_rate=float(ds.episode_success().mean()),
               mean_return=float(ds.episode_returns().mean()))
+
+
+def success_per_level(ds: dataset_lib.Dataset) -> Dict[str, float]:
+  """Episode success rate of a collected dataset at each of its preset's noise levels.
+
+  Keys are the levels as JSON (noise_std, random_prob, fraction).
+  """
+  out = {}
+  for j, lvl in enumerate(PRESETS[ds.metadata['preset']]):
+    sel = ds.episode_data['level'] == j
+    out[json.dumps(lvl)] = float(ds.episode_success()[sel].mean()) if sel.any() else float('nan')
+  return out
