@@ -8,7 +8,7 @@ policy with Wilson intervals, and the average over tasks; `markdown` and `plot` 
 """
 
 import os
-from typing import Any, Dict, List, Sequence
+from typing import Any, Callable, Dict, List, Sequence, Tuple
 
 import ml_collections
 import numpy as np
@@ -18,27 +18,43 @@ from ld_mpc_jax import evaluation_suite, stats, tasks
 
 def evaluate_tasks(config: ml_collections.ConfigDict, params, workdir, step: int,
                    modes: Sequence[str], splits: Sequence[str], seeds: Sequence[int],
-                   num_episodes: int, run: Any = None, log=print) -> List[dict]:
+                   num_episodes: int, run: Any = None, obs_noise_std: float = 0.0,
+                   log=print) -> List[dict]:
   """`evaluation_suite.evaluate_checkpoint` for every task; records carry `task` (its name)."""
   records = []
   for k, name in enumerate(tasks.task_names(config)):
     recs = evaluation_suite.evaluate_checkpoint(
         tasks.task_config(config, k), tasks.bind(params, k), workdir, step, modes, splits, seeds,
-        num_episodes, run=run, log=lambda line, name=name: log(f'{name}: {line}'))
+        num_episodes, run=run, obs_noise_std=obs_noise_std,
+        log=lambda line, name=name: log(f'{name}: {line}'))
     for r in recs:
       r['task'] = name
     records.extend(recs)
   return records
 
 
+def grid(config: ml_collections.ConfigDict, splits: Sequence[str]) -> Tuple[Tuple[str, ...],
+                                                                            Callable]:
+  """(the goal splits `config` can use, the grid evaluation for it).
+
+  The function is `evaluate_tasks` for a multi-task config (scripted data: both splits), else
+  `evaluation_suite.evaluate_checkpoint` (no train split for TD-MPC2's data).
+  """
+  if tasks.is_multitask(config):
+    return tuple(splits), evaluate_tasks
+  return (evaluation_suite.available_splits(config, splits),
+          evaluation_suite.evaluate_checkpoint)
+
+
 def evaluate_pooled(config: ml_collections.ConfigDict, params, mode: str, num_episodes: int,
-                    seed: int, split: str = 'held_out') -> Dict[str, Any]:
+                    seed: int, split: str = 'held_out',
+                    obs_noise_std: float = 0.0) -> Dict[str, Any]:
   """One policy on `num_episodes` episodes of every task, pooled (periodic evaluations).
 
   Returns `stats.summarize` of all records plus the median decisions/s over tasks.
   """
   records = evaluate_tasks(config, params, None, 0, (mode,), (split,), (seed,), num_episodes,
-                           log=lambda line: None)
+                           log=lambda line: None, obs_noise_std=obs_noise_std)
   out = stats.summarize(records)
   out['decisions_per_s'] = float(np.median([r['decisions_per_s'] for r in records]))
   return out

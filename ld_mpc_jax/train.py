@@ -139,7 +139,10 @@ def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
   A multi-task agent: `num_episodes` of every task, pooled (no video, no observation noise).
   """
   if tasks.is_multitask(config):
-    return multitask_eval.evaluate_pooled(config, params, mode, num_episodes, seed, split)
+    if video_path:
+      raise ValueError('no video of a multi-task agent: evaluate one task of it instead')
+    return multitask_eval.evaluate_pooled(config, params, mode, num_episodes, seed, split,
+                                          obs_noise_std)
   return evaluation_suite.evaluate_policy(config, params, mode, num_episodes, seed, split,
                                           obs_noise_std=obs_noise_std, video_path=video_path)
 
@@ -325,13 +328,10 @@ def _final_evaluation(config, params, step, workdir, writer):
                            'decisions_per_s'))
     return final, {}, {}, []
   modes = ('plan',) + tuple(m for m in config.eval.get('baselines', ()) if m != 'plan')
-  multi = tasks.is_multitask(config)  # Multi-task data are scripted: MT1 goals, both splits.
-  splits = (tuple(config.eval.splits) if multi
-            else evaluation_suite.available_splits(config, config.eval.splits))
+  splits, evaluate = multitask_eval.grid(config, config.eval.splits)
   if splits != tuple(config.eval.splits):
     tqdm.tqdm.write(f'goal splits {list(splits)} only: the data were not collected on MT1 '
                     'goals, so there is no train split')
-  evaluate = multitask_eval.evaluate_tasks if multi else evaluation_suite.evaluate_checkpoint
   records = evaluate(config, params, workdir, step, modes, splits, config.eval.seeds,
                      config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
   summary = evaluation_suite.summarize(records)
