@@ -35,7 +35,11 @@ def main(argv):
     sys.exit(2)
   rows = {}
   for k, name in enumerate(tasks.task_names(config)):
-    ds = sources.load_for_config(tasks.task_config(config, k))
+    try:  # An unknown preset or a dataset that does not fit the config: one line too.
+      ds = sources.load_for_config(tasks.task_config(config, k))
+    except ValueError as err:
+      print(f'error: {err}', file=sys.stderr)
+      sys.exit(2)
     rows[name] = dict(**collection.summary(ds),
                       success_per_level=collection.success_per_level(ds),
                       collection_seconds=ds.metadata.get('collection_seconds'))
