@@ -136,7 +136,7 @@ def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
                    split: str = 'held_out') -> Dict[str, Any]:
   """One policy mode ('plan', 'actor', 'proposal', 'mppi') on one goal split (batched).
 
-  A multi-task agent: `num_episodes` of every task, pooled (no video, no observation noise).
+  A multi-task agent: `num_episodes` of every task, pooled (no video).
   """
   if tasks.is_multitask(config):
     if video_path:
@@ -172,8 +172,9 @@ def _summary_md(report: Dict[str, Any]) -> str:
 
 
 def _write_records(path: str, records) -> None:
-  fields = ['run'] + (['task'] if records and 'task' in records[0] else []) + ['policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id', 'success',
-            'first_success', 'return', 'length', 'env_steps']
+  task = ['task'] if records and 'task' in records[0] else []  # Multi-task agents' records.
+  fields = ['run'] + task + ['policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id',
+                             'success', 'first_success', 'return', 'length', 'env_steps']
   with open(path + '.tmp', 'w', newline='') as f:
     writer = csv.DictWriter(f, fieldnames=fields, extrasaction='ignore')
     writer.writeheader()

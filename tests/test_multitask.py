@@ -59,7 +59,8 @@ def test_batch_size_must_split_over_the_tasks():
 def compilation_cache(tmp_path):
   """A persistent compilation cache, so that the resumed run reuses the first run's update."""
   import jax
-  old = (jax.config.jax_compilation_cache_dir, jax.config.jax_persistent_cache_min_compile_time_secs)
+  old = (jax.config.jax_compilation_cache_dir,
+         jax.config.jax_persistent_cache_min_compile_time_secs)
   jax.config.update('jax_compilation_cache_dir', str(tmp_path / 'xla_cache'))
   jax.config.update('jax_persistent_cache_min_compile_time_secs', 0.0)
   yield
