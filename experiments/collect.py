@@ -66,11 +66,7 @@ def main(argv):
   report = dict(out=_OUT.value, preset=_PRESET.value,
                 collection_seconds=ds.metadata['collection_seconds'],
                 **collect_lib.summary(ds))
-  per_level = {}
-  for j, lvl in enumerate(collect_lib.PRESETS[_PRESET.value]):
-    sel = ds.episode_data['level'] == j
-    per_level[json.dumps(lvl)] = float(ds.episode_success()[sel].mean())
-  report['dataset_success_per_level'] = per_level
+  report['dataset_success_per_level'] = collect_lib.success_per_level(ds)
   if _PROTOCOL_EPISODES.value > 0:
     res = scripted_under_protocol(_TASK.value, _PRESET.value,
                                   _PROTOCOL_EPISODES.value, _SEED.value,

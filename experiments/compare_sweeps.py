@@ -25,7 +25,7 @@ def paired_rows(a: dict, b: dict, policies, split: str) -> list:
   """One row per policy: episodes, success of A and B on them, McNemar (A only, B only, p)."""
   rows = []
   for policy in policies:
-    pick = lambda sweep: {tuple(r[k] for k in stats.EPISODE_KEY): r['success']
+    pick = lambda sweep: {tuple(r.get(k) for k in stats.EPISODE_KEY): r['success']
                           for r in sweep['records']
                           if r['policy'] == policy and r['split'] == split}
     ra, rb = pick(a), pick(b)

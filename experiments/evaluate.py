@@ -2,6 +2,7 @@
 
   python -m experiments.evaluate --workdir=runs/door_open_cpu --seeds=0,1,2
       [--modes=plan,actor,proposal] [--splits=held_out,train] [--set=plan.warm_start_steps=0]
+  python -m experiments.evaluate --workdir=runs/mt10_cpu    # a multi-task run: every task
 
 Loads <workdir>/config.json and the latest checkpoint (EMA parameters) and runs every policy on
 the same episodes of each goal split and evaluation seed (environments in lockstep, one jitted
@@ -34,7 +35,7 @@ flags.mark_flag_as_required('workdir')
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import checkpointing, evaluation_suite
+  from ld_mpc_jax import checkpointing, evaluation_suite, multitask_eval, tasks
   from ld_mpc_jax.config_checks import validate_config
   from ld_mpc_jax.train import git_commit, run_evaluation
   from experiments.overrides import parse_items, with_overrides
@@ -47,14 +48,16 @@ def main(argv):
         'plan', 'actor', 'proposal', 'mppi'}
     if bad:
       raise ValueError(f'unknown split or mode {sorted(bad)}')
-    splits = evaluation_suite.available_splits(config, _SPLITS.value)  # No train split for
+    splits, evaluate = multitask_eval.grid(config, _SPLITS.value)  # No train split for
     if splits != tuple(_SPLITS.value):  # TD-MPC2 data: its goals were random per episode.
       print(f'goal splits {list(splits)} only: the data were not collected on MT1 goals')
   episodes = _EPISODES.value or config.eval.episodes
-  records = evaluation_suite.evaluate_checkpoint(
-      config, params, None, step, _MODES.value, splits, seeds, episodes,
-      run=config.seed)
+  records = evaluate(config, params, None, step, _MODES.value, splits, seeds, episodes,
+                     run=config.seed)  # A multi-task agent: every task, records per task.
   summary = evaluation_suite.summarize(records)
+  if tasks.is_multitask(config):
+    names = tasks.task_names(config)
+    print(multitask_eval.markdown(multitask_eval.per_task(records, names), names))
   print(evaluation_suite.markdown(summary))
   out = {'step': step, 'episodes': episodes, 'seeds': seeds, 'overrides': _OVERRIDE.value,
          'git_commit': git_commit(), 'summary': summary, 'records': records}

@@ -56,7 +56,7 @@ def pooled_table(summary: dict) -> str:
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import evaluation_suite
+  from ld_mpc_jax import evaluation_suite, multitask_eval, tasks
   from ld_mpc_jax.train import train_and_evaluate
   from experiments.overrides import with_overrides
   try:
@@ -81,6 +81,10 @@ def main(argv):
           f'({", ".join(map(str, eval_seeds))}) and training seed; all policies on the same '
           'episodes.\n\n' + pooled_table(summary) + '\nPaired, pooled over all training and '
           'evaluation seeds:\n\n' + evaluation_suite.markdown(summary).split('\n\n', 1)[1])
+  if tasks.is_multitask(config):  # Per task, pooled over training seeds (ld_mpc_jax.tasks).
+    names = tasks.task_names(config)
+    text += ('\nPer task, pooled over training and evaluation seeds:\n\n'
+             + multitask_eval.markdown(multitask_eval.per_task(records, names), names))
   with open(os.path.join(root, 'sweep.md'), 'w') as f:
     f.write(text)
   with open(os.path.join(root, 'sweep.json'), 'w') as f:

@@ -1,6 +1,7 @@
 """Trains and evaluates LD-MPC.
 
   python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_cpu
+  python -m experiments.train --config=mt10.py:cpu --workdir=runs/mt10_cpu   # one agent, MT10
   python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_tdmpc2 \
       --config.data.source=tdmpc2 --config.data.path='mt80/chunk_*.pt'   # TD-MPC2's data
   python -m experiments.train --config=door_open.py --workdir=runs/door_open_dp \
@@ -40,11 +41,11 @@ def main(argv):
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
   from ld_mpc_jax.config_checks import online_enabled, validate_config
   from ld_mpc_jax.data import DatasetError, sources
-  from ld_mpc_jax.envs import check_task
+  from ld_mpc_jax.tasks import check_tasks
   from ld_mpc_jax.train import train_and_evaluate
   try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
     validate_config(_CONFIG.value)
-    check_task(_CONFIG.value.task)
+    check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
     sources.check_source(_CONFIG.value)
     if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
       from ld_mpc_jax.online import check_init_from

@@ -8,6 +8,7 @@ t with fold_in(fold_in(key(seed), e.reset_seed), t), whether it runs alone (`mak
 call for N environments), so the two give the same episodes.
 """
 
+import json
 from typing import Callable, Optional, Sequence, Tuple
 
 import jax
@@ -129,8 +130,11 @@ class BatchAgentPolicy:
     self.warm = uses_prev(config, mode)
     self.per_env = chunk == 0  # One jitted call per environment (the single-env act).
     self.action_dim = config.action_dim
-    key = (config.to_json_best_effort(sort_keys=True), mode, chunk)
-    if key not in _BATCH_ACTS:  # One jitted function per setting: compiled once per process.
+    # One jitted function per setting, compiled once per process; the task name does not change
+    # the function, so the tasks of a multi-task agent (tasks.bind) share it.
+    spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
+    key = (json.dumps(spec, sort_keys=True, default=str), mode, chunk)
+    if key not in _BATCH_ACTS:
       _BATCH_ACTS[key] = (make_act(config, mode) if self.per_env
                           else make_batch_act(config, mode, chunk))
     self.act = _BATCH_ACTS[key]

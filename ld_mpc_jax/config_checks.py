@@ -82,6 +82,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   _validate_variant(config)
   _validate_objective(config)
   _validate_online(config)
+  _validate_tasks(config)
   t = config.train
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
@@ -178,3 +179,19 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   if not o.init_from and o.seed_steps < 1:
     raise ValueError('config.online.seed_steps must be >= 1 from scratch (no online.init_from): '
                      'the first updates need seed episodes')
+
+
+def _validate_tasks(config: ml_collections.ConfigDict) -> None:
+  """Multi-task configs (ld_mpc_jax.tasks): every batch splits into equal shares per task."""
+  names = tuple(config.get('tasks') or ())
+  if len(names) < 2:
+    return
+  if config.train.batch_size % len(names):
+    raise ValueError(f'config.train.batch_size ({config.train.batch_size}) must be a multiple '
+                     f'of the number of tasks ({len(names)}): batches hold equal shares per task')
+  dim = config.model.get('task_dim', 96)
+  if not isinstance(dim, int) or dim < 1:
+    raise ValueError(f'config.model.task_dim must be an integer >= 1, got {dim!r}')
+  if config.data.get('source', 'metaworld') != 'metaworld':
+    raise ValueError('multi-task configs (config.tasks) train on the scripted data: '
+                     'config.data.source must be metaworld')

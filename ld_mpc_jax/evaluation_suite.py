@@ -26,9 +26,10 @@ POLICY_NAMES = {'plan': 'planner', 'actor': 'actor prior', 'proposal': 'proposal
                 'mppi': 'MPPI (learned model)'}
 
 
-@functools.lru_cache(maxsize=8)
-def _dataset_goals(task, preset, episodes, seed, data_dir, action_repeat):
-  ds = data.get_or_collect(task, preset, episodes, seed, data_dir, action_repeat=action_repeat)
+@functools.lru_cache(maxsize=16)
+def _dataset_goals(task, preset, episodes, seed, data_dir, action_repeat, max_episode_steps):
+  ds = data.get_or_collect(task, preset, episodes, seed, data_dir, action_repeat=action_repeat,
+                           max_episode_steps=max_episode_steps)
   mt1_seed = ds.metadata.get('seed') if ds.metadata.get('source') == 'metaworld-scripted' else None
   return goals.dataset_goal_vectors(ds), mt1_seed
 
@@ -47,7 +48,7 @@ def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Option
   if data.sources.source(config) == 'tdmpc2':
     return goals.dataset_goal_vectors(data.load_for_config(config)), None
   return _dataset_goals(config.task, d.preset, d.episodes, d.seed, d.dir,
-                        config.eval.action_repeat)
+                        config.eval.action_repeat, data.sources.max_episode_steps(config))
 
 
 def available_splits(config: ml_collections.ConfigDict, splits: Sequence[str]) -> Tuple[str, ...]:

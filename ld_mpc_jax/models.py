@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax import diffusion
+from ld_mpc_jax import diffusion, tasks
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.critics import Critics, build_critics
 from ld_mpc_jax.networks import MLP, TimeEmbedding, Transformer, position_embedding
@@ -328,7 +328,8 @@ def make_transition(config: ml_collections.ConfigDict, nets: Networks,
 
 def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   """Initial parameters: {'encoder', 'proposal', 'dynamics', 'objective', 'actor'} -> pytree,
-  plus 'critics' when the config uses them (ld_mpc_jax.critics.uses_critics)."""
+  plus 'critics' when the config uses them (ld_mpc_jax.critics.uses_critics) and 'task' for a
+  multi-task config (ld_mpc_jax.tasks)."""
   validate_config(config)
   nets = build_networks(config)
   h, d, a = config.horizon, config.model.latent_dim, config.action_dim
@@ -356,7 +357,7 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   }
   if nets.critics is not None:
     params['critics'] = nets.critics.init(keys['critics'], z, jnp.zeros((1, a)))['params']
-  return params
+  return tasks.init_task_params(config, jax.random.fold_in(key, 2), params)
 
 
 def count_params(params) -> int:

@@ -9,8 +9,9 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 import numpy as np
 from scipy import stats as sps
 
-# The fields that identify an episode; `run` names the checkpoint (e.g. the training seed).
-EPISODE_KEY = ('run', 'split', 'eval_seed', 'episode')
+# The fields that identify an episode; `run` names the checkpoint (e.g. the training seed),
+# `task` the task of a multi-task agent's episode (absent, so None, for a single task).
+EPISODE_KEY = ('run', 'task', 'split', 'eval_seed', 'episode')
 
 
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> List[float]:

@@ -16,7 +16,7 @@ import orbax.checkpoint as ocp
 from tensorboardX import SummaryWriter
 import tqdm
 
-from ld_mpc_jax import checkpointing, data, envs, evaluation_suite, sharding
+from ld_mpc_jax import checkpointing, data, evaluation_suite, multitask_eval, sharding, tasks
 from ld_mpc_jax.config_checks import online_enabled, validate_config
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
@@ -35,7 +35,7 @@ def check_config_for_data(config: ml_collections.ConfigDict, dataset: data.Datas
   if config.horizon + 1 > longest:
     raise ValueError(f'config.horizon ({config.horizon}) is too large for the longest episode '
                      f'({longest} transitions): training windows need H + 1 transitions')
-  windows = data.ReplayBuffer(dataset, window_length(config)).num_windows
+  windows = data.make_buffer(config, dataset, window_length(config)).num_windows
   if config.train.batch_size > windows:
     raise ValueError(f'config.train.batch_size ({config.train.batch_size}) is larger than the '
                      f'dataset ({windows} windows of length {window_length(config)})')
@@ -137,7 +137,15 @@ def write_plots(workdir: str) -> None:
 def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
                    obs_noise_std: float = 0.0, video_path: str | None = None,
                    split: str = 'held_out') -> Dict[str, Any]:
-  """One policy mode ('plan', 'actor', 'proposal', 'mppi') on one goal split (batched)."""
+  """One policy mode ('plan', 'actor', 'proposal', 'mppi') on one goal split (batched).
+
+  A multi-task agent: `num_episodes` of every task, pooled (no video).
+  """
+  if tasks.is_multitask(config):
+    if video_path:
+      raise ValueError('no video of a multi-task agent: evaluate one task of it instead')
+    return multitask_eval.evaluate_pooled(config, params, mode, num_episodes, seed, split,
+                                          obs_noise_std)
   return evaluation_suite.evaluate_policy(config, params, mode, num_episodes, seed, split,
                                           obs_noise_std=obs_noise_std, video_path=video_path)
 
@@ -161,15 +169,22 @@ def evaluation_md_lines(report: Dict[str, Any], lead: str, trained_on: str):
     lines = [f"{lead}{report['eval_episodes']} episodes per policy, goal split and "
              f"evaluation seed (seeds {', '.join(map(str, report['eval_seeds']))}); the same "
              f'episodes for every policy. Held-out goals: configurations no {trained_on} episode '
-             'starts from.', '', evaluation_suite.markdown(report['evaluation'])]
+             'starts from.', '']
+    if report.get('per_task'):
+      lines += [f"Per task ({len(report['tasks'])} tasks, one agent; average: mean of the task "
+                'rates, interval of all episodes pooled), then all tasks pooled.', '',
+                multitask_eval.markdown(report['per_task'], report['tasks']),
+                '![success per task](tasks.png)', '']
+    lines.append(evaluation_suite.markdown(report['evaluation']))
   else:
     lines = ['Not evaluated (eval.episodes = 0).']
   return lines + ['', f"git commit {report['git_commit']}."]
 
 
 def _write_records(path: str, records) -> None:
-  fields = ['run', 'policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id', 'success',
-            'first_success', 'return', 'length', 'env_steps']
+  task = ['task'] if records and 'task' in records[0] else []  # Multi-task agents' records.
+  fields = ['run'] + task + ['policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id',
+                             'success', 'first_success', 'return', 'length', 'env_steps']
   with open(path + '.tmp', 'w', newline='') as f:
     writer = csv.DictWriter(f, fieldnames=fields, extrasaction='ignore')
     writer.writeheader()
@@ -182,7 +197,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
 
   Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json,
   metrics.csv, eval.csv, tb/ (TensorBoard), losses.png, success.png, episodes.csv (one row per
-  evaluation episode), report.json and report.md. The returned report also holds the
+  evaluation episode), report.json and report.md; a multi-task config (config.tasks) also
+  tasks.png, and its report a per-task table ('per_task'). The returned report also holds the
   per-episode records under 'records'.
 
   With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.online.train_online`).
@@ -199,13 +215,15 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   writer.close()
   final, baselines, summary, records = evaluated
   report = _report(config, dataset, state, prior_seconds, timer, final, baselines, summary,
-                   commit)
+                   commit, records)
   if _primary():
     with open(os.path.join(workdir, 'report.json'), 'w') as f:
       json.dump(report, f, indent=2)
     with open(os.path.join(workdir, 'report.md'), 'w') as f:
       f.write(_summary_md(report))
   write_plots(workdir)
+  if report['per_task'] and _primary():
+    multitask_eval.plot(os.path.join(workdir, 'tasks.png'), report['per_task'], report['tasks'])
   report['records'] = records  # Per-episode records: in episodes.csv, not report.json.
   return report
 
@@ -213,7 +231,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
 def _prepare(config, workdir):
   """Checks the config, loads (or collects) the data, restores the latest checkpoint."""
   validate_config(config)
-  envs.check_task(config.task)
+  tasks.check_tasks(config)
   os.makedirs(workdir, exist_ok=True)
   dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
   check_config_for_data(config, dataset)
@@ -261,7 +279,7 @@ def _train(config, workdir, dataset, manager, state, prior_seconds, writer):
     state = sharding.replicate(state, mesh)
   # A resumed run draws fresh windows rather than replaying the first run's; so does every
   # process of a multi-process run (process 0 draws what a single-process run draws).
-  buffer = data.ReplayBuffer(dataset, window_length(config), seed=(
+  buffer = data.make_buffer(config, dataset, window_length(config), seed=(
       config.seed * 1_000_003 + start + 999_983 * jax.process_index()))
   train_key = jax.random.key(config.seed + 1)
   timer = _Timer(start)
@@ -326,13 +344,12 @@ def _final_evaluation(config, params, step, workdir, writer):
                            'decisions_per_s'))
     return final, {}, {}, []
   modes = ('plan',) + tuple(m for m in config.eval.get('baselines', ()) if m != 'plan')
-  splits = evaluation_suite.available_splits(config, config.eval.splits)
+  splits, evaluate = multitask_eval.grid(config, config.eval.splits)
   if splits != tuple(config.eval.splits):
     tqdm.tqdm.write(f'goal splits {list(splits)} only: the data were not collected on MT1 '
                     'goals, so there is no train split')
-  records = evaluation_suite.evaluate_checkpoint(
-      config, params, workdir, step, modes, splits, config.eval.seeds,
-      config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
+  records = evaluate(config, params, workdir, step, modes, splits, config.eval.seeds,
+                     config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
   summary = evaluation_suite.summarize(records)
   if _primary():
     _write_records(os.path.join(workdir, 'episodes.csv'), records)
@@ -344,9 +361,13 @@ def _final_evaluation(config, params, step, workdir, writer):
   return final, baselines, summary, records
 
 
-def _report(config, dataset, state, prior_seconds, timer, final, baselines, summary, commit):
+def _report(config, dataset, state, prior_seconds, timer, final, baselines, summary, commit,
+            records):
+  names = tasks.task_names(config)
   return {
-      'task': config.task,
+      'task': config.task, 'tasks': list(names),
+      'per_task': (multitask_eval.per_task(records, names)
+                   if tasks.is_multitask(config) and records else None),
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
       'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
       'decisions_per_s': final['decisions_per_s'],

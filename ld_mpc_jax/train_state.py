@@ -9,7 +9,7 @@ from jax.sharding import Mesh
 import ml_collections
 import optax
 
-from ld_mpc_jax import sharding
+from ld_mpc_jax import sharding, tasks
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.losses import make_loss_fn
 from ld_mpc_jax.models import build_networks, init_params, set_obs_normalization
@@ -58,7 +58,8 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   """Returns jitted update(state, batch, key) -> (state, metrics); `state` is donated.
 
   batch: obs [B, H+2, obs_dim], action [B, H+1, A], reward [B, H+1] (float32): windows of
-  T = H + 1 steps plus one for the value bootstrap (see losses.make_loss_fn).
+  T = H + 1 steps plus one for the value bootstrap (see losses.make_loss_fn); a multi-task
+  config also needs task int32 [B], task-major (ld_mpc_jax.tasks.multitask_loss).
   Metrics are a dict of scalars, including the gradient norm before clipping.
 
   With `config.train.data_parallel` (or a `mesh` given), the same update is compiled for a 1-D
@@ -69,6 +70,8 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   validate_config(config)
   nets = build_networks(config)
   loss_fn = make_loss_fn(config, nets)
+  if tasks.is_multitask(config):  # batch['task'] [B] too; one share per task (tasks.py).
+    loss_fn = tasks.multitask_loss(loss_fn, tasks.num_tasks(config))
   tx = make_optimizer(config)
   decay = config.train.ema_decay
   h, obs_dim, act_dim = config.horizon, config.obs_dim, config.action_dim
@@ -77,6 +80,8 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
     b = batch['obs'].shape[0]
     expected = {'obs': (b, h + 2, obs_dim), 'action': (b, h + 1, act_dim),
                 'reward': (b, h + 1)}
+    if tasks.is_multitask(config):
+      expected['task'] = (b,)
     for name, shape in expected.items():
       if name not in batch or tuple(batch[name].shape) != shape:
         got = tuple(batch[name].shape) if name in batch else 'missing'

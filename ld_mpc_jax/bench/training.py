@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax import sharding
+from ld_mpc_jax import sharding, tasks
 from ld_mpc_jax.bench.flops import compiled_flops
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
@@ -96,12 +96,17 @@ def unrolled_flops(fn: Callable, *args, once: Optional[float] = None) -> Dict[st
 
 
 def random_batch(config: ml_collections.ConfigDict, batch_size: int, seed: int = 0) -> dict:
-  """A training batch of the config's shapes: obs [B, H+2, D], action [B, H+1, A], reward."""
+  """A training batch of the config's shapes: obs [B, H+2, D], action [B, H+1, A], reward
+  [B, H+1], and for a multi-task config task [B] (equal task-major shares)."""
   rng = np.random.default_rng(seed)
   h, b = config.horizon, batch_size
-  return dict(obs=rng.normal(size=(b, h + 2, config.obs_dim)).astype(np.float32),
-              action=rng.uniform(-1, 1, (b, h + 1, config.action_dim)).astype(np.float32),
-              reward=rng.uniform(0, 10, (b, h + 1)).astype(np.float32))
+  batch = dict(obs=rng.normal(size=(b, h + 2, config.obs_dim)).astype(np.float32),
+               action=rng.uniform(-1, 1, (b, h + 1, config.action_dim)).astype(np.float32),
+               reward=rng.uniform(0, 10, (b, h + 1)).astype(np.float32))
+  if tasks.is_multitask(config):
+    n = tasks.num_tasks(config)
+    batch['task'] = np.repeat(np.arange(n, dtype=np.int32), b // n)
+  return batch
 
 
 def benchmark_update(name: str, config: ml_collections.ConfigDict, repeats: int,

@@ -9,6 +9,8 @@ from ld_mpc_jax.data.dataset import DatasetError
 from ld_mpc_jax.data.dataset import FORMAT_VERSION
 from ld_mpc_jax.data.dataset import load
 from ld_mpc_jax.data.dataset import save
+from ld_mpc_jax.data.multitask import make_buffer
+from ld_mpc_jax.data.multitask import TaskBalancedBuffer
 from ld_mpc_jax.data.replay import ReplayBuffer
 from ld_mpc_jax.data.sources import load_for_config
 from ld_mpc_jax.data.sources import SOURCES
@@ -18,5 +20,6 @@ from ld_mpc_jax.data.tdmpc2 import TASK_SETS
 __all__ = [
     'collect', 'get_or_collect', 'PRESETS', 'summary', 'Dataset',
     'DatasetError', 'FORMAT_VERSION', 'load', 'save', 'ReplayBuffer',
-    'load_tdmpc2', 'TASK_SETS', 'load_for_config', 'SOURCES',
+    'load_tdmpc2', 'TASK_SETS', 'load_for_config', 'SOURCES', 'make_buffer',
+    'TaskBalancedBuffer',
 ]

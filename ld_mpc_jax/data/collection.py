@@ -14,6 +14,7 @@ Presets (D4RL-like; the levels are data, see PRESETS):
   mixed:  a quarter each of four levels, from expert-like to mostly random.
 """
 
+import json
 import os
 import time
 import warnings
@@ -149,10 +150,13 @@ def collect(task: str, preset: str, episodes: int, seed: int = 0,
 
 
 def dataset_path(data_dir: str, task: str, preset: str, episodes: int,
-                 seed: int, action_repeat: int) -> str:
-  """Cache file name of a collected dataset."""
+                 seed: int, action_repeat: int,
+                 max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH) -> str:
+  """Cache file name of a collected dataset (episodes shorter than Meta-World's: `_T<steps>`)."""
+  steps = ('' if max_episode_steps == metaworld_env.METAWORLD_MAX_PATH_LENGTH
+           else f'_T{max_episode_steps}')
   return os.path.join(
-      data_dir, f'{task}_{preset}_{episodes}ep_seed{seed}_ar{action_repeat}.npz')
+      data_dir, f'{task}_{preset}_{episodes}ep_seed{seed}_ar{action_repeat}{steps}.npz')
 
 
 def get_or_collect(task: str, preset: str, episodes: int, seed: int,
@@ -165,7 +169,7 @@ def get_or_collect(task: str, preset: str, episodes: int, seed: int,
   A cached file that fails validation, or whose metadata does not match the
   request, is replaced (with a warning).
   """
-  path = dataset_path(data_dir, task, preset, episodes, seed, action_repeat)
+  path = dataset_path(data_dir, task, preset, episodes, seed, action_repeat, max_episode_steps)
   want = dict(collector_version=COLLECTOR_VERSION, task=task, preset=preset, episodes=episodes,
               seed=seed,
               action_repeat=action_repeat, max_episode_steps=max_episode_steps)
@@ -189,3 +193,15 @@ def summary(ds: dataset_lib.Dataset) -> Dict[str, Optional[float]]:
   return dict(episodes=ds.num_episodes, transitions=ds.num_transitions,
               success_rate=float(ds.episode_success().mean()),
               mean_return=float(ds.episode_returns().mean()))
+
+
+def success_per_level(ds: dataset_lib.Dataset) -> Dict[str, float]:
+  """Episode success rate of a collected dataset at each of its preset's noise levels.
+
+  Keys are the levels as JSON (noise_std, random_prob, fraction).
+  """
+  out = {}
+  for j, lvl in enumerate(PRESETS[ds.metadata['preset']]):
+    sel = ds.episode_data['level'] == j
+    out[json.dumps(lvl)] = float(ds.episode_success()[sel].mean()) if sel.any() else float('nan')
+  return out

@@ -6,12 +6,15 @@
 * 'tdmpc2': the `config.task` episodes of TD-MPC2's mt80 chunk files at `config.data.path` (a file,
   a glob pattern or a directory). TD-MPC2 recorded Meta-World v2; its 'mw-door-open' is this
   project's 'door-open-v3' (`tdmpc2.from_metaworld_v3`).
+A multi-task config (`config.tasks`) gets every task's scripted dataset joined, with each
+episode's task index (`multitask.load`).
 """
 
 import functools
 
 import ml_collections
 
+from ld_mpc_jax import tasks
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import tdmpc2
@@ -23,6 +26,11 @@ TDMPC2_TASK_SET = 'mt80'  # The only TD-MPC2 task set with Meta-World tasks.
 def source(config: ml_collections.ConfigDict) -> str:
   """config.data.source; 'metaworld' for configs saved before the field existed."""
   return config.data.get('source', 'metaworld')
+
+
+def max_episode_steps(config: ml_collections.ConfigDict) -> int:
+  """Environment steps per collected episode: config.data.max_episode_steps, else Meta-World's."""
+  return config.data.get('max_episode_steps') or collection.metaworld_env.METAWORLD_MAX_PATH_LENGTH
 
 
 def check_source(config: ml_collections.ConfigDict) -> None:
@@ -61,10 +69,14 @@ def load_for_config(config: ml_collections.ConfigDict,
       sizes other than config.obs_dim / action_dim.
   """
   check_source(config)
+  if tasks.is_multitask(config):  # Every task's dataset, task_ids per episode.
+    from ld_mpc_jax.data import multitask  # pylint: disable=g-import-not-at-top
+    return multitask.load(config, progress=progress)
   d = config.data
   if source(config) == 'metaworld':
     ds = collection.get_or_collect(config.task, d.preset, d.episodes, d.seed, d.dir,
-                                   action_repeat=config.eval.action_repeat, progress=progress)
+                                   action_repeat=config.eval.action_repeat,
+                                   max_episode_steps=max_episode_steps(config), progress=progress)
   else:
     ds = _load_tdmpc2(str(d.path), config.task)
   if ds.obs_dim != config.obs_dim or ds.act_dim != config.action_dim:
