@@ -55,21 +55,8 @@ def test_batch_size_must_split_over_the_tasks():
     validate_config(c)
 
 
-@pytest.fixture
-def compilation_cache(tmp_path):
-  """A persistent compilation cache, so that the resumed run reuses the first run's update."""
-  import jax
-  old = (jax.config.jax_compilation_cache_dir,
-         jax.config.jax_persistent_cache_min_compile_time_secs)
-  jax.config.update('jax_compilation_cache_dir', str(tmp_path / 'xla_cache'))
-  jax.config.update('jax_persistent_cache_min_compile_time_secs', 0.0)
-  yield
-  jax.config.update('jax_compilation_cache_dir', old[0])
-  jax.config.update('jax_persistent_cache_min_compile_time_secs', old[1])
-
-
-def test_mt10_smoke_trains_checkpoints_resumes_and_evaluates_every_task(tmp_path,
-                                                                        compilation_cache):
+def test_mt10_smoke_trains_checkpoints_resumes_and_evaluates_every_task(tmp_path):
+  """The resumed run's update comes from the session's compilation cache (conftest.py)."""
   c = mt10.get_config('smoke')
   c.data.dir = str(tmp_path / 'data')
   workdir = str(tmp_path / 'run')
