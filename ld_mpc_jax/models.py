@@ -14,6 +14,7 @@ and `config.model.dynamics_type` (the ablations of experiments/ablations.py):
 Single-step proposals are sampled inside the rollout, one action per visited latent.
 """
 
+import functools
 from typing import NamedTuple, Optional
 
 import flax.linen as nn
@@ -329,8 +330,16 @@ def make_transition(config: ml_collections.ConfigDict, nets: Networks,
 def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   """Initial parameters: {'encoder', 'proposal', 'dynamics', 'objective', 'actor'} -> pytree,
   plus 'critics' when the config uses them (ld_mpc_jax.critics.uses_critics) and 'task' for a
-  multi-task config (ld_mpc_jax.tasks)."""
+  multi-task config (ld_mpc_jax.tasks).
+
+  One compiled program: initialising operation by operation compiles hundreds of small ones
+  (about 16 s against 4 s on a 2-core CPU at smoke size).
+  """
   validate_config(config)
+  return jax.jit(functools.partial(_init_params, config))(key)
+
+
+def _init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   nets = build_networks(config)
   h, d, a = config.horizon, config.model.latent_dim, config.action_dim
   names = Networks._fields[:5]  # The critics' key is apart, so the others do not depend on it.

@@ -318,10 +318,14 @@ def _log_metrics(workdir, writer, bar, timer, done, num_steps, metrics, manager)
       writer.add_scalar(f'train/{k}', v, done)
 
 
+@jax.jit
+def _all_finite(tree) -> jax.Array:
+  return jax.tree_util.tree_reduce(lambda ok, x: ok & jnp.all(jnp.isfinite(x)), tree,
+                                   jnp.array(True))
+
+
 def _save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
-  finite = jax.tree_util.tree_reduce(lambda ok, x: ok & jnp.all(jnp.isfinite(x)),
-                                     state.params, jnp.array(True))
-  if not bool(finite):  # One host sync per checkpoint.
+  if not bool(_all_finite(state.params)):  # One host sync per checkpoint.
     raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
                              f'good checkpoint is step {manager.latest_step()}.')
   manager.save(done, args=ocp.args.StandardSave(state))  # All processes: orbax coordinates.

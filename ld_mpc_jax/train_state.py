@@ -44,9 +44,15 @@ def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
   params = init_params(config, key)
   if obs is not None and config.model.get('normalize_obs', False):
     params = set_obs_normalization(params, obs)
-  return TrainState(params=params, opt_state=make_optimizer(config).init(params),
-                    ema_params=jax.tree_util.tree_map(jnp.copy, params),
-                    step=jnp.zeros((), jnp.int32))
+  tx = make_optimizer(config)
+
+  @jax.jit  # One program, not one small compiled operation per leaf.
+  def fresh(params):
+    return TrainState(params=params, opt_state=tx.init(params),
+                      ema_params=jax.tree_util.tree_map(jnp.copy, params),
+                      step=jnp.zeros((), jnp.int32))
+
+  return fresh(params)
 
 
 def ema_update(ema_params, params, decay: float):

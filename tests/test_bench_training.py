@@ -8,6 +8,7 @@ import sys
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from ld_mpc_jax.bench import training
 
@@ -53,6 +54,7 @@ def test_finish_bound_ratio():
   np.testing.assert_allclose(entry['achieved_gflops'], 100.0)
 
 
+@pytest.mark.long
 def test_benchmark_training_writes_json(tmp_path):
   out = str(tmp_path / 'bench.json')
   cmd = [sys.executable, '-m', 'experiments.benchmark_training', '--configs=door_open.py:smoke',

@@ -1,6 +1,7 @@
 """Tests for ld_mpc_jax.envs: factory, action repeat, limits, success, noise."""
 
 import gymnasium as gym
+import metaworld
 import numpy as np
 import pytest
 
@@ -122,3 +123,24 @@ def test_scripted_policy_action_shape():
   obs, _ = env.reset(seed=0)
   action = metaworld_env.scripted_policy('door-open-v3')(obs)
   assert action.shape == (4,) and action.dtype == np.float32
+
+
+def test_make_env_matches_metaworlds_own_factory():
+  """The cached goal configurations give the environment gym.make('Meta-World/MT1') gives."""
+  ours = metaworld_env.make_env('reach-v3', seed=5)
+  theirs = metaworld_env.MetaWorldWrapper(
+      gym.make('Meta-World/MT1', env_name='reach-v3', seed=5, disable_env_checker=True), seed=5)
+  actions = np.random.default_rng(0).uniform(-1, 1, (6, 4)).astype(np.float32)
+  for reset_seed in (None, 3, 4):
+    a, _ = ours.reset(seed=reset_seed)
+    b, _ = theirs.reset(seed=reset_seed)
+    np.testing.assert_array_equal(a, b)
+    for action in actions:
+      a, ra, *_ = ours.step(action)
+      b, rb, *_ = theirs.step(action)
+      np.testing.assert_array_equal(a, b)
+      assert ra == rb
+  again = metaworld_env.make_env('reach-v3', seed=5)  # Reuses the cached goals.
+  assert again.reset(seed=3)[0].tolist() == ours.reset(seed=3)[0].tolist()
+  assert metaworld_env.mt1_tasks('reach-v3', 5)[0].data == (
+      metaworld.MT1('reach-v3', seed=5).train_tasks[0].data)

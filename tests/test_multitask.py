@@ -55,6 +55,7 @@ def test_batch_size_must_split_over_the_tasks():
     validate_config(c)
 
 
+@pytest.mark.long
 def test_mt10_smoke_trains_checkpoints_resumes_and_evaluates_every_task(tmp_path):
   """The resumed run's update comes from the session's compilation cache (conftest.py)."""
   c = mt10.get_config('smoke')

@@ -54,6 +54,7 @@ def _buffer(workdir, step):
   return data.load(online.buffer_path(workdir, step))
 
 
+@pytest.mark.long  # Its fixture runs the smoke job.
 def test_smoke_run_acts_fills_the_buffer_updates_and_checkpoints(finished):
   waves = train._read_csv(os.path.join(finished, online.ONLINE_CSV))
   assert [int(w['env_steps']) for w in waves] == [40, 80, 120, 160, 200]
@@ -80,6 +81,7 @@ def test_smoke_run_acts_fills_the_buffer_updates_and_checkpoints(finished):
   assert os.path.getsize(os.path.join(finished, 'online.png')) > 0
 
 
+@pytest.mark.long
 def test_sigkill_and_resume_restore_buffer_and_step_counter_exactly(finished, launch, tmp_path):
   workdir = str(tmp_path / 'run')
   proc = launch(workdir)

@@ -62,8 +62,10 @@ print(json.dumps(dict(
 '''
 
 
+@pytest.mark.long
 def test_two_device_update_matches_one_device():
-  env = dict(os.environ, XLA_FLAGS='--xla_force_host_platform_device_count=2',
+  flags = os.environ.get('XLA_FLAGS', '') + ' --xla_force_host_platform_device_count=2'
+  env = dict(os.environ, XLA_FLAGS=flags.strip(),
              JAX_PLATFORMS='cpu', PYTHONPATH=REPO)
   done = subprocess.run([sys.executable, '-c', _SCRIPT], cwd=REPO, env=env,
                         capture_output=True, text=True, timeout=600)

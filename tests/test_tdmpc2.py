@@ -224,6 +224,7 @@ def test_source_config_errors(fake_torch, tmp_path, smoke_config):
     sources.load_for_config(c)
 
 
+@pytest.mark.long
 def test_train_from_tdmpc2_chunks_end_to_end(fake_torch, tmp_path):
   from ld_mpc_jax import checkpointing
   chunk = tmp_path / 'chunks'

@@ -71,6 +71,7 @@ def test_smoke_run_end_to_end(tmp_path, data_dir):
   assert 'McNemar' in open(os.path.join(workdir, 'report.md')).read()
 
 
+@pytest.mark.long
 def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
   workdir = str(tmp_path / 'run')
   cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open.py:smoke',

@@ -77,8 +77,7 @@ def mt1_goals(task: str, mt1_seed: int) -> Tuple[Tuple[Any, ...], np.ndarray]:
 
   The vectors are read off a reset to each goal, as the environment reports them.
   """
-  import metaworld  # pylint: disable=g-import-not-at-top
-  tasks = tuple(metaworld.MT1(task, seed=int(mt1_seed)).train_tasks)
+  tasks = metaworld_env.mt1_tasks(task, int(mt1_seed))
   env = metaworld_env.make_env(task, seed=0)
   vectors = np.stack([env.reset(seed=0, options={'goal': t})[1]['goal_vector'] for t in tasks])
   env.close()

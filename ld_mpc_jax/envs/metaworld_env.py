@@ -1,8 +1,8 @@
 """Meta-World v3 environments behind one gymnasium factory.
 
 `make_env(task, seed)` builds Meta-World's own MT1 environment for one task
-(`gym.make('Meta-World/MT1', env_name=task, seed=seed)`), whose 50 goal
-configurations are fixed by `seed`, and wraps it in `MetaWorldWrapper`, which adds
+(what `gym.make('Meta-World/MT1', env_name=task, seed=seed)` builds, with the 50 goal
+configurations fixed by `seed` built once per process), and wraps it in `MetaWorldWrapper`, which adds
 
 * action repeat: one decision = `action_repeat` environment steps, rewards summed;
 * an episode limit counted in ENVIRONMENT steps (`max_episode_steps`);
@@ -18,6 +18,7 @@ Observations are float64 [39] and actions float32 [4] in [-1, 1], as in
 Meta-World.
 """
 
+import functools
 from typing import Any, Dict, List, Optional, Tuple
 
 import gymnasium as gym
@@ -57,6 +58,17 @@ def check_task(task: str) -> str:
         f'Unknown Meta-World task {task!r}. Valid v3 task names are: '
         + ', '.join(names))
   return task
+
+
+@functools.lru_cache(maxsize=64)
+def mt1_tasks(task: str, seed: int) -> Tuple[Any, ...]:
+  """The 50 goal configurations (`metaworld.Task`) of `metaworld.MT1(task, seed=seed)`.
+
+  Built once per process: building them resets a fresh environment 50 times (about a second),
+  and they are immutable. Meta-World draws them from a seeded global NumPy state that it restores.
+  """
+  import metaworld  # pylint: disable=g-import-not-at-top
+  return tuple(metaworld.MT1(check_task(task), seed=int(seed)).train_tasks)
 
 
 class MetaWorldWrapper(gym.Wrapper):
@@ -208,13 +220,22 @@ def make_env(task: str, seed: int, action_repeat: int = 2,
     ValueError: unknown task name (the message lists the valid names).
   """
   check_task(task)
-  import metaworld  # pylint: disable=g-import-not-at-top,unused-import
+  import metaworld  # pylint: disable=g-import-not-at-top
   kwargs = {}
   if render_mode is not None:
     kwargs = dict(render_mode=render_mode, camera_name=camera_name,
                   width=image_size, height=image_size)
-  env = gym.make('Meta-World/MT1', env_name=task, seed=int(seed),
-                 disable_env_checker=True, **kwargs)
+  build = getattr(metaworld, '_init_each_env', None)
+  if build is None:  # A Meta-World without it: its public factory (rebuilds the 50 goals).
+    env = gym.make('Meta-World/MT1', env_name=task, seed=int(seed),
+                   disable_env_checker=True, **kwargs)
+  else:
+    # What gym.make('Meta-World/MT1', env_name=task, seed=seed) builds (metaworld.make_mt_envs,
+    # then gymnasium's order check), with the goal configurations built once per process.
+    from metaworld.env_dict import ALL_V3_ENVIRONMENTS  # pylint: disable=g-import-not-at-top
+    env = gym.wrappers.OrderEnforcing(build(
+        env_cls=ALL_V3_ENVIRONMENTS[task], tasks=list(mt1_tasks(task, int(seed))),
+        seed=int(seed), num_tasks=1, **kwargs))
   return MetaWorldWrapper(env, seed=int(seed), action_repeat=action_repeat,
                           max_episode_steps=max_episode_steps,
                           obs_noise_std=obs_noise_std,
