@@ -37,7 +37,8 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax import checkpointing, evaluation_suite, multitask_eval, tasks
   from ld_mpc_jax.config_checks import validate_config
-  from ld_mpc_jax.train import git_commit, run_evaluation
+  from ld_mpc_jax.run_files import git_commit
+  from ld_mpc_jax.train import run_evaluation
   from experiments.overrides import parse_items, with_overrides
   with cli.one_line_errors():
     seeds = [int(s) for s in _SEEDS.value]

@@ -34,7 +34,7 @@ import numpy as np
 import tqdm
 from tensorboardX import SummaryWriter
 
-from ld_mpc_jax import checkpointing, data, envs, evaluation_suite, train
+from ld_mpc_jax import checkpointing, data, envs, run_files, train
 from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.envs import goals
@@ -158,8 +158,8 @@ class _Run:
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,
                                max_episode_steps=o.episode_steps) for _ in range(o.num_envs)]
-    self.writer = SummaryWriter(os.path.join(workdir, 'tb')) if train._primary() else (
-        train._NoWriter())
+    self.writer = SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary() else (
+        run_files.NoWriter())
     self.metrics = {}
     self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
                          unit='env step', dynamic_ncols=True)
@@ -252,9 +252,9 @@ class _Run:
                episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
                episode_success=float(np.mean([e['success'].any() for e in episodes])),
                env_steps_per_s=steps / seconds)
-    train._append_csv(os.path.join(self.workdir, ONLINE_CSV), row)
+    run_files.append_csv(os.path.join(self.workdir, ONLINE_CSV), row)
     if metrics:  # Losses of the wave's last update, from the first update on.
-      train._append_csv(os.path.join(self.workdir, LOSSES_CSV), dict(env_steps=step, **metrics))
+      run_files.append_csv(os.path.join(self.workdir, LOSSES_CSV), dict(env_steps=step, **metrics))
     for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
       if k != 'acting':
         self.writer.add_scalar(f'online/{k}', v, step)
@@ -271,7 +271,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
   """
   validate_config(config)
   envs.check_task(config.task)
-  commit = train.git_commit()
+  commit = run_files.git_commit()
   run = _Run(config, workdir)
   o, c = config.online, run.counters
   if run.source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.
@@ -295,7 +295,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
       config, run.state.ema_params, c['env_steps'], workdir, run.writer)
   run.writer.close()
   report = _report(run, final, summary, commit)
-  if train._primary():
+  if run_files.primary():
     with open(os.path.join(workdir, 'report.json'), 'w') as f:
       json.dump(report, f, indent=2)
     with open(os.path.join(workdir, 'report.md'), 'w') as f:
@@ -310,7 +310,7 @@ def _report(run: _Run, final, summary, commit) -> Dict[str, Any]:
   curve = [dict(env_steps=int(r['step']), episodes=int(r['episodes']),
                 success_rate=float(r['success_rate']), ci95=[float(r['ci_lo']), float(r['ci_hi'])],
                 mean_return=float(r['mean_return']))
-           for r in train._read_csv(os.path.join(run.workdir, 'eval.csv'))]
+           for r in run_files.read_csv(os.path.join(run.workdir, 'eval.csv'))]
   return {
       'task': config.task, 'mode': 'fine-tune' if run.source is not None else 'from scratch',
       'init_from': config.online.init_from or None,
@@ -325,7 +325,7 @@ def _report(run: _Run, final, summary, commit) -> Dict[str, Any]:
                  'offline_episodes': (run.buffer.offline.num_episodes
                                       if run.buffer.offline is not None else 0)},
       'config': json.loads(config.to_json_best_effort()),
-      'versions': train.versions(), 'git_commit': commit,
+      'versions': run_files.versions(), 'git_commit': commit,
   }
 
 
@@ -355,13 +355,13 @@ def _summary_md(report: Dict[str, Any]) -> str:
 def write_plots(workdir: str) -> None:
   """online.png: success and return against environment steps (training episodes and held-out
   evaluations), and the loss."""
-  waves = train._read_csv(os.path.join(workdir, ONLINE_CSV))
-  if not train._primary() or not waves:
+  waves = run_files.read_csv(os.path.join(workdir, ONLINE_CSV))
+  if not run_files.primary() or not waves:
     return
   import matplotlib
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt
-  evals = train._read_csv(os.path.join(workdir, 'eval.csv'))
+  evals = run_files.read_csv(os.path.join(workdir, 'eval.csv'))
   col = lambda rows, name: np.array([float(r[name]) for r in rows])
   x, ex = col(waves, 'env_steps'), col(evals, 'step')
   fig, axes = plt.subplots(1, 3, figsize=(15, 4))
@@ -374,7 +374,7 @@ def write_plots(workdir: str) -> None:
   axes[0].set_ylabel('success rate'); axes[0].set_ylim(-0.02, 1.02)
   axes[1].plot(x, col(waves, 'episode_return'), '.-', alpha=0.6, label='training episodes')
   axes[1].set_ylabel('episode return')
-  losses = train._read_csv(os.path.join(workdir, LOSSES_CSV))
+  losses = run_files.read_csv(os.path.join(workdir, LOSSES_CSV))
   if losses:
     axes[2].plot(col(losses, 'env_steps'), col(losses, 'loss'), '.-')
     axes[2].set_yscale('log')

@@ -3,9 +3,7 @@
 import csv
 import json
 import os
-import subprocess
 import time
-from importlib import metadata as importlib_metadata
 from typing import Any, Dict
 
 import jax
@@ -16,7 +14,8 @@ import orbax.checkpoint as ocp
 from tensorboardX import SummaryWriter
 import tqdm
 
-from ld_mpc_jax import checkpointing, data, evaluation_suite, multitask_eval, sharding, tasks
+from ld_mpc_jax import (checkpointing, data, evaluation_suite, multitask_eval, run_files,
+                        sharding, tasks)
 from ld_mpc_jax.config_checks import online_enabled, validate_config
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
@@ -42,96 +41,6 @@ def check_config_for_data(config: ml_collections.ConfigDict, dataset: data.Datas
   if dataset.obs_dim != config.obs_dim or dataset.act_dim != config.action_dim:
     raise ValueError(f'config.obs_dim/action_dim ({config.obs_dim}, {config.action_dim}) do not '
                      f'match the dataset ({dataset.obs_dim}, {dataset.act_dim})')
-
-
-def versions() -> Dict[str, str]:
-  out = {}
-  for name in ('jax', 'jaxlib', 'flax', 'optax', 'orbax-checkpoint', 'metaworld', 'mujoco',
-               'numpy'):
-    try:
-      out[name] = importlib_metadata.version(name)
-    except importlib_metadata.PackageNotFoundError:
-      out[name] = None
-  out['device'] = str(jax.devices()[0].device_kind)
-  return out
-
-
-def git_commit() -> str | None:
-  try:
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    return subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=root, capture_output=True,
-                          text=True, check=True).stdout.strip()
-  except (OSError, subprocess.CalledProcessError):
-    return None
-
-
-def _primary() -> bool:
-  """Whether this process writes the run's logs and report (process 0 of a multi-process run).
-
-  Every process trains and evaluates alike; checkpoints are saved by all of them together.
-  """
-  return jax.process_index() == 0
-
-
-class _NoWriter:
-  """SummaryWriter stand-in for processes other than 0."""
-
-  def add_scalar(self, *args, **kwargs):
-    pass
-
-  def close(self):
-    pass
-
-
-def _append_csv(path: str, row: Dict[str, Any]) -> None:
-  if not _primary():
-    return
-  new = not os.path.exists(path)
-  with open(path, 'a', newline='') as f:
-    writer = csv.DictWriter(f, fieldnames=list(row))
-    if new:
-      writer.writeheader()
-    writer.writerow(row)
-
-
-def _read_csv(path: str):
-  if not os.path.exists(path):
-    return []
-  with open(path) as f:
-    return list(csv.DictReader(f))
-
-
-def write_plots(workdir: str) -> None:
-  """losses.png and success.png from metrics.csv and eval.csv (those that exist)."""
-  if not _primary():
-    return
-  import matplotlib
-  matplotlib.use('Agg')
-  import matplotlib.pyplot as plt
-  rows = _read_csv(os.path.join(workdir, 'metrics.csv'))
-  if rows:
-    fig, ax = plt.subplots(figsize=(7, 4))
-    steps = [int(r['step']) for r in rows]
-    for name in rows[0]:
-      if name.startswith('loss'):
-        ax.plot(steps, [float(r[name]) for r in rows], label=name)
-    ax.set_xlabel('update step'); ax.set_ylabel('loss'); ax.set_yscale('log'); ax.legend()
-    fig.tight_layout(); fig.savefig(os.path.join(workdir, 'losses.png'), dpi=100)
-    plt.close(fig)
-  rows = _read_csv(os.path.join(workdir, 'eval.csv'))
-  # Online runs (ld_mpc_jax.online writes online.csv) evaluate at environment steps.
-  x_label = ('environment step' if os.path.exists(os.path.join(workdir, 'online.csv'))
-             else 'update step')
-  if rows:
-    fig, ax = plt.subplots(figsize=(7, 4))
-    steps = np.array([int(r['step']) for r in rows])
-    rate = np.array([float(r['success_rate']) for r in rows])
-    lo, hi = np.array([float(r['ci_lo']) for r in rows]), np.array([float(r['ci_hi']) for r in rows])
-    ax.plot(steps, rate, 'o-', label='planner, held-out goals (EMA params)')
-    ax.fill_between(steps, lo, hi, alpha=0.2, label='95% Wilson interval')
-    ax.set_xlabel(x_label); ax.set_ylabel('success rate'); ax.set_ylim(-0.02, 1.02)
-    ax.legend(); fig.tight_layout(); fig.savefig(os.path.join(workdir, 'success.png'), dpi=100)
-    plt.close(fig)
 
 
 def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
@@ -206,9 +115,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   if online_enabled(config):
     from ld_mpc_jax import online  # pylint: disable=g-import-not-at-top (it imports this module)
     return online.train_online(config, workdir)
-  commit = git_commit()  # The code this process runs: HEAD may move while it trains.
+  commit = run_files.git_commit()  # The code this process runs: HEAD may move while it trains.
   dataset, manager, state, prior_seconds = _prepare(config, workdir)
-  writer = SummaryWriter(os.path.join(workdir, 'tb')) if _primary() else _NoWriter()
+  writer = SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary() else run_files.NoWriter()
   state, timer = _train(config, workdir, dataset, manager, state, prior_seconds, writer)
   evaluated = _final_evaluation(config, sharding.unreplicate(state.ema_params), int(state.step),
                                 workdir, writer)
@@ -216,13 +125,13 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   final, baselines, summary, records = evaluated
   report = _report(config, dataset, state, prior_seconds, timer, final, baselines, summary,
                    commit, records)
-  if _primary():
+  if run_files.primary():
     with open(os.path.join(workdir, 'report.json'), 'w') as f:
       json.dump(report, f, indent=2)
     with open(os.path.join(workdir, 'report.md'), 'w') as f:
       f.write(_summary_md(report))
-  write_plots(workdir)
-  if report['per_task'] and _primary():
+  run_files.write_plots(workdir)
+  if report['per_task'] and run_files.primary():
     multitask_eval.plot(os.path.join(workdir, 'tasks.png'), report['per_task'], report['tasks'])
   report['records'] = records  # Per-episode records: in episodes.csv, not report.json.
   return report
@@ -312,7 +221,7 @@ def _log_metrics(workdir, writer, bar, timer, done, num_steps, metrics, manager)
                   eta_min=f'{eta / 60:.1f}')
   row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
          'steps_per_s': timer.steps_per_s}
-  _append_csv(os.path.join(workdir, 'metrics.csv'), row)
+  run_files.append_csv(os.path.join(workdir, 'metrics.csv'), row)
   for k, v in row.items():
     if k != 'step' and np.isfinite(v):  # steps/s is NaN until the second log.
       writer.add_scalar(f'train/{k}', v, done)
@@ -329,7 +238,7 @@ def _save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
     raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
                              f'good checkpoint is step {manager.latest_step()}.')
   manager.save(done, args=ocp.args.StandardSave(state))  # All processes: orbax coordinates.
-  if not _primary():
+  if not run_files.primary():
     return
   path = os.path.join(workdir, PROGRESS_FILE)
   with open(path + '.tmp', 'w') as f:
@@ -355,7 +264,7 @@ def _final_evaluation(config, params, step, workdir, writer):
   records = evaluate(config, params, workdir, step, modes, splits, config.eval.seeds,
                      config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
   summary = evaluation_suite.summarize(records)
-  if _primary():
+  if run_files.primary():
     _write_records(os.path.join(workdir, 'episodes.csv'), records)
   split = splits[0]
   first = summary[split]['policies']
@@ -384,13 +293,13 @@ def _report(config, dataset, state, prior_seconds, timer, final, baselines, summ
                   'path': config.data.get('path'), 'episodes': dataset.num_episodes,
                   'transitions': dataset.num_transitions},
       'config': json.loads(config.to_json_best_effort()),
-      'versions': versions(), 'git_commit': commit,
+      'versions': run_files.versions(), 'git_commit': commit,
   }
 
 
 def _log_eval(workdir, writer, step, result) -> None:
   lo, hi = result['success_ci95']
-  _append_csv(os.path.join(workdir, 'eval.csv'),
+  run_files.append_csv(os.path.join(workdir, 'eval.csv'),
               {'step': step, 'episodes': result['episodes'],
                'success_rate': result['success_rate'], 'ci_lo': lo, 'ci_hi': hi,
                'mean_return': result['mean_return'],
@@ -399,7 +308,7 @@ def _log_eval(workdir, writer, step, result) -> None:
   writer.add_scalar('eval/mean_return', result['mean_return'], step)
   tqdm.tqdm.write(f"step {step}: planner success {result['success_rate']:.2f} [{lo:.2f}, "
                   f"{hi:.2f}] over {result['episodes']} episodes on held-out goals")
-  write_plots(workdir)
+  run_files.write_plots(workdir)
 
 
 def _periodic_eval(config, params, step, workdir, writer):

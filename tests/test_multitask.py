@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import mt10
-from ld_mpc_jax import checkpointing, train
+from ld_mpc_jax import checkpointing, run_files, train
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.data import multitask
 from ld_mpc_jax.data.dataset import Dataset
@@ -66,7 +66,7 @@ def test_mt10_smoke_trains_checkpoints_resumes_and_evaluates_every_task(tmp_path
   assert train.train_and_evaluate(first, workdir)['steps'] == 2  # Stops at a checkpoint.
   report = train.train_and_evaluate(c, workdir)  # Resumes from step 2, then evaluates.
   assert report['steps'] == 4
-  steps = [int(r['step']) for r in train._read_csv(os.path.join(workdir, 'metrics.csv'))]
+  steps = [int(r['step']) for r in run_files.read_csv(os.path.join(workdir, 'metrics.csv'))]
   assert steps == [2, 4]
   assert report['dataset']['episodes'] == 10  # One tiny episode per task.
   names = list(mt10.MT10_TASKS)
@@ -77,7 +77,7 @@ def test_mt10_smoke_trains_checkpoints_resumes_and_evaluates_every_task(tmp_path
     rates = [s['success_rate'] for s in mode['tasks'].values()]
     assert mode['average']['success_rate'] == pytest.approx(np.mean(rates))
     assert mode['average']['episodes'] == 10
-  rows = train._read_csv(os.path.join(workdir, 'episodes.csv'))
+  rows = run_files.read_csv(os.path.join(workdir, 'episodes.csv'))
   assert len(rows) == 10 * 2 and [r['task'] for r in rows[::2]] == names
   md = open(os.path.join(workdir, 'report.md')).read()
   assert all(f'| {n} |' in md for n in names) and '**average**' in md

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import checkpointing, train
+from ld_mpc_jax import checkpointing, run_files, train
 from ld_mpc_jax.data import replay
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -65,7 +65,7 @@ def test_smoke_run_end_to_end(tmp_path, data_dir):
   for split in report['evaluation'].values():
     assert list(split['policies']) == ['plan', 'actor', 'proposal']
     assert split['paired']['plan vs actor']['n'] == 1
-  rows = train._read_csv(os.path.join(workdir, 'episodes.csv'))
+  rows = run_files.read_csv(os.path.join(workdir, 'episodes.csv'))
   assert len(rows) == 2 * 3 and {r['split'] for r in rows} == {'held_out', 'train'}
   assert report['success_rate'] == float(rows[0]['success'])  # Held-out planner first.
   assert 'McNemar' in open(os.path.join(workdir, 'report.md')).read()
@@ -96,7 +96,7 @@ def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
   assert done.returncode == 0, done.stderr[-2000:]
   with open(os.path.join(workdir, 'report.json')) as f:
     assert json.load(f)['steps'] == 60
-  steps = [int(r['step']) for r in train._read_csv(os.path.join(workdir, 'metrics.csv'))]
+  steps = [int(r['step']) for r in run_files.read_csv(os.path.join(workdir, 'metrics.csv'))]
   assert steps[-1] == 60 and min(steps) <= killed_at
 
 

@@ -1,0 +1,107 @@
+"""Files of a run directory: CSV logs, plots, the TensorBoard writer, provenance.
+
+Only process 0 of a multi-process run writes them (`primary`).
+"""
+
+import csv
+import os
+import subprocess
+from importlib import metadata as importlib_metadata
+from typing import Any, Dict
+
+import jax
+import numpy as np
+
+
+def versions() -> Dict[str, str]:
+  """Versions of the packages a result depends on, and the device kind."""
+  out = {}
+  for name in ('jax', 'jaxlib', 'flax', 'optax', 'orbax-checkpoint', 'metaworld', 'mujoco',
+               'numpy'):
+    try:
+      out[name] = importlib_metadata.version(name)
+    except importlib_metadata.PackageNotFoundError:
+      out[name] = None
+  out['device'] = str(jax.devices()[0].device_kind)
+  return out
+
+
+def git_commit() -> str | None:
+  """The checkout's HEAD commit, or None outside a git checkout."""
+  try:
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=root, capture_output=True,
+                          text=True, check=True).stdout.strip()
+  except (OSError, subprocess.CalledProcessError):
+    return None
+
+
+def primary() -> bool:
+  """Whether this process writes the run's logs and report (process 0 of a multi-process run).
+
+  Every process trains and evaluates alike; checkpoints are saved by all of them together.
+  """
+  return jax.process_index() == 0
+
+
+class NoWriter:
+  """SummaryWriter stand-in for processes other than 0."""
+
+  def add_scalar(self, *args, **kwargs):
+    pass
+
+  def close(self):
+    pass
+
+
+def append_csv(path: str, row: Dict[str, Any]) -> None:
+  """Appends `row` to the CSV at `path`, writing its header first if the file is new."""
+  if not primary():
+    return
+  new = not os.path.exists(path)
+  with open(path, 'a', newline='') as f:
+    writer = csv.DictWriter(f, fieldnames=list(row))
+    if new:
+      writer.writeheader()
+    writer.writerow(row)
+
+
+def read_csv(path: str):
+  """Rows of the CSV at `path` as dicts of strings; [] if it does not exist."""
+  if not os.path.exists(path):
+    return []
+  with open(path) as f:
+    return list(csv.DictReader(f))
+
+
+def write_plots(workdir: str) -> None:
+  """losses.png and success.png from metrics.csv and eval.csv (those that exist)."""
+  if not primary():
+    return
+  import matplotlib
+  matplotlib.use('Agg')
+  import matplotlib.pyplot as plt
+  rows = read_csv(os.path.join(workdir, 'metrics.csv'))
+  if rows:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    steps = [int(r['step']) for r in rows]
+    for name in rows[0]:
+      if name.startswith('loss'):
+        ax.plot(steps, [float(r[name]) for r in rows], label=name)
+    ax.set_xlabel('update step'); ax.set_ylabel('loss'); ax.set_yscale('log'); ax.legend()
+    fig.tight_layout(); fig.savefig(os.path.join(workdir, 'losses.png'), dpi=100)
+    plt.close(fig)
+  rows = read_csv(os.path.join(workdir, 'eval.csv'))
+  # Online runs (ld_mpc_jax.online writes online.csv) evaluate at environment steps.
+  x_label = ('environment step' if os.path.exists(os.path.join(workdir, 'online.csv'))
+             else 'update step')
+  if rows:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    steps = np.array([int(r['step']) for r in rows])
+    rate = np.array([float(r['success_rate']) for r in rows])
+    lo, hi = np.array([float(r['ci_lo']) for r in rows]), np.array([float(r['ci_hi']) for r in rows])
+    ax.plot(steps, rate, 'o-', label='planner, held-out goals (EMA params)')
+    ax.fill_between(steps, lo, hi, alpha=0.2, label='95% Wilson interval')
+    ax.set_xlabel(x_label); ax.set_ylabel('success rate'); ax.set_ylim(-0.02, 1.02)
+    ax.legend(); fig.tight_layout(); fig.savefig(os.path.join(workdir, 'success.png'), dpi=100)
+    plt.close(fig)
