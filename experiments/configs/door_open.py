@@ -29,17 +29,18 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.model.actor_hidden = (128, 128)
     c.objective.hidden = (128, 128)
     c.model.dropout = 0.0  # Short training on plentiful data: dropout only slows fitting.
-    # The fast planner (README, Results): 4 deterministic DDIM steps for the proposal, 1 per
-    # transition, 16 of the 64 candidates from the actor prior, and after the first step of an
-    # episode the proposal warm-started from the shifted previous plan (re-noised to t = 0.5,
-    # 2 denoising steps): 149 of 150 episodes over 3 evaluation seeds, against 128 without it.
+    # The fast planner: 4 deterministic DDIM steps for the proposal, 1 per transition, 16 of the
+    # 64 candidates from the actor prior, and after the first step of an episode the proposal
+    # warm-started from the shifted previous plan (re-noised to t = 0.5, 2 denoising steps).
+    # On earlier code (docs/log.md, before 2026-11-21) the warm start gave 149 of 150 episodes
+    # over 3 evaluation seeds, against 128 without it.
     c.plan.action_steps = 4
     c.plan.dynamics_steps = 1
     c.plan.action_eta = c.plan.dynamics_eta = 0.0
     c.plan.num_prior_candidates = 16
     c.plan.warm_start_steps = 2
     c.plan.warm_start_t = 0.5
-    # 4,000 steps of batch 128 train in about 14 minutes on 2 cores (README, Results).
+    # 4,000 steps of batch 128 took 1,967-4,062 s on the shared 2-core machine (README, Results).
     c.train.batch_size = 128
     c.train.learning_rate = 3e-4
     c.train.num_steps = 4_000
