@@ -97,11 +97,13 @@ def time_calls(fn, params, z, keys, carry_fn=None, carry=None, warmup: int = 2):
   return compiled, compile_s, first_s, latencies
 
 
-def variant_config(base: ml_collections.ConfigDict, model: ml_collections.ConfigDict,
+def variant_config(base: ml_collections.ConfigDict, sizes: ml_collections.ConfigDict,
                    overrides: dict):
-  """base with `model` swapped in and overrides applied -> (config, resolved overrides)."""
+  """base with the network sizes of `sizes` (a preset's config: its `model` and its value and Q
+  heads' `objective.hidden`) and overrides applied -> (config, resolved overrides)."""
   c = ml_collections.ConfigDict(base.to_dict())
-  c.model = ml_collections.ConfigDict(model.to_dict())
+  c.model = ml_collections.ConfigDict(sizes.model.to_dict())
+  c.objective.hidden = sizes.objective.hidden
   resolved = {dotted: value(c) if callable(value) else value
               for dotted, value in overrides.items()}
   return with_overrides(c, resolved), resolved
@@ -228,7 +230,7 @@ def main(argv):
       print('skipping warm_start: this config has no plan.warm_start_steps')
       continue
     for width in _WIDTHS.value:
-      config, resolved = variant_config(base, load_preset(WIDTHS[width]).model, VARIANTS[name])
+      config, resolved = variant_config(base, load_preset(WIDTHS[width]), VARIANTS[name])
       add(run_ldmpc(name, width, config, resolved, _REPEATS.value, _WARMUP.value))
   peak_end = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak at the end: {peak_end:.1f} GFLOP/s')
