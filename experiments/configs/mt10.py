@@ -29,8 +29,8 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset == 'cpu':
     # One agent for ten tasks gets 2.5x the single-task :cpu updates, each of 16 windows per
     # task. An update took 1.32x door_open.py:cpu's in the same benchmark (0.66 s against
-    # 0.50 s, 50 steps each on the shared CPU, docs/mt10.md); door_open.py:cpu's 4,000 steps
-    # take about 14 minutes on 2 quiet cores, so these 10,000 take about 46 minutes.
+    # 0.50 s, 50 steps each on the shared CPU, docs/mt10.md). Seed 0's 10,000 steps took
+    # 7,478 s of training on the shared 2-core machine (docs/mt10.md).
     c.train.batch_size = 160
     c.train.num_steps = 10_000
     c.train.eval_every = 10_000  # Only the final evaluation (ten tasks cost as much as training).
