@@ -1,8 +1,8 @@
 """Meta-World v3 environments behind one gymnasium factory.
 
-`make_env(task, seed)` builds Meta-World's own MT1 environment for one task
-(what `gym.make('Meta-World/MT1', env_name=task, seed=seed)` builds, with the 50 goal
-configurations fixed by `seed` built once per process), and wraps it in `MetaWorldWrapper`, which adds
+`make_env(task, seed)` builds Meta-World's own MT1 environment for one task (what
+`gym.make('Meta-World/MT1', env_name=task, seed=seed)` builds, with the 50 goal configurations
+fixed by `seed` built once per process), and wraps it in `MetaWorldWrapper`, which adds
 
 * action repeat: one decision = `action_repeat` environment steps, rewards summed;
 * an episode limit counted in ENVIRONMENT steps (`max_episode_steps`);
