@@ -74,6 +74,18 @@ def read_csv(path: str):
     return list(csv.DictReader(f))
 
 
+def write_records(path: str, records) -> None:
+  """Per-episode records to the CSV at `path` (episodes.csv), replaced atomically."""
+  task = ['task'] if records and 'task' in records[0] else []  # Multi-task agents' records.
+  fields = ['run'] + task + ['policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id',
+                             'success', 'first_success', 'return', 'length', 'env_steps']
+  with open(path + '.tmp', 'w', newline='') as f:
+    writer = csv.DictWriter(f, fieldnames=fields, extrasaction='ignore')
+    writer.writeheader()
+    writer.writerows(records)
+  os.replace(path + '.tmp', path)
+
+
 def write_plots(workdir: str) -> None:
   """losses.png and success.png from metrics.csv and eval.csv (those that exist)."""
   if not primary():

@@ -1,6 +1,5 @@
 """The main job: data, training, checkpoints, evaluation, metrics, plots and a report."""
 
-import csv
 import json
 import os
 import time
@@ -88,17 +87,6 @@ def evaluation_md_lines(report: Dict[str, Any], lead: str, trained_on: str):
   else:
     lines = ['Not evaluated (eval.episodes = 0).']
   return lines + ['', f"git commit {report['git_commit']}."]
-
-
-def _write_records(path: str, records) -> None:
-  task = ['task'] if records and 'task' in records[0] else []  # Multi-task agents' records.
-  fields = ['run'] + task + ['policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id',
-                             'success', 'first_success', 'return', 'length', 'env_steps']
-  with open(path + '.tmp', 'w', newline='') as f:
-    writer = csv.DictWriter(f, fieldnames=fields, extrasaction='ignore')
-    writer.writeheader()
-    writer.writerows(records)
-  os.replace(path + '.tmp', path)
 
 
 def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
@@ -265,7 +253,7 @@ def _final_evaluation(config, params, step, workdir, writer):
                      config.eval.episodes, run=config.seed, log=tqdm.tqdm.write)
   summary = evaluation_suite.summarize(records)
   if run_files.primary():
-    _write_records(os.path.join(workdir, 'episodes.csv'), records)
+    run_files.write_records(os.path.join(workdir, 'episodes.csv'), records)
   split = splits[0]
   first = summary[split]['policies']
   final = {**first['plan'], 'split': split}
