@@ -2,6 +2,8 @@
 
 import ml_collections
 
+from ld_mpc_jax import tasks
+
 _POSITIVE_INTS = (
     'obs_dim', 'action_dim', 'horizon',
     'model.latent_dim', 'model.encoder_hidden', 'model.width', 'model.num_heads',
@@ -183,13 +185,13 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
 
 def _validate_tasks(config: ml_collections.ConfigDict) -> None:
   """Multi-task configs (ld_mpc_jax.tasks): every batch splits into equal shares per task."""
-  names = tuple(config.get('tasks') or ())
-  if len(names) < 2:
+  if not tasks.is_multitask(config):
     return
-  if config.train.batch_size % len(names):
+  num = tasks.num_tasks(config)
+  if config.train.batch_size % num:
     raise ValueError(f'config.train.batch_size ({config.train.batch_size}) must be a multiple '
-                     f'of the number of tasks ({len(names)}): batches hold equal shares per task')
-  dim = config.model.get('task_dim', 96)
+                     f'of the number of tasks ({num}): batches hold equal shares per task')
+  dim = config.model.get('task_dim', tasks.TASK_DIM)
   if not isinstance(dim, int) or dim < 1:
     raise ValueError(f'config.model.task_dim must be an integer >= 1, got {dim!r}')
   if config.data.get('source', 'metaworld') != 'metaworld':
