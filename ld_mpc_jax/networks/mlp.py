@@ -3,8 +3,17 @@
 from typing import Callable, Sequence
 
 import flax.linen as nn
-import jax
 import jax.numpy as jnp
+
+
+def mish(x: jnp.ndarray) -> jnp.ndarray:
+  """x tanh(softplus(x)), the function of jax.nn.mish, with one exp instead of exp, log1p and
+  tanh: tanh(log(1 + e)) = n / (n + 2) with n = e (e + 2), e = exp(x). XLA:CPU evaluates it
+  faster, forward and backward. Above x = 20 the factor is 1 in float32, so exp is clipped there.
+  """
+  e = jnp.exp(jnp.minimum(x, 20.0))
+  n = e * (e + 2.0)
+  return x * n / (n + 2.0)
 
 
 class MLP(nn.Module):
@@ -17,7 +26,7 @@ class MLP(nn.Module):
   """
   features: Sequence[int]
   activate_final: bool = False
-  activation: Callable[[jnp.ndarray], jnp.ndarray] = jax.nn.mish
+  activation: Callable[[jnp.ndarray], jnp.ndarray] = mish
 
   @nn.compact
   def __call__(self, x: jnp.ndarray) -> jnp.ndarray:

@@ -7,10 +7,11 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-# Sequences up to this length compute attention scores and mixing as broadcast products
-# (element-wise fusions); longer ones as batched matmuls. On XLA:CPU, batched matmuls of
-# [L, 64] x [64, L] per (sequence, head) are much slower than the element-wise form at the
-# planner's lengths (3 tokens in the dynamics, 5 in the proposal); see docs/benchmark.md.
+# Forward-only passes (deterministic=True: planning, EMA targets) of sequences up to this length
+# compute attention scores and mixing as broadcast products (element-wise fusions); longer ones,
+# and training passes, as batched matmuls. On XLA:CPU the element-wise form is faster at the
+# planner's lengths (3 tokens in the dynamics, 5 in the proposal; docs/benchmark.md), but under
+# autodiff its backward pass is slower than the matmuls' (docs/scaling.md, training throughput).
 SHORT_SEQUENCE = 8
 
 
@@ -76,8 +77,8 @@ class SelfAttention(nn.Module):
   unchanged and give the same outputs. What differs is the computation, for speed at the short
   sequences of the planner: Q, K and V come from one [W, 3W] matmul (for every token, also when
   only some queries are wanted), the scores and the mixing are broadcast products for short
-  sequences (see SHORT_SEQUENCE), and dropout on the attention weights is drawn per element
-  rather than broadcast over the batch.
+  sequences in forward-only passes (see SHORT_SEQUENCE), and dropout on the attention weights
+  is drawn per element rather than broadcast over the batch.
 
   Attributes:
     num_heads: attention heads (width must be divisible by it).
@@ -113,7 +114,7 @@ class SelfAttention(nn.Module):
       if mask is not None:
         mask = mask[..., queries, :]
     q = q / math.sqrt(head_dim)
-    if length <= SHORT_SEQUENCE:
+    if length <= SHORT_SEQUENCE and deterministic:
       # scores [..., Lq, Lk, heads], softmax over Lk; mixing unrolled over the Lk keys.
       scores = _sum_last_axis(q[..., :, None, :, :] * k[..., None, :, :, :])
       if mask is not None:
