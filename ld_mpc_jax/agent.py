@@ -5,7 +5,10 @@ Each is one jitted function of (params, obs, key, t, prev) that encodes the obse
 acts, so a decision costs one dispatch. Keys follow a fixed schedule: episode e acts at decision
 t with fold_in(fold_in(key(seed), e.reset_seed), t), whether it runs alone (`make_policy`, the
 `policy(obs) -> action` interface) or with others in lockstep (`BatchAgentPolicy`, one jitted
-call for N environments), so the two give the same episodes.
+call for N environments), so the two give the same episodes. With a device mesh
+(`config.eval.data_parallel`), the N environments are split over the devices
+(`jax.shard_map`), each device acting for its share with replicated parameters; the keys, and
+so the actions, are those of one device.
 """
 
 import json
@@ -13,9 +16,11 @@ from typing import Callable, Optional, Sequence, Tuple
 
 import jax
 import jax.numpy as jnp
+from jax.sharding import Mesh, PartitionSpec
 import ml_collections
 import numpy as np
 
+from ld_mpc_jax import sharding
 from ld_mpc_jax.models import build_networks
 from ld_mpc_jax.planner import make_plan, make_propose
 
@@ -77,13 +82,16 @@ def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
 
 
 def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
-                   chunk: Optional[int] = None) -> Callable:
+                   chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N]).
 
   -> (actions [N, A], sequences [N, H, A]): `jax.lax.map` of the single-environment act over
   the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
   environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
   vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
+  With a `mesh` (sharding.make_mesh), the N environments are split over its devices
+  (`jax.shard_map`; N is padded with inactive rows to a multiple of the device count) and each
+  device maps over its share as above; `params` should be replicated (sharding.replicate).
   """
   act = _make_act_fn(config, mode)
 
@@ -95,12 +103,27 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
     zeros = lambda: jax.tree_util.tree_map(jnp.zeros_like, jax.eval_shape(run))
     return jax.lax.cond(active, run, zeros)
 
+  def local_act(has_prev, params, obs, keys, t, prev, active):
+    n = obs.shape[0]
+    return jax.lax.map(lambda x: one(params, t, has_prev, x), (obs, keys, prev, active),
+                       batch_size=min(chunk or n, n))
+
   def batch_act(params, obs, keys, t, prev, active):
     n = obs.shape[0]
     has_prev = prev is not None
     prev = prev if has_prev else jnp.zeros((n, config.horizon, config.action_dim))
-    return jax.lax.map(lambda x: one(params, t, has_prev, x), (obs, keys, prev, active),
-                       batch_size=min(chunk or n, n))
+    if mesh is None:
+      return local_act(has_prev, params, obs, keys, t, prev, active)
+    pad = -n % mesh.size  # Inactive rows, so that every device gets the same share.
+    grow = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
+    obs, keys, prev = grow(obs), grow(keys), grow(prev)
+    active = jnp.concatenate([active, jnp.zeros(pad, bool)])
+    split, whole = PartitionSpec(sharding.BATCH_AXIS), PartitionSpec()
+    # check_vma off: the replication check of shard_map does not follow the lax.cond above.
+    out = jax.shard_map(lambda *args: local_act(has_prev, *args), mesh=mesh,
+                        in_specs=(whole, split, split, whole, split, split), out_specs=split,
+                        check_vma=False)(params, obs, keys, t, prev, active)
+    return jax.tree_util.tree_map(lambda x: x[:n], out)
 
   return jax.jit(batch_act)
 
@@ -121,24 +144,33 @@ class BatchAgentPolicy:
   Each environment keeps its own previous sequence (warm start), cleared when a wave of
   episodes starts, and its own key schedule (module docstring). `chunk` as in `make_batch_act`;
   `chunk` = 0 instead calls the single-environment act once per active environment (the
-  fastest for the planner on a 2-core CPU, where a K = 64 plan already fills the cores).
+  fastest for the planner on a 2-core CPU, where a K = 64 plan already fills the cores). With a
+  `mesh`, the environments are split over its devices (`make_batch_act`), and `chunk` = 0 maps
+  one environment at a time on each device.
   """
 
   def __init__(self, config: ml_collections.ConfigDict, params, mode: str = 'plan',
-               seed: int = 0, chunk: Optional[int] = None):
-    self.params, self.seed = params, seed
+               seed: int = 0, chunk: Optional[int] = None, mesh: Optional[Mesh] = None):
+    self.seed, self.mesh = seed, mesh
+    self.set_params(params)
+    if mesh is not None:
+      chunk = 1 if chunk == 0 else chunk
     self.warm = uses_prev(config, mode)
     self.per_env = chunk == 0  # One jitted call per environment (the single-env act).
     self.action_dim = config.action_dim
     # One jitted function per setting, compiled once per process; the task name does not change
     # the function, so the tasks of a multi-task agent (tasks.bind) share it.
     spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
-    key = (json.dumps(spec, sort_keys=True, default=str), mode, chunk)
+    key = (json.dumps(spec, sort_keys=True, default=str), mode, chunk, mesh)
     if key not in _BATCH_ACTS:
       _BATCH_ACTS[key] = (make_act(config, mode) if self.per_env
-                          else make_batch_act(config, mode, chunk))
+                          else make_batch_act(config, mode, chunk, mesh))
     self.act = _BATCH_ACTS[key]
     self.keys = self.prev = None
+
+  def set_params(self, params) -> None:
+    """The parameters to act with from now on (replicated over the mesh, if any)."""
+    self.params = params if self.mesh is None else sharding.replicate(params, self.mesh)
 
   def start(self, episodes) -> None:
     self.keys = episode_keys(self.seed, [ep.reset_seed for ep in episodes])

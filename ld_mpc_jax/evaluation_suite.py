@@ -17,7 +17,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax import data, evaluation, stats
+from ld_mpc_jax import data, evaluation, sharding, stats
 from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import online_enabled
 from ld_mpc_jax.envs import goals
@@ -80,13 +80,15 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   """`mode` ('plan', 'actor', 'proposal', 'mppi') on `num_episodes` episodes of one split.
 
   Environments run in lockstep, `config.eval.batch_size` at a time (one jitted call per
-  decision for all of them; the planner maps `config.eval.plan_chunk` environments per vmap).
+  decision for all of them; the planner maps `config.eval.plan_chunk` environments per vmap;
+  with `config.eval.data_parallel` they are split over all devices).
   Returns `evaluation.result`: summary, `records` (one per episode) and timing.
   """
   e = config.eval
   batch = batch_size or (1 if video_path else e.batch_size)
   chunk = e.plan_chunk if mode in ('plan', 'mppi') else None
-  policy = BatchAgentPolicy(config, params, mode, seed=seed, chunk=chunk)
+  mesh = sharding.make_mesh() if e.get('data_parallel', False) else None
+  policy = BatchAgentPolicy(config, params, mode, seed=seed, chunk=chunk, mesh=mesh)
   eps = episodes(config, split, seed, num_episodes)
   records, info = evaluation.run_episodes(
       policy, eps, config.task, batch_size=batch, action_repeat=e.action_repeat,

@@ -34,7 +34,7 @@ import numpy as np
 import tqdm
 from tensorboardX import SummaryWriter
 
-from ld_mpc_jax import checkpointing, data, envs, run_files, train
+from ld_mpc_jax import checkpointing, data, envs, run_files, sharding, train
 from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.envs import goals
@@ -196,8 +196,10 @@ class _Run:
     policy, rng = None, np.random.default_rng([self.config.seed, first, 17])
     if planner:
       self.catch_up()
+      mesh = (sharding.make_mesh() if self.act_config.eval.get('data_parallel', False)
+              else None)
       policy = BatchAgentPolicy(self.act_config, self.state.ema_params, 'plan',
-                                seed=self.config.seed, chunk=o.plan_chunk)
+                                seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
       policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
                     for i, s in enumerate(seeds)])
     obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(self.envs, seeds)])
@@ -217,7 +219,7 @@ class _Run:
       t += 1
       if planner:
         self.catch_up()
-        policy.params = self.state.ema_params
+        policy.set_params(self.state.ema_params)
     self.counters['episodes'] += n
     return planner, [dict(obs=np.asarray(e['obs'], np.float32), action=np.asarray(e['action'], np.float32),
                  reward=np.asarray(e['reward'], np.float32), success=np.asarray(e['success'], bool))

@@ -89,3 +89,53 @@ def test_batch_must_split_evenly_over_devices():
   with pytest.raises(ValueError, match=r'batch_size \(7\) must be a multiple of the number of '
                      r'devices \(2\)'):
     sharding.local_batch_size(7, two)
+
+
+# The batched planner for 3 environments (padded to 4 on the mesh), first decision and warm
+# start, on one device and split over 2: the same actions.
+_PLAN_SCRIPT = r'''
+import json
+import jax
+import numpy as np
+from experiments.configs import door_open
+from ld_mpc_jax import agent, sharding
+from ld_mpc_jax.models import init_params
+
+c = door_open.get_config('smoke')
+params = init_params(c, jax.random.key(0))
+obs = np.random.default_rng(0).normal(size=(3, 39)).astype(np.float32)
+keys = agent.episode_keys(0, [5, 6, 7])
+active = np.array([True, True, False])
+mesh = sharding.make_mesh()
+out = {}
+for name, m in (('one', None), ('two', mesh)):
+  act = agent.make_batch_act(c, 'plan', chunk=1, mesh=m)
+  p = params if m is None else sharding.replicate(params, m)
+  a0, seq = act(p, obs, keys, 0, None, active)
+  a1, _ = act(p, obs, keys, 1, seq, active)
+  out[name] = [np.asarray(a0).tolist(), np.asarray(a1).tolist()]
+  out[name + '_devices'] = len(seq.sharding.device_set)
+# The evaluation's policy object on the mesh (chunk 0: one environment at a time per device).
+policy = agent.BatchAgentPolicy(c, params, 'plan', chunk=0, mesh=mesh)
+policy.keys = keys
+out['policy'] = policy(obs, 0, active).tolist()
+print(json.dumps(out))
+'''
+
+
+@pytest.mark.long
+def test_two_device_batched_planner_gives_the_same_actions():
+  flags = os.environ.get('XLA_FLAGS', '') + ' --xla_force_host_platform_device_count=2'
+  env = dict(os.environ, XLA_FLAGS=flags.strip(), JAX_PLATFORMS='cpu', PYTHONPATH=REPO)
+  done = subprocess.run([sys.executable, '-c', _PLAN_SCRIPT], cwd=REPO, env=env,
+                        capture_output=True, text=True, timeout=600)
+  assert done.returncode == 0, done.stderr[-3000:]
+  out = json.loads(done.stdout.strip().splitlines()[-1])
+  assert out['one_devices'] == 1 and out['two_devices'] == 2
+  one, two = np.asarray(out['one']), np.asarray(out['two'])
+  assert one.shape == (2, 3, 4)
+  np.testing.assert_allclose(two, one, atol=1e-5)
+  np.testing.assert_allclose(out['policy'], one[0], atol=1e-5)
+  assert np.abs(one[:, :2]).max() > 1e-3  # Active environments act ...
+  assert np.all(one[:, 2] == 0.0)  # ... the finished one returns zeros.
+  assert np.abs(one[0, :2] - one[1, :2]).max() > 1e-4  # The warm start changed the decision.

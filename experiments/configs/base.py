@@ -165,6 +165,9 @@ def get_config() -> ml_collections.ConfigDict:
   # batching planners is slower per environment (experiments.benchmark_evaluation: lax.map one
   # at a time 0.56x), so the CPU default is 0; on an accelerator, use a large chunk.
   e.plan_chunk = 0
+  # Split the lockstep environments of evaluation and online acting over all devices
+  # (jax.shard_map over a 1-D mesh, agent.make_batch_act); the parameters replicated.
+  e.data_parallel = False
   e.action_repeat = 2  # TD-MPC2's setting for Meta-World.
   e.max_episode_steps = 500
   e.noise_stds = (0.0, 0.01, 0.05, 0.1)
