@@ -1,9 +1,11 @@
-"""Where the time of one `plan` call goes: XLA ops grouped by network and by kind.
+"""Where the time of one `plan` call (or training update) goes: XLA ops by network and kind.
 
   python -m experiments.profile_plan                          # reference config, 3 traced calls
   python -m experiments.profile_plan --config=door_open.py:cpu --calls=5 --out=profile.json
+  python -m experiments.profile_plan --config=door_open.py:cpu --target=update
 
-Traces `--calls` calls of the jitted plan (random parameters, after compilation and one warm-up)
+Traces `--calls` calls of the jitted plan, or with --target=update of the training update on a
+synthetic batch (random parameters, after compilation and one warm-up)
 with jax.profiler and prints, in ms per call, the time of the XLA ops grouped by network and by
 kind of work (ld_mpc_jax/bench/profiling.py); writes the numbers as JSON with --out. Method:
 docs/benchmark.md.
@@ -22,7 +24,9 @@ from experiments.configs import CONFIG_DIR, resolve_config_arg
 _CONFIG = config_flags.DEFINE_config_file(
     'config', os.path.join(CONFIG_DIR, 'door_open.py'), 'Config file (optionally :preset).',
     lock_config=True)
-_CALLS = flags.DEFINE_integer('calls', 3, 'Traced plan calls (after one warm-up call).')
+_CALLS = flags.DEFINE_integer('calls', 3, 'Traced calls (after one warm-up call).')
+_TARGET = flags.DEFINE_enum('target', 'plan', ['plan', 'update'],
+                            'What to profile: the planner or one training update.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output (optional).')
 
 
@@ -34,7 +38,8 @@ def main(argv):
     validate_config(_CONFIG.value)
     if _CALLS.value < 1:
       raise ValueError(f'--calls must be >= 1, got {_CALLS.value}')
-  result = profiling.profile_plan(_CONFIG.value, _CALLS.value)
+  profile = profiling.profile_plan if _TARGET.value == 'plan' else profiling.profile_update
+  result = profile(_CONFIG.value, _CALLS.value)
   print(profiling.markdown(result))
   if _OUT.value:
     with open(_OUT.value, 'w') as f:

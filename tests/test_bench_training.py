@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -77,3 +78,21 @@ def test_benchmark_training_writes_json(tmp_path):
   bound_ms = e['gflop'] / e['peak_gflops'] * 1e3
   np.testing.assert_allclose(e['bound_ratio'], e['step_ms']['median'] / bound_ms, rtol=1e-9)
   assert os.path.getsize(os.path.splitext(out)[0] + '.md') > 0
+
+
+def test_compare_update_speed_runs_both_checkouts():
+  """This checkout against itself at smoke size: both versions time, ratio printed."""
+  repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+  done = subprocess.run(
+      [sys.executable, '-m', 'experiments.compare_update_speed', f'--baseline={repo}',
+       '--config=door_open.py:smoke', '--steps=2'],
+      cwd=repo, env=dict(os.environ, PYTHONPATH=repo), capture_output=True, text=True,
+      timeout=600)
+  assert done.returncode == 0, done.stderr[-2000:]
+  match = re.search(r'this checkout ([\d.]+) ms, baseline ([\d.]+) ms .* ratio this/baseline '
+                    r'([\d.]+)', done.stdout)
+  assert match and all(float(x) > 0 for x in match.groups())
+  bad = subprocess.run([sys.executable, '-m', 'experiments.compare_update_speed',
+                        '--baseline=/nonexistent'], cwd=repo, capture_output=True, text=True,
+                       env=dict(os.environ, PYTHONPATH=repo), timeout=120)
+  assert bad.returncode == 2 and 'has no ld_mpc_jax package' in bad.stderr

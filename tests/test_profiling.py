@@ -42,3 +42,18 @@ def test_profile_smoke_plan_finds_the_matmuls(smoke_config):
   assert result['ms_per_call'].get('dynamics/matmul', 0) > 0
   assert result['ops_ms'] == pytest.approx(sum(result['ms_per_call'].values()))
   assert '| matmul |' in profiling.markdown(result)
+  assert result['op_events_per_call'] >= result['short_op_events_per_call'] > 0
+  assert 1 <= len(result['thread_busy_ms'])
+
+
+def test_busy_time_is_the_union_of_intervals():
+  assert profiling._busy_us([(0, 10), (5, 12), (20, 25), (21, 22)]) == 17
+  assert profiling._busy_us([]) == 0
+
+
+def test_profile_smoke_update_finds_every_network(smoke_config):
+  result = profiling.profile_update(smoke_config, calls=1)
+  networks = {key.split('/')[0] for key in result['ms_per_call']}
+  assert {'encoder', 'proposal', 'dynamics', 'objective', 'critics', 'actor'} <= networks
+  assert result['ms_per_call'].get('critics/matmul', 0) > 0
+  assert result['wall_ms_median'] > 0
