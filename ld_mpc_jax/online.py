@@ -221,15 +221,16 @@ class _Run:
         self.catch_up()
         policy.set_params(self.state.ema_params)
     self.counters['episodes'] += n
-    return planner, [dict(obs=np.asarray(e['obs'], np.float32), action=np.asarray(e['action'], np.float32),
-                 reward=np.asarray(e['reward'], np.float32), success=np.asarray(e['success'], bool))
-            for e in eps]
+    return planner, [dict(obs=np.asarray(e['obs'], np.float32),
+                          action=np.asarray(e['action'], np.float32),
+                          reward=np.asarray(e['reward'], np.float32),
+                          success=np.asarray(e['success'], bool)) for e in eps]
 
   def checkpoint(self) -> None:
     """The buffer file, then the orbax step (environment steps); older buffer files go."""
     step = self.counters['env_steps']
     self.buffer.save(buffer_path(self.workdir, step), self.counters)
-    train._save_checkpoint(self.workdir, self.manager, self.state, step,
+    train.save_checkpoint(self.workdir, self.manager, self.state, step,
                            self.counters['train_seconds'])
     keep = {f'buffer_{s}.npz' for s in self.manager.all_steps()}
     for name in os.listdir(os.path.join(self.workdir, BUFFER_DIR)):
@@ -238,7 +239,7 @@ class _Run:
 
   def evaluate(self) -> None:
     if self.config.eval.episodes > 0:
-      train._periodic_eval(self.config, self.state.ema_params, self.counters['env_steps'],
+      train.periodic_eval(self.config, self.state.ema_params, self.counters['env_steps'],
                            self.workdir, self.writer)
       write_plots(self.workdir)
 
@@ -293,7 +294,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
         or c['env_steps'] >= o.env_steps):
       run.checkpoint()
   run.bar.close()
-  final, baselines, summary, records = train._final_evaluation(
+  final, baselines, summary, records = train.final_evaluation(
       config, run.state.ema_params, c['env_steps'], workdir, run.writer)
   run.writer.close()
   report = _report(run, final, summary, commit)

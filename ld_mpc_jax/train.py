@@ -105,10 +105,11 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
     return online.train_online(config, workdir)
   commit = run_files.git_commit()  # The code this process runs: HEAD may move while it trains.
   dataset, manager, state, prior_seconds = _prepare(config, workdir)
-  writer = SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary() else run_files.NoWriter()
+  writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
+            else run_files.NoWriter())
   state, timer = _train(config, workdir, dataset, manager, state, prior_seconds, writer)
-  evaluated = _final_evaluation(config, sharding.unreplicate(state.ema_params), int(state.step),
-                                workdir, writer)
+  evaluated = final_evaluation(config, sharding.unreplicate(state.ema_params), int(state.step),
+                               workdir, writer)
   writer.close()
   final, baselines, summary, records = evaluated
   report = _report(config, dataset, state, prior_seconds, timer, final, baselines, summary,
@@ -190,9 +191,9 @@ def _train(config, workdir, dataset, manager, state, prior_seconds, writer):
       _log_metrics(workdir, writer, bar, timer, done, num_steps, jax.device_get(metrics),
                    manager)
     if done % t_cfg.checkpoint_every == 0 or done == num_steps:
-      _save_checkpoint(workdir, manager, state, done, prior_seconds + timer.seconds)
+      save_checkpoint(workdir, manager, state, done, prior_seconds + timer.seconds)
     if config.eval.episodes > 0 and done % t_cfg.eval_every == 0 and done != num_steps:
-      _periodic_eval(config, sharding.unreplicate(state.ema_params), done, workdir, writer)
+      periodic_eval(config, sharding.unreplicate(state.ema_params), done, workdir, writer)
   bar.close()
   manager.wait_until_finished()
   return state, timer
@@ -221,7 +222,7 @@ def _all_finite(tree) -> jax.Array:
                                    jnp.array(True))
 
 
-def _save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
+def save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
   if not bool(_all_finite(state.params)):  # One host sync per checkpoint.
     raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
                              f'good checkpoint is step {manager.latest_step()}.')
@@ -234,7 +235,7 @@ def _save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
   os.replace(path + '.tmp', path)
 
 
-def _final_evaluation(config, params, step, workdir, writer):
+def final_evaluation(config, params, step, workdir, writer):
   """Every policy on every goal split and evaluation seed: (final, baselines, summary, records).
 
   `final` and `baselines` are the first split's (held-out goals by default) planner and other
@@ -299,7 +300,7 @@ def _log_eval(workdir, writer, step, result) -> None:
   run_files.write_plots(workdir)
 
 
-def _periodic_eval(config, params, step, workdir, writer):
+def periodic_eval(config, params, step, workdir, writer):
   result = run_evaluation(config, params, 'plan', config.eval.periodic_episodes,
                           config.eval.seeds[0], split='held_out')
   _log_eval(workdir, writer, step, result)
