@@ -7,8 +7,8 @@ t with fold_in(fold_in(key(seed), e.reset_seed), t), whether it runs alone (`mak
 `policy(obs) -> action` interface) or with others in lockstep (`BatchAgentPolicy`, one jitted
 call for N environments), so the two give the same episodes. With a device mesh
 (`config.eval.data_parallel`), the N environments are split over the devices
-(`jax.shard_map`), each device acting for its share with replicated parameters; the keys, and
-so the actions, are those of one device.
+(`jax.shard_map`), each device acting for its share with replicated parameters; every
+environment keeps its keys, so the actions are those of a single device.
 """
 
 import json
