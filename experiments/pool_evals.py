@@ -5,14 +5,15 @@
 Each file's records count once (a file is one `run`, named by its path, so episodes of different
 checkpoints never pair up). Prints per goal split and policy the pooled successes with a Wilson
 interval and the rate of each file, then exact McNemar tests between policies on the same
-episodes.
+episodes. Multi-task evaluations (records with a `task`) first get the per-task table of
+`multitask_eval`, pooled over the files.
 """
 
 import json
 import sys
 
 from experiments import cli
-from ld_mpc_jax import evaluation_suite
+from ld_mpc_jax import evaluation_suite, multitask_eval
 
 
 def pool(results: list, names: list) -> dict:
@@ -42,6 +43,11 @@ def main(paths: list) -> None:
     results.append(read_json(path))
     if 'records' not in results[-1]:
       cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
+  tasks = list(dict.fromkeys(r['task'] for res in results for r in res['records']
+                             if r.get('task') is not None))
+  if tasks:
+    records = [r for res in results for r in res['records']]
+    print(multitask_eval.markdown(multitask_eval.per_task(records, tasks), tasks))
   print(evaluation_suite.markdown(pool(results, paths)), end='')
 
 

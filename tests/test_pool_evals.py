@@ -28,6 +28,20 @@ def test_pool_counts_records_over_files_and_pairs_within_a_file():
   assert t['p_value'] == pytest.approx(2 / 2 ** 8)
 
 
+def test_main_prints_per_task_table_pooled_over_files(tmp_path, capsys):
+  paths = []
+  for name, outcomes in (('a', [1, 1, 0, 0]), ('b', [1, 0, 0, 0])):
+    res = _result({'plan': outcomes})
+    for r in res['records']:  # Two tasks, two episodes each.
+      r['task'], r['episode'] = ('reach-v3', 'push-v3')[r['episode'] // 2], r['episode'] % 2
+    paths.append(tmp_path / f'{name}.json')
+    paths[-1].write_text(json.dumps(res))
+  pool_evals.main([str(p) for p in paths])
+  out = capsys.readouterr().out
+  assert '| reach-v3 | 3/4 = 0.75' in out and '| push-v3 | 0/4 = 0.00' in out
+  assert '**average** | **0.38**' in out
+
+
 def test_main_rejects_files_without_records(tmp_path, capsys):
   path = tmp_path / 'old.json'
   path.write_text(json.dumps({'modes': {'plan': {'success_rate': 1.0}}}))
