@@ -158,7 +158,7 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics) -> Cal
     # [num_values, n B, H+1]; the loss is the mean over both sets.
     z_sets = (z_t,) if z_model is None else (z_t, z_model)
     v_all = apply(params, jnp.concatenate(z_sets, axis=0), method=Critics.value)
-    v = v_all[:, :z.shape[0]]  # [num_values, B, H+1], on the encoder's latents.
+    v = v_all[:, :z_t.shape[0]]  # [num_values, B, H+1], on the encoder's latents.
     l_v = jnp.mean(expectile_loss(jnp.concatenate([q_ema] * len(z_sets), axis=0) - v_all,
                                   o.expectile))
     advantage = o.value_scale * (q_ema - sg(jnp.mean(v, axis=0)))  # reward units
