@@ -43,10 +43,11 @@ def main(paths: list) -> None:
     results.append(read_json(path))
     if 'records' not in results[-1]:
       cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
-  tasks = list(dict.fromkeys(r['task'] for res in results for r in res['records']
-                             if r.get('task') is not None))
-  if tasks:
-    records = [r for res in results for r in res['records']]
+  records = [r for res in results for r in res['records']]
+  tasks = list(dict.fromkeys(r.get('task') for r in records))
+  if len(tasks) > 1 and None in tasks:
+    cli.fail('the files mix multi-task and single-task evaluations')
+  if tasks != [None]:
     print(multitask_eval.markdown(multitask_eval.per_task(records, tasks), tasks))
   print(evaluation_suite.markdown(pool(results, paths)), end='')
 

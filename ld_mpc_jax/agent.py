@@ -169,8 +169,12 @@ class BatchAgentPolicy:
     self.keys = self.prev = None
 
   def set_params(self, params) -> None:
-    """The parameters to act with from now on (replicated over the mesh, if any)."""
-    self.params = params if self.mesh is None else sharding.replicate(params, self.mesh)
+    """The parameters to act with from now on (replicated over the mesh, if any; copied to
+    the devices only when they are new parameters)."""
+    if self.mesh is None:
+      self.params = params
+    elif params is not getattr(self, '_source', None):
+      self._source, self.params = params, sharding.replicate(params, self.mesh)
 
   def start(self, episodes) -> None:
     self.keys = episode_keys(self.seed, [ep.reset_seed for ep in episodes])

@@ -154,13 +154,12 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics) -> Cal
     q = apply(params, z_t, action, method=Critics.q_value)  # [num_q, B, H+1]
     l_q = jnp.mean((q - q_target) ** 2)
     q_ema = sg(jnp.min(apply(target_params, ze_t, action, method=Critics.q_value), axis=0))
-    # V on the encoder's latents and, where given, on the model's, in one batched call:
-    # [num_values, n B, H+1]; the loss is the mean over both sets.
+    # V on the encoder's latents and, where given, on the model's, in one call on a new leading
+    # axis: [num_values, n, B, H+1]; the loss is the mean over both sets.
     z_sets = (z_t,) if z_model is None else (z_t, z_model)
-    v_all = apply(params, jnp.concatenate(z_sets, axis=0), method=Critics.value)
-    v = v_all[:, :z_t.shape[0]]  # [num_values, B, H+1], on the encoder's latents.
-    l_v = jnp.mean(expectile_loss(jnp.concatenate([q_ema] * len(z_sets), axis=0) - v_all,
-                                  o.expectile))
+    v_all = apply(params, jnp.stack(z_sets), method=Critics.value)
+    v = v_all[:, 0]  # [num_values, B, H+1], on the encoder's latents.
+    l_v = jnp.mean(expectile_loss(q_ema - v_all, o.expectile))
     advantage = o.value_scale * (q_ema - sg(jnp.mean(v, axis=0)))  # reward units
     weights = awr_weights(advantage, o.awr_temperature, o.awr_max_weight)
     metrics: Dict[str, jnp.ndarray] = {

@@ -14,6 +14,7 @@ import json
 import os
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
+import jax
 import ml_collections
 import numpy as np
 
@@ -87,7 +88,8 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   e = config.eval
   batch = batch_size or (1 if video_path else e.batch_size)
   chunk = e.plan_chunk if mode in ('plan', 'mppi') else None
-  mesh = sharding.make_mesh() if e.get('data_parallel', False) else None
+  # This process's devices: with several processes, each runs its own evaluation.
+  mesh = sharding.make_mesh(jax.local_devices()) if e.get('data_parallel', False) else None
   policy = BatchAgentPolicy(config, params, mode, seed=seed, chunk=chunk, mesh=mesh)
   eps = episodes(config, split, seed, num_episodes)
   records, info = evaluation.run_episodes(

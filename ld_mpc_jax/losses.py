@@ -140,23 +140,21 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   def objective_losses(params, target_params, z_sets, z_ema, action, reward, drop):
     """Reward and behaviour-value cross-entropies, averaged over the latent sets z_sets (each
     [B, H+1 or H+2, D]: encoder latents, and the model's when it rolls out), scored together in
-    one batched call of the objective."""
-    n = len(z_sets)
-    tile = lambda x: jnp.concatenate([x] * n, axis=0)  # [B, ...] -> [n B, ...]
-    z_all = jnp.concatenate([z_i[:, :h + 1] for z_i in z_sets], axis=0)
+    one call of the objective on a new leading axis [n, B, ...] (the batch axis stays second,
+    so a data-parallel batch split is not moved)."""
+    z_all = jnp.stack([z_i[:, :h + 1] for z_i in z_sets])  # [n, B, H+1, D]
+    a_all = jnp.broadcast_to(action[:, :h], z_all.shape[:2] + action[:, :h].shape[1:])
     r_logits, v_logits = nets.objective.apply(
-        {'params': params['objective']}, z_all, tile(action[:, :h]), deterministic=False,
-        rngs=drop)
-    l_rew = soft_cross_entropy(r_logits, tile(two_hot(reward[:, :h], m.num_bins, m.vmin,
-                                                      m.vmax))).mean()
+        {'params': params['objective']}, z_all, a_all, deterministic=False, rngs=drop)
+    l_rew = soft_cross_entropy(r_logits, two_hot(reward[:, :h], m.num_bins, m.vmin,
+                                                 m.vmax)).mean()
     if o.value != 'behaviour':
       return l_rew, jnp.zeros(()), jnp.zeros(())
     _, v_tgt_logits = nets.objective.apply({'params': target_params['objective']},
                                            z_ema[:, 1:], action[:, 1:])
     bootstrap = two_hot_decode(v_tgt_logits[:, -1], m.vmin, m.vmax)  # V_ema(z_{H+1}).
     v_target = jax.lax.stop_gradient(n_step_targets(reward, bootstrap, gamma))  # [B, H+1]
-    l_val = soft_cross_entropy(v_logits, tile(two_hot(v_target, m.num_bins, m.vmin,
-                                                      m.vmax))).mean()
+    l_val = soft_cross_entropy(v_logits, two_hot(v_target, m.num_bins, m.vmin, m.vmax)).mean()
     return l_rew, l_val, v_target.mean()
 
   def loss_fn(params, target_params, batch, key):

@@ -196,8 +196,8 @@ class _Run:
     policy, rng = None, np.random.default_rng([self.config.seed, first, 17])
     if planner:
       self.catch_up()
-      mesh = (sharding.make_mesh() if self.act_config.eval.get('data_parallel', False)
-              else None)
+      mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
+              if self.act_config.eval.get('data_parallel', False) else None)
       policy = BatchAgentPolicy(self.act_config, self.state.ema_params, 'plan',
                                 seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
       policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
@@ -231,7 +231,7 @@ class _Run:
     step = self.counters['env_steps']
     self.buffer.save(buffer_path(self.workdir, step), self.counters)
     train.save_checkpoint(self.workdir, self.manager, self.state, step,
-                           self.counters['train_seconds'])
+                          self.counters['train_seconds'])
     keep = {f'buffer_{s}.npz' for s in self.manager.all_steps()}
     for name in os.listdir(os.path.join(self.workdir, BUFFER_DIR)):
       if name.startswith('buffer_') and name not in keep:
@@ -240,7 +240,7 @@ class _Run:
   def evaluate(self) -> None:
     if self.config.eval.episodes > 0:
       train.periodic_eval(self.config, self.state.ema_params, self.counters['env_steps'],
-                           self.workdir, self.writer)
+                          self.workdir, self.writer)
       write_plots(self.workdir)
 
   def log(self, planner: bool, episodes, seconds: float, steps: int) -> None:

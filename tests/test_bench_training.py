@@ -80,6 +80,7 @@ def test_benchmark_training_writes_json(tmp_path):
   assert os.path.getsize(os.path.splitext(out)[0] + '.md') > 0
 
 
+@pytest.mark.long
 def test_compare_update_speed_runs_both_checkouts():
   """This checkout against itself at smoke size: both versions time, ratio printed."""
   repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -92,6 +93,10 @@ def test_compare_update_speed_runs_both_checkouts():
   match = re.search(r'this checkout ([\d.]+) ms, baseline ([\d.]+) ms .* ratio this/baseline '
                     r'([\d.]+)', done.stdout)
   assert match and all(float(x) > 0 for x in match.groups())
+  # The same code from the same state, batch and key: the same first step.
+  diff = re.search(r'max relative difference of the (\d+) shared metrics ([\d.e+-]+)',
+                   done.stdout)
+  assert diff and int(diff.group(1)) > 5 and float(diff.group(2)) < 1e-6
   bad = subprocess.run([sys.executable, '-m', 'experiments.compare_update_speed',
                         '--baseline=/nonexistent'], cwd=repo, capture_output=True, text=True,
                        env=dict(os.environ, PYTHONPATH=repo), timeout=120)

@@ -42,6 +42,17 @@ def test_main_prints_per_task_table_pooled_over_files(tmp_path, capsys):
   assert '**average** | **0.38**' in out
 
 
+def test_main_rejects_a_mix_of_multi_and_single_task_files(tmp_path, capsys):
+  multi = _result({'plan': [1]})
+  multi['records'][0]['task'] = 'reach-v3'
+  paths = [tmp_path / 'multi.json', tmp_path / 'single.json']
+  paths[0].write_text(json.dumps(multi))
+  paths[1].write_text(json.dumps(_result({'plan': [1]})))
+  with pytest.raises(SystemExit) as err:
+    pool_evals.main([str(p) for p in paths])
+  assert err.value.code == 2 and 'mix multi-task and single-task' in capsys.readouterr().err
+
+
 def test_main_rejects_files_without_records(tmp_path, capsys):
   path = tmp_path / 'old.json'
   path.write_text(json.dumps({'modes': {'plan': {'success_rate': 1.0}}}))

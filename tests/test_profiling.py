@@ -43,7 +43,8 @@ def test_profile_smoke_plan_finds_the_matmuls(smoke_config):
   assert result['ops_ms'] == pytest.approx(sum(result['ms_per_call'].values()))
   assert '| matmul |' in profiling.markdown(result)
   assert result['op_events_per_call'] >= result['short_op_events_per_call'] > 0
-  assert 1 <= len(result['thread_busy_ms'])
+  # Each thread is busy at most the wall time of the traced calls and at least one is busy.
+  assert 0 < max(result['thread_busy_ms']) <= result['ops_ms'] + result['unmatched_ms'] + 1e-6
 
 
 def test_busy_time_is_the_union_of_intervals():

@@ -102,6 +102,7 @@ from ld_mpc_jax import agent, sharding
 from ld_mpc_jax.models import init_params
 
 c = door_open.get_config('smoke')
+c.plan.warm_start_steps = 2  # The second decision starts from the first one's plan.
 params = init_params(c, jax.random.key(0))
 obs = np.random.default_rng(0).normal(size=(3, 39)).astype(np.float32)
 keys = agent.episode_keys(0, [5, 6, 7])
@@ -113,7 +114,8 @@ for name, m in (('one', None), ('two', mesh)):
   p = params if m is None else sharding.replicate(params, m)
   a0, seq = act(p, obs, keys, 0, None, active)
   a1, _ = act(p, obs, keys, 1, seq, active)
-  out[name] = [np.asarray(a0).tolist(), np.asarray(a1).tolist()]
+  cold, _ = act(p, obs, keys, 1, None, active)
+  out[name] = [np.asarray(a0).tolist(), np.asarray(a1).tolist(), np.asarray(cold).tolist()]
   out[name + '_devices'] = len(seq.sharding.device_set)
 # The evaluation's policy object on the mesh (chunk 0: one environment at a time per device).
 policy = agent.BatchAgentPolicy(c, params, 'plan', chunk=0, mesh=mesh)
@@ -133,9 +135,11 @@ def test_two_device_batched_planner_gives_the_same_actions():
   out = json.loads(done.stdout.strip().splitlines()[-1])
   assert out['one_devices'] == 1 and out['two_devices'] == 2
   one, two = np.asarray(out['one']), np.asarray(out['two'])
-  assert one.shape == (2, 3, 4)
+  assert one.shape == (3, 3, 4)
   np.testing.assert_allclose(two, one, atol=1e-5)
   np.testing.assert_allclose(out['policy'], one[0], atol=1e-5)
   assert np.abs(one[:, :2]).max() > 1e-3  # Active environments act ...
   assert np.all(one[:, 2] == 0.0)  # ... the finished one returns zeros.
-  assert np.abs(one[0, :2] - one[1, :2]).max() > 1e-4  # The warm start changed the decision.
+  # The previous plans reach every device's share: the warm-started decision differs from a
+  # cold one with the same key.
+  assert np.abs(one[1, :2] - one[2, :2]).max() > 1e-4

@@ -2,9 +2,9 @@
 by kind of work.
 
 `profile_plan(config)` (`profile_update(config)` for the update) traces jitted calls with
-jax.profiler, reads the per-op events of
-the trace and maps each to its HLO instruction's source location (the `op_name` metadata of the
-compiled module): the network (proposal, dynamics, objective, actor) and the kind of work
+jax.profiler, reads the per-op events of the trace and maps each to its HLO instruction's source
+location (the `op_name` metadata of the compiled module): the network (proposal, dynamics,
+objective, actor, encoder, critics) and the kind of work
 (matmul, attention element-wise, LayerNorm, MLP element-wise such as GELU, random numbers,
 other). Op times are summed per op (loop and conditional events, which can span their bodies,
 are left out), so they do not add up exactly to the wall time (loop and dispatch overheads are
@@ -160,14 +160,15 @@ def profile_plan(config, calls: int = 3) -> dict:
 
 def profile_update(config, calls: int = 3) -> dict:
   """As profile_plan, for one training update of `config` on a synthetic batch."""
-  state = {'s': create_train_state(config, jax.random.key(0)), 'i': 0}
+  state = create_train_state(config, jax.random.key(0))
   batch = random_batch(config, config.train.batch_size)
-  compiled = make_update(config).lower(state['s'], batch, jax.random.key(0)).compile()
+  key = jax.random.key(1)
+  compiled = make_update(config).lower(state, batch, key).compile()
 
   def call():  # The update donates its state: carry the new one.
-    state['i'] += 1
-    state['s'], metrics = compiled(state['s'], batch, jax.random.key(state['i']))
-    jax.block_until_ready((state['s'], metrics))
+    nonlocal state
+    state, metrics = compiled(state, batch, key)
+    jax.block_until_ready((state, metrics))
 
   return _profile(compiled, call, calls)
 

@@ -7,11 +7,13 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-# Forward-only passes (deterministic=True: planning, EMA targets) of sequences up to this length
-# compute attention scores and mixing as broadcast products (element-wise fusions); longer ones,
-# and training passes, as batched matmuls. On XLA:CPU the element-wise form is faster at the
-# planner's lengths (3 tokens in the dynamics, 5 in the proposal; docs/benchmark.md), but under
-# autodiff its backward pass is slower than the matmuls' (docs/scaling.md, training throughput).
+# Deterministic passes (deterministic=True: planning, EMA targets, and the training rollout
+# through the dynamics model) of sequences up to this length compute attention scores and
+# mixing as broadcast products (element-wise fusions); longer ones, and passes with dropout on
+# (the training losses' own passes), as batched matmuls. On XLA:CPU the element-wise form is
+# faster at the planner's lengths (3 tokens in the dynamics, 5 in the proposal;
+# docs/benchmark.md); the training update was not slower with its loss passes as matmuls
+# (docs/scaling.md).
 SHORT_SEQUENCE = 8
 
 
@@ -77,7 +79,7 @@ class SelfAttention(nn.Module):
   unchanged and give the same outputs. What differs is the computation, for speed at the short
   sequences of the planner: Q, K and V come from one [W, 3W] matmul (for every token, also when
   only some queries are wanted), the scores and the mixing are broadcast products for short
-  sequences in forward-only passes (see SHORT_SEQUENCE), and dropout on the attention weights
+  sequences in deterministic passes (see SHORT_SEQUENCE), and dropout on the attention weights
   is drawn per element rather than broadcast over the batch.
 
   Attributes:
