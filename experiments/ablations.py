@@ -35,7 +35,7 @@ import numpy as np
 import scipy.stats
 
 from experiments import cli
-from experiments.configs import CONFIG_DIR
+from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
 
 VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant to reuse).
@@ -53,7 +53,7 @@ VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant 
     'ldmpc_guided': ('6 LD-MPC + energy guidance', {'plan.guidance_scale': 0.2}, 'ldmpc'),
 }
 BASELINES = {  # name -> (label, evaluation mode on the 'ldmpc' checkpoints).
-    'actor': ('actor prior alone (BC)', 'actor'),
+    'actor': ('actor prior alone', 'actor'),
     'proposal': ('diffusion proposal alone', 'proposal'),
     'mppi': ('MPPI on the learned model', 'mppi'),
 }
@@ -272,4 +272,5 @@ def main(argv):
 
 
 if __name__ == '__main__':
+  sys.argv = resolve_config_arg(sys.argv)
   app.run(main)

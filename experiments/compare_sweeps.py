@@ -1,6 +1,6 @@
 """Pairs two sweeps of the same task and evaluation episodes: does a config change help?
 
-  python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policy=plan] [--split=held_out]
+  python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policies=plan,actor] [--split=held_out]
 
 A and B are `experiments.sweep` outputs (for example the same preset with and without a config
 override). An episode of A pairs with the episode of B with the same training seed, goal split,
@@ -9,7 +9,6 @@ same seed under each config. Prints both success rates over the paired episodes 
 McNemar test on the discordant pairs, per policy.
 """
 
-import sys
 
 from absl import app, flags
 
@@ -41,9 +40,7 @@ def paired_rows(a: dict, b: dict, policies, split: str) -> list:
 
 def main(argv):
   if len(argv) != 3:
-    print('usage: python -m experiments.compare_sweeps A/sweep.json B/sweep.json',
-          file=sys.stderr)
-    raise SystemExit(2)
+    cli.fail('give two sweep JSONs: python -m experiments.compare_sweeps A/sweep.json B/sweep.json')
   sweeps = [read_json(path) for path in argv[1:]]
   rows = paired_rows(*sweeps, _POLICIES.value, _SPLIT.value)
   if not rows:

@@ -48,8 +48,8 @@ class MT10Agent:
 
   def reset(self, env_mask):
     for i in map(int, env_mask.nonzero()[0]):
-      if self.episode[i] >= 0:
-        self.bar.update(1)
+      if 0 <= self.episode[i] < self.bar.total // len(self.params):
+        self.bar.update(1)  # Only the episodes that count (the first --episodes of each task).
       self.episode[i] += 1
       self.step[i], self.prev[i], self.fresh[i] = 0, None, True
 
@@ -116,7 +116,14 @@ def main(argv):
                                         for n, r in per_task.items()},
                          share_on_train_goals=on_train)
     print(f'{mode}: Meta-World MT10 success {mean:.3f}', flush=True)
+    md = _write(names, step, results)  # After every policy: nothing lost on a crash.
   envs.close()
+  print(md)
+
+
+def _write(names, step, results):
+  """Writes <workdir>/metaworld_mt10.json and .md for the policies so far; returns the table."""
+  from ld_mpc_jax import evaluation_suite
   out = dict(workdir=_WORKDIR.value, step=step, seed=_SEED.value, episodes=_EPISODES.value,
              protocol='metaworld.evaluation.evaluation on gym.make_vec("Meta-World/MT10")',
              results=results)
@@ -136,7 +143,7 @@ def main(argv):
   md = '\n'.join(lines) + '\n'
   with open(os.path.join(_WORKDIR.value, 'metaworld_mt10.md'), 'w') as f:
     f.write(md)
-  print(md)
+  return md
 
 
 if __name__ == '__main__':

@@ -36,8 +36,7 @@ def read_json(path: str) -> dict:
 
 def main(paths: list) -> None:
   if not paths:
-    print(__doc__.strip().splitlines()[0], file=sys.stderr)
-    raise SystemExit(2)
+    cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json B.json ...')
   results = []
   for path in paths:
     results.append(read_json(path))

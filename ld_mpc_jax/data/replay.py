@@ -18,14 +18,14 @@ class ReplayBuffer:
 
   Attributes:
     dataset: the Dataset sampled from.
-    seq_len: T = H + 1 observations per sample.
+    seq_len: T observations per sample (the trainer uses T = H + 2).
     num_windows: number of distinct valid windows.
   """
 
   def __init__(self, dataset: dataset_lib.Dataset, seq_len: int, seed: int = 0):
     if not isinstance(seq_len, (int, np.integer)) or seq_len < 2:
       raise ValueError(
-          f'seq_len must be an integer >= 2 (T = H + 1 observations with at '
+          f'seq_len must be an integer >= 2 (T observations with at '
           f'least one action between them), got {seq_len!r}.')
     self.dataset = dataset
     self.seq_len = int(seq_len)
