@@ -8,8 +8,8 @@ env k is task k of MT10, each resetting to one of its 50 goals drawn at random) 
 episode, at most 500 environment steps, the first --episodes episodes of every task count.
 Meta-World steps once per action; the agent repeats each decision `config.eval.action_repeat`
 times, as in training. Also reports how many counted episodes started on a goal of the training
-data (MT10's goals are not held out). Writes <workdir>/metaworld_mt10.json and .md; where this
-protocol differs from `experiments.train`'s: docs/mt10.md.
+data (MT10's goals are not held out). Writes <workdir>/metaworld_mt10_seed<S>.json and .md (S:
+--seed); where this protocol differs from `experiments.train`'s: docs/mt10.md.
 """
 
 import json
@@ -122,12 +122,13 @@ def main(argv):
 
 
 def _write(names, step, results):
-  """Writes <workdir>/metaworld_mt10.json and .md for the policies so far; returns the table."""
+  """Writes <workdir>/metaworld_mt10_seed<S>.json and .md for the policies so far; returns the md."""
   from ld_mpc_jax import evaluation_suite
+  stem = os.path.join(_WORKDIR.value, f'metaworld_mt10_seed{_SEED.value}')
   out = dict(workdir=_WORKDIR.value, step=step, seed=_SEED.value, episodes=_EPISODES.value,
              protocol='metaworld.evaluation.evaluation on gym.make_vec("Meta-World/MT10")',
              results=results)
-  with open(os.path.join(_WORKDIR.value, 'metaworld_mt10.json'), 'w') as f:
+  with open(stem + '.json', 'w') as f:
     json.dump(out, f, indent=1)
   lines = [f'# Meta-World MT10 protocol, step {step}, MT10 seed {_SEED.value}, '
            f'{_EPISODES.value} episodes per task', '',
@@ -141,7 +142,7 @@ def _write(names, step, results):
   lines.append('| **average** | ' + ' | '.join(f"**{r['success_rate']:.3f}**"
                                               for r in results.values()) + ' | |')
   md = '\n'.join(lines) + '\n'
-  with open(os.path.join(_WORKDIR.value, 'metaworld_mt10.md'), 'w') as f:
+  with open(stem + '.md', 'w') as f:
     f.write(md)
   return md
 
