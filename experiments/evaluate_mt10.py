@@ -122,7 +122,7 @@ def main(argv):
 
 
 def _write(names, step, results):
-  """Writes <workdir>/metaworld_mt10_seed<S>.json and .md for the policies so far; returns the md."""
+  """Writes <workdir>/metaworld_mt10_seed<S>.json and .md (policies so far); returns the md."""
   from ld_mpc_jax import evaluation_suite
   stem = os.path.join(_WORKDIR.value, f'metaworld_mt10_seed{_SEED.value}')
   out = dict(workdir=_WORKDIR.value, step=step, seed=_SEED.value, episodes=_EPISODES.value,
