@@ -1,6 +1,6 @@
 """Pairs two sweeps of the same task and evaluation episodes: does a config change help?
 
-  python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policies=plan,actor] [--split=held_out]
+  python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policies=plan] [--split=train]
 
 A and B are `experiments.sweep` outputs (for example the same preset with and without a config
 override). An episode of A pairs with the episode of B with the same training seed, goal split,
@@ -8,7 +8,6 @@ evaluation seed and episode index: the same goal and reset seed, a checkpoint tr
 same seed under each config. Prints both success rates over the paired episodes and the exact
 McNemar test on the discordant pairs, per policy.
 """
-
 
 from absl import app, flags
 

@@ -14,9 +14,10 @@ data (MT10's goals are not held out). Writes <workdir>/metaworld_mt10_seed<S>.js
 
 import json
 import os
-import sys
 
 from absl import app, flags, logging
+
+from experiments import cli
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training workdir of a multi-task run.')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
@@ -85,22 +86,20 @@ def main(argv):
   try:  # Bad input: one line and exit code 2.
     config = checkpointing.load_config(_WORKDIR.value)
     bad = set(_MODES.value) - set(agent.MODES)
-    if bad or _EPISODES.value < 1:
+    if bad or not _MODES.value or _EPISODES.value < 1:
       raise ValueError(f'--modes must be among {agent.MODES} and --episodes >= 1, got '
                        f'{_MODES.value}, {_EPISODES.value}')
     if not tasks.is_multitask(config):
       raise ValueError(f'{_WORKDIR.value} is a single-task run ({config.task}); MT10 needs a '
                        'multi-task one (config.tasks)')
+    _, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
   except (ValueError, FileNotFoundError) as err:
-    print(f'error: {err}', file=sys.stderr)
-    sys.exit(2)
+    cli.fail(str(err))
   envs = gym.make_vec('Meta-World/MT10', vector_strategy='sync', seed=_SEED.value)
   names = mw_evaluation._get_task_names(envs)  # pylint: disable=protected-access
   missing = [n for n in names if n not in tasks.task_names(config)]
   if missing:
-    print(f'error: the run was not trained on MT10 tasks {missing}', file=sys.stderr)
-    sys.exit(2)
-  _, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
+    cli.fail(f'the run was not trained on MT10 tasks {missing}')
   task_ids = [tasks.task_names(config).index(n) for n in names]
   train_goals = [evaluation_suite.dataset_goals(tasks.task_config(config, k))[0] for k in task_ids]
   results = {}

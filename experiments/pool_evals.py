@@ -36,7 +36,7 @@ def read_json(path: str) -> dict:
 
 def main(paths: list) -> None:
   if not paths:
-    cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json B.json ...')
+    cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json ...')
   results = []
   for path in paths:
     results.append(read_json(path))

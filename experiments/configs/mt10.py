@@ -30,8 +30,8 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     # One agent for ten tasks gets 2.5x the single-task :cpu updates, each of 16 windows per
     # task. An update took 1.32x door_open.py:cpu's in the same benchmark (0.66 s against
     # 0.50 s, 50 steps each on the shared CPU, docs/mt10.md). Training seeds 0, 1 and 2 took
-    # 7,478 s, 5,270 s and 6,199 s for their 10,000 steps on the 2-core machine, each beside
-    # other runs (docs/mt10.md): more than the hour this preset was meant to take.
+    # 7,478 s, 5,270 s and 6,199 s for their 10,000 steps on the 2-core machine, partly beside
+    # other runs (docs/mt10.md): longer than an hour.
     c.train.batch_size = 160
     c.train.num_steps = 10_000
     c.train.eval_every = 10_000  # Only the final evaluation (ten tasks cost as much as training).
