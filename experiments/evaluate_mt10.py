@@ -35,13 +35,13 @@ class MT10Agent:
   on one of the training data's goals (`on_train_goal[i]`, in episode order).
   """
 
-  def __init__(self, config, params, mode, task_ids, train_goals, seed, bar):
+  def __init__(self, config, params, mode, task_ids, train_goals, seed, episodes, bar):
     import jax
     from ld_mpc_jax import agent, tasks
     self.act = agent.make_act(tasks.task_config(config, 0), mode)
     self.params = [tasks.bind(params, k) for k in task_ids]
     self.task_ids, self.train_goals, self.repeat = task_ids, train_goals, config.eval.action_repeat
-    self.key, self.bar = jax.random.key(seed), bar
+    self.key, self.episodes, self.bar = jax.random.key(seed), episodes, bar
     n = len(task_ids)
     self.episode, self.step = [-1] * n, [0] * n
     self.prev, self.action, self.fresh = [None] * n, [None] * n, [True] * n
@@ -49,8 +49,8 @@ class MT10Agent:
 
   def reset(self, env_mask):
     for i in map(int, env_mask.nonzero()[0]):
-      if 0 <= self.episode[i] < self.bar.total // len(self.params):
-        self.bar.update(1)  # Only the episodes that count (the first --episodes of each task).
+      if 0 <= self.episode[i] < self.episodes:
+        self.bar.update(1)  # Only the episodes that count (the first `episodes` of each task).
       self.episode[i] += 1
       self.step[i], self.prev[i], self.fresh[i] = 0, None, True
 
@@ -105,7 +105,8 @@ def main(argv):
   results = {}
   for mode in _MODES.value:
     with tqdm.tqdm(total=len(names) * _EPISODES.value, desc=f'MT10 {mode}') as bar:
-      policy = MT10Agent(config, params, mode, task_ids, train_goals, _SEED.value, bar)
+      policy = MT10Agent(config, params, mode, task_ids, train_goals, _SEED.value,
+                         _EPISODES.value, bar)
       mean, mean_return, per_task, _ = mw_evaluation.evaluation(policy, envs, _EPISODES.value)
     on_train = {n: float(np.mean(policy.on_train_goal[i][:_EPISODES.value]))
                 for i, n in enumerate(names)}
