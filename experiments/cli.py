@@ -1,6 +1,7 @@
 """Launcher helpers: bad input gives one line on stderr and exit code 2, never a traceback."""
 
 import contextlib
+import os
 import sys
 from typing import Iterable, NoReturn, Type
 
@@ -25,3 +26,11 @@ def check_subset(name: str, chosen: Iterable[str], valid: Iterable[str]) -> None
   unknown = sorted(set(chosen) - set(valid))
   if unknown:
     raise ValueError(f'unknown {name} {unknown}; choose from {list(valid)}')
+
+
+def check_new_output(path: str, overwrite: bool) -> None:
+  """ValueError when `path` exists and `overwrite` is off: an earlier result is never replaced
+  silently. Call it before the long work, so that a refusal costs nothing."""
+  if os.path.exists(path) and not overwrite:
+    raise ValueError(f'{path} exists (an earlier result); choose another --out or pass '
+                     '--overwrite')

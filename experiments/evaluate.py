@@ -7,7 +7,8 @@
 Loads <workdir>/config.json and the latest checkpoint (EMA parameters) and runs every policy on
 the same episodes of each goal split and evaluation seed (environments in lockstep, one jitted
 call per decision). Prints pooled success with Wilson intervals and exact McNemar tests between
-policies, and writes the per-episode records and the summary to <workdir>/evaluation.json.
+policies, and writes the per-episode records and the summary to <workdir>/evaluation.json
+(or --out; an existing file is kept unless --overwrite).
 Optionally an observation-noise sweep of the planner (held-out goals) and a short video (mp4 with
 imageio-ffmpeg; rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless machine).
 """
@@ -29,6 +30,7 @@ _NOISE = flags.DEFINE_bool('noise_sweep', False, 'Observation-noise sweep of the
 _VIDEO = flags.DEFINE_bool('video', False, 'Render a 2-episode video of the planner.')
 _OVERRIDE = flags.DEFINE_multi_string('set', [], 'Config override, e.g. plan.action_steps=4.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output (default: <workdir>/evaluation.json).')
+_OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out file.')
 flags.mark_flag_as_required('workdir')
 
 
@@ -42,6 +44,8 @@ def main(argv):
   from experiments.overrides import parse_items, with_overrides
   with cli.one_line_errors():
     seeds = [int(s) for s in _SEEDS.value]
+    path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
+    cli.check_new_output(path, _OVERWRITE.value)
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
     config = with_overrides(config, parse_items(_OVERRIDE.value))
     validate_config(config)
@@ -81,7 +85,6 @@ def main(argv):
     except Exception as err:  # pylint: disable=broad-except
       out['video_error'] = f'{type(err).__name__}: {err}'
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
-  path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
   os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
   with open(path, 'w') as f:
     json.dump(out, f, indent=1)

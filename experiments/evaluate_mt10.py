@@ -9,7 +9,8 @@ episode, at most 500 environment steps, the first --episodes episodes of every t
 Meta-World steps once per action; the agent repeats each decision `config.eval.action_repeat`
 times, as in training. Also reports how many counted episodes started on a goal of the training
 data (MT10's goals are not held out). Writes <workdir>/metaworld_mt10_seed<S>.json and .md (S:
---seed); where this protocol differs from `experiments.train`'s: docs/mt10.md.
+--seed), or --out and the .md beside it, after every policy; an existing file is kept unless
+--overwrite. Where this protocol differs from `experiments.train`'s: docs/mt10.md.
 """
 
 import json
@@ -23,6 +24,9 @@ _WORKDIR = flags.DEFINE_string('workdir', None, 'Training workdir of a multi-tas
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
 _EPISODES = flags.DEFINE_integer('episodes', 50, 'Episodes per task (metaworld default 50).')
 _SEED = flags.DEFINE_integer('seed', 0, "MT10's seed: its goals and resets.")
+_OUT = flags.DEFINE_string('out', None, 'JSON output, .md beside '
+                           '(default: <workdir>/metaworld_mt10_seed<S>.json).')
+_OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out file.')
 flags.mark_flags_as_required(['workdir'])
 
 
@@ -85,6 +89,7 @@ def main(argv):
   from ld_mpc_jax import agent, checkpointing, evaluation_suite, stats, tasks
   try:  # Bad input: one line and exit code 2.
     config = checkpointing.load_config(_WORKDIR.value)
+    cli.check_new_output(_out_path(), _OVERWRITE.value)
     bad = set(_MODES.value) - set(agent.MODES)
     if bad or not _MODES.value or _EPISODES.value < 1:
       raise ValueError(f'--modes must be among {agent.MODES} and --episodes >= 1, got '
@@ -121,10 +126,15 @@ def main(argv):
   print(md)
 
 
+def _out_path():
+  return _OUT.value or os.path.join(_WORKDIR.value, f'metaworld_mt10_seed{_SEED.value}.json')
+
+
 def _write(names, step, results):
-  """Writes <workdir>/metaworld_mt10_seed<S>.json and .md (policies so far); returns the md."""
+  """Writes the JSON output and the .md beside it (policies so far); returns the md."""
   from ld_mpc_jax import evaluation_suite
-  stem = os.path.join(_WORKDIR.value, f'metaworld_mt10_seed{_SEED.value}')
+  stem = os.path.splitext(_out_path())[0]
+  os.makedirs(os.path.dirname(os.path.abspath(stem)), exist_ok=True)
   out = dict(workdir=_WORKDIR.value, step=step, seed=_SEED.value, episodes=_EPISODES.value,
              protocol='metaworld.evaluation.evaluation on gym.make_vec("Meta-World/MT10")',
              results=results)

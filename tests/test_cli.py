@@ -36,3 +36,13 @@ def test_one_line_errors_passes_other_exceptions_through():
   with pytest.raises(KeyError):  # A bug, not bad input: its traceback is kept.
     with cli.one_line_errors():
       raise KeyError('params')
+
+
+def test_an_existing_output_is_kept_unless_overwrite(tmp_path):
+  path = tmp_path / 'evaluation.json'
+  cli.check_new_output(str(path), overwrite=False)  # Free: no error.
+  path.write_text('{"step": 4000}')
+  with pytest.raises(ValueError, match='evaluation.json exists'):
+    cli.check_new_output(str(path), overwrite=False)
+  cli.check_new_output(str(path), overwrite=True)
+  assert path.read_text() == '{"step": 4000}'  # The check itself never touches the file.
