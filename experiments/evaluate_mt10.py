@@ -35,8 +35,10 @@ class MT10Agent:
 
   Environment i acts for task index `task_ids[i]` with `tasks.bind(params, task_ids[i])`; a
   decision is held for `repeat` environment steps; warm starts and decision keys restart with
-  each episode (fold_in(fold_in(key(seed), episode), t)). Records whether each episode started
-  on one of the training data's goals (`on_train_goal[i]`, in episode order).
+  each episode (fold_in(fold_in(key(seed), episode), t)). An environment whose task has its
+  `episodes` counted episodes does not plan any more (zero actions) while the others finish.
+  Records whether each episode started on one of the training data's goals
+  (`on_train_goal[i]`, in episode order).
   """
 
   def __init__(self, config, params, mode, task_ids, train_goals, seed, episodes, bar):
@@ -64,6 +66,8 @@ class MT10Agent:
     from ld_mpc_jax.envs import goals, metaworld_env
     out = np.zeros((len(self.params), 4), np.float32)
     for i, obs in enumerate(observations):
+      if self.episode[i] >= self.episodes:
+        continue  # This task has all its counted episodes: its actions no longer matter.
       if self.fresh[i]:
         vector = metaworld_env.goal_vector(obs)
         self.on_train_goal[i].append(bool(goals.matches(vector, self.train_goals[i])[0]))
