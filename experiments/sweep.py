@@ -5,10 +5,10 @@
 Each training seed runs the main job in <workdir>/seed<N> (default workdir:
 runs/sweep/<config name>_<preset>), resuming whatever is on disk: a finished training is not
 repeated, and finished evaluations are read back from their cache. Every policy is evaluated on
-the same episodes (goal splits x evaluation seeds). Writes <workdir>/sweep.json (summary and
-per-episode records) and sweep.md: per split and policy, success pooled over all episodes with a
-Wilson interval, the rate of each training seed with their mean and standard deviation, and exact
-McNemar tests between policies on the paired episodes.
+the same episodes (goal splits x evaluation seeds). Writes <workdir>/sweep.json (the config and
+its --config.* overrides, summary and per-episode records) and sweep.md, titled with both: per
+split and policy, success pooled over all episodes with a Wilson interval, the rate of each
+training seed with their mean and standard deviation, and exact McNemar tests between policies on the paired episodes.
 """
 
 import json
@@ -66,6 +66,8 @@ def main(argv):
     cli.fail(f'--seeds and --eval_seeds take integers ({err})')
   config_arg = os.path.basename(
       next(a for a in sys.argv if a.startswith('--config='))[len('--config='):])
+  overrides = [a[len('--config.'):] for a in sys.argv if a.startswith('--config.')]
+  label = config_arg + (f' ({", ".join(overrides)})' if overrides else '')
   root = _WORKDIR.value or default_workdir(config_arg)
   records = []
   for seed in seeds:
@@ -76,7 +78,7 @@ def main(argv):
     report = train_and_evaluate(config, os.path.join(root, f'seed{seed}'))
     records.extend(report['records'])
   summary = evaluation_suite.summarize(records)
-  text = (f'# Sweep of {config_arg} over training seeds {", ".join(map(str, seeds))}\n\n'
+  text = (f'# Sweep of {label} over training seeds {", ".join(map(str, seeds))}\n\n'
           f'{config.eval.episodes} episodes per policy, goal split, evaluation seed '
           f'({", ".join(map(str, eval_seeds))}) and training seed; all policies on the same '
           'episodes.\n\n' + pooled_table(summary) + '\nPaired, pooled over all training and '
@@ -88,8 +90,8 @@ def main(argv):
   with open(os.path.join(root, 'sweep.md'), 'w') as f:
     f.write(text)
   with open(os.path.join(root, 'sweep.json'), 'w') as f:
-    json.dump({'config': config_arg, 'seeds': seeds, 'eval_seeds': list(eval_seeds),
-               'summary': summary, 'records': records}, f, indent=1)
+    json.dump({'config': config_arg, 'overrides': overrides, 'seeds': seeds,
+               'eval_seeds': list(eval_seeds), 'summary': summary, 'records': records}, f, indent=1)
   print(text)
   print(f'wrote {root}/sweep.md and sweep.json')
 
