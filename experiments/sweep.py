@@ -8,7 +8,8 @@ repeated, and finished evaluations are read back from their cache. Every policy 
 the same episodes (goal splits x evaluation seeds). Writes <workdir>/sweep.json (the config and
 its --config.* overrides, summary and per-episode records) and sweep.md, titled with both: per
 split and policy, success pooled over all episodes with a Wilson interval, the rate of each
-training seed with their mean and standard deviation, and exact McNemar tests between policies on the paired episodes.
+training seed with their mean and standard deviation, and exact McNemar tests between policies
+on the paired episodes.
 """
 
 import json
