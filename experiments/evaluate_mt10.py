@@ -131,7 +131,10 @@ def main(argv):
 
 
 def _out_path():
-  return _OUT.value or os.path.join(_WORKDIR.value, f'metaworld_mt10_seed{_SEED.value}.json')
+  """The JSON file written: --out (its extension made .json) or the workdir's default."""
+  if _OUT.value:
+    return os.path.splitext(_OUT.value)[0] + '.json'
+  return os.path.join(_WORKDIR.value, f'metaworld_mt10_seed{_SEED.value}.json')
 
 
 def _write(names, step, results):
