@@ -46,3 +46,12 @@ def test_an_existing_output_is_kept_unless_overwrite(tmp_path):
     cli.check_new_output(str(path), overwrite=False)
   cli.check_new_output(str(path), overwrite=True)
   assert path.read_text() == '{"step": 4000}'  # The check itself never touches the file.
+
+
+def test_config_args_in_either_form_come_back_joined_and_resolved():
+  from experiments.configs import CONFIG_DIR, resolve_config_arg
+  argv = ['prog', '--config', 'door_open.py:cpu', '--config.seed', '3', '--config.plan.pessimism',
+          '-0.5', '--config.flag', '--workdir=w', '--config.data.preset=weak']
+  assert resolve_config_arg(argv) == [
+      'prog', f'--config={os.path.join(CONFIG_DIR, "door_open.py")}:cpu', '--config.seed=3',
+      '--config.plan.pessimism=-0.5', '--config.flag', '--workdir=w', '--config.data.preset=weak']
