@@ -1,9 +1,12 @@
 """Pairs two sweeps of the same task and evaluation episodes: does a config change help?
 
   python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policies=plan] [--split=train]
+  python -m experiments.compare_sweeps A/sweep.json A/seed0/eval_x.json,A/seed1/eval_x.json --policies=plan
 
 A and B are `experiments.sweep` outputs (for example the same preset with and without a config
-override). An episode of A pairs with the episode of B with the same training seed, goal split,
+override), or `experiments.evaluate --out` JSONs of the sweep's seed workdirs: several files
+joined by commas count as one side (their records carry the training seed as `run`), e.g.
+`B=runs/x/seed0/eval_k0.json,runs/x/seed1/eval_k0.json` for an evaluation-time override. An episode of A pairs with the episode of B with the same training seed, goal split,
 evaluation seed and episode index: the same goal and reset seed, a checkpoint trained with the
 same seed under each config. Prints both success rates over the paired episodes and the exact
 McNemar test on the discordant pairs, per policy.
@@ -17,6 +20,11 @@ from ld_mpc_jax import stats
 
 _POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'], 'Policies to pair.')
 _SPLIT = flags.DEFINE_string('split', 'held_out', 'Goal split.')
+
+
+def read_side(spec: str) -> dict:
+  """{'records': ...} of one JSON file, or of several joined by commas."""
+  return {'records': [r for path in spec.split(',') for r in read_json(path)['records']]}
 
 
 def paired_rows(a: dict, b: dict, policies, split: str) -> list:
@@ -40,7 +48,7 @@ def paired_rows(a: dict, b: dict, policies, split: str) -> list:
 def main(argv):
   if len(argv) != 3:
     cli.fail('give two sweep JSONs: python -m experiments.compare_sweeps A/sweep.json B/sweep.json')
-  sweeps = [read_json(path) for path in argv[1:]]
+  sweeps = [read_side(side) for side in argv[1:]]
   rows = paired_rows(*sweeps, _POLICIES.value, _SPLIT.value)
   if not rows:
     cli.fail(f'no paired {_SPLIT.value} episodes between {argv[1]} and {argv[2]}')

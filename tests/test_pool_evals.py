@@ -72,3 +72,17 @@ def test_compare_sweeps_pairs_the_same_episodes():
   (row,) = compare_sweeps.paired_rows(a, b, ['plan', 'actor'], 'held_out')
   assert (row['episodes'], row['a'], row['b'], row['a_only'], row['b_only']) == (3, 3, 1, 2, 0)
   assert row['seeds'] == [0, 1] and row['p_value'] == 0.5
+
+
+def test_compare_sweeps_side_of_several_files_pools_their_records(tmp_path):
+  from experiments import compare_sweeps
+  rec = lambda run, success: dict(run=run, split='held_out', eval_seed=0, episode=0,
+                                  policy='plan', success=success)
+  paths = []
+  for run in (0, 1):
+    paths.append(tmp_path / f'seed{run}.json')
+    paths[-1].write_text(json.dumps({'records': [rec(run, run)]}))
+  side = compare_sweeps.read_side(','.join(map(str, paths)))
+  a = {'records': [rec(0, 1), rec(1, 1)]}
+  (row,) = compare_sweeps.paired_rows(a, side, ['plan'], 'held_out')
+  assert (row['episodes'], row['a'], row['b'], row['seeds']) == (2, 2, 1, [0, 1])
