@@ -2,42 +2,69 @@
 
   python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policies=plan] [--split=train]
   python -m experiments.compare_sweeps A/sweep.json A/seed0/eval_x.json,A/seed1/eval_x.json --policies=plan
+  python -m experiments.compare_sweeps A/seed1/episodes.csv runs/online/ft/episodes.csv  # before/after
 
 A and B are `experiments.sweep` outputs (for example the same preset with and without a config
 override), or `experiments.evaluate --out` JSONs of the sweep's seed workdirs: several files
 joined by commas count as one side (their records carry the training seed as `run`), e.g.
-`B=runs/x/seed0/eval_k0.json,runs/x/seed1/eval_k0.json` for an evaluation-time override. An episode of A pairs with the episode of B with the same training seed, goal split,
+`B=runs/x/seed0/eval_k0.json,runs/x/seed1/eval_k0.json` for an evaluation-time override. A run's
+own `episodes.csv` (training or online fine-tuning) is a side too. An episode of A pairs with the episode of B with the same training seed, goal split,
 evaluation seed and episode index: the same goal and reset seed, a checkpoint trained with the
 same seed under each config. Prints both success rates over the paired episodes and the exact
-McNemar test on the discordant pairs, per policy.
+McNemar test on the discordant pairs, per policy. Paired episodes whose recorded goals differ end
+the program with one line: they were not the same episodes.
 """
+
+import os
 
 from absl import app, flags
 
 from experiments import cli
 from experiments.pool_evals import read_json
-from ld_mpc_jax import stats
+from ld_mpc_jax import run_files, stats
 
 _POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'], 'Policies to pair.')
 _SPLIT = flags.DEFINE_string('split', 'held_out', 'Goal split.')
 
 
+_INT_FIELDS = ('run', 'eval_seed', 'episode', 'success')
+
+
+def read_records(path: str) -> list:
+  """The per-episode records of an evaluation JSON or of a run's episodes.csv."""
+  if not path.endswith('.csv'):
+    return read_json(path)['records']
+  if not os.path.exists(path):
+    cli.fail(f'cannot read {path}: no such file')
+  rows = run_files.read_csv(path)
+  for r in rows:
+    r.update({k: int(r[k]) for k in _INT_FIELDS if r.get(k) not in (None, '')})
+  return rows
+
+
 def read_side(spec: str) -> dict:
-  """{'records': ...} of one JSON file, or of several joined by commas."""
-  return {'records': [r for path in spec.split(',') for r in read_json(path)['records']]}
+  """{'records': ...} of one file, or of several joined by commas."""
+  return {'records': [r for path in spec.split(',') for r in read_records(path)]}
 
 
 def paired_rows(a: dict, b: dict, policies, split: str) -> list:
   """One row per policy: episodes, success of A and B on them, McNemar (A only, B only, p)."""
   rows = []
   for policy in policies:
-    pick = lambda sweep: {tuple(r.get(k) for k in stats.EPISODE_KEY): r['success']
+    pick = lambda sweep: {tuple(r.get(k) for k in stats.EPISODE_KEY): r
                           for r in sweep['records']
                           if r['policy'] == policy and r['split'] == split}
     ra, rb = pick(a), pick(b)
     keys = sorted(set(ra) & set(rb))
     if not keys:
       continue
+    for k in keys:
+      goals = ra[k].get('goal_id'), rb[k].get('goal_id')
+      if None not in goals and goals[0] != goals[1]:
+        cli.fail(f'{policy} episode {k}: goal {goals[0]} in A but {goals[1]} in B, so the two '
+                 'sides did not run the same episodes')
+    ra = {k: r['success'] for k, r in ra.items()}
+    rb = {k: r['success'] for k, r in rb.items()}
     test = stats.mcnemar_exact([ra[k] for k in keys], [rb[k] for k in keys])
     rows.append(dict(policy=policy, episodes=len(keys), a=sum(ra[k] for k in keys),
                      b=sum(rb[k] for k in keys), **test,

@@ -47,6 +47,24 @@ def test_unrolled_flops_count_every_iteration_and_keep_values():
   assert 44 * matmul <= grad['total'] <= 44 * matmul + 2000
 
 
+def test_scan_layout_read_off_shapes_matches_jax_counts():
+  """JAX 0.11 dropped num_consts/num_carry from scan's params: the shapes give the same counts."""
+  def f(w, c, xs):
+    def body(carry, x):
+      a, b = carry
+      return (a * w + x[0], b + x[1].sum()), a * x[1]
+    return jax.lax.scan(body, c, xs)
+  args = (jnp.ones(3), (jnp.ones(3), jnp.zeros(())), (jnp.ones((5, 3)), jnp.ones((5, 3))))
+  eqn = next(e for e in jax.make_jaxpr(f)(*args).jaxpr.eqns if e.primitive.name == 'scan')
+  body = getattr(eqn.params['jaxpr'], 'jaxpr', eqn.params['jaxpr'])
+  newer = type('Eqn', (), dict(params={k: v for k, v in eqn.params.items()
+                                       if k not in ('num_consts', 'num_carry')},
+                               invars=eqn.invars, outvars=eqn.outvars))
+  assert training._scan_layout(newer, body) == (len(eqn.invars) - 4, 2)
+  if 'num_consts' in eqn.params:  # This JAX also says so itself.
+    assert training._scan_layout(eqn, body) == (eqn.params['num_consts'], 2)
+
+
 def test_finish_bound_ratio():
   entry = training.finish(dict(step_s=[0.03, 0.01, 0.02], gflop=2.0, devices=2), 100.0)
   assert entry['step_ms'] == dict(median=20.0, min=10.0, max=30.0, n=3)

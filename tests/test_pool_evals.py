@@ -86,3 +86,21 @@ def test_compare_sweeps_side_of_several_files_pools_their_records(tmp_path):
   a = {'records': [rec(0, 1), rec(1, 1)]}
   (row,) = compare_sweeps.paired_rows(a, side, ['plan'], 'held_out')
   assert (row['episodes'], row['a'], row['b'], row['seeds']) == (2, 2, 1, [0, 1])
+
+
+def test_compare_sweeps_reads_episodes_csv_and_refuses_other_goals(tmp_path, capsys):
+  from experiments import compare_sweeps
+  from ld_mpc_jax import run_files
+  rec = lambda ep, success, goal: dict(run=1, policy='plan', split='held_out', eval_seed=0,
+                                       episode=ep, reset_seed=7, goal_id=goal, success=success,
+                                       first_success=0, env_steps=0, length=0, **{'return': 0.0})
+  path = str(tmp_path / 'episodes.csv')
+  run_files.write_records(path, [rec(0, 1, 'g0'), rec(1, 0, 'g1')])
+  side = compare_sweeps.read_side(path)
+  a = {'records': [rec(0, 0, 'g0'), rec(1, 0, 'g1')]}
+  (row,) = compare_sweeps.paired_rows(a, side, ['plan'], 'held_out')
+  assert (row['episodes'], row['a'], row['b'], row['a_only'], row['b_only']) == (2, 0, 1, 0, 1)
+  other = {'records': [rec(0, 0, 'g0'), rec(1, 0, 'gX')]}
+  with pytest.raises(SystemExit) as err:
+    compare_sweeps.paired_rows(other, side, ['plan'], 'held_out')
+  assert err.value.code == 2 and 'goal gX in A but g1 in B' in capsys.readouterr().err

@@ -43,7 +43,7 @@ def _eval_unrolled(jaxpr, consts, *args):
     invals = [read(v) for v in eqn.invars]
     name = eqn.primitive.name
     if name == 'scan':
-      outs = _unroll_scan(eqn.params, invals)
+      outs = _unroll_scan(eqn, invals)
     elif name in _INLINE and _INLINE[name] in eqn.params:
       sub = eqn.params[_INLINE[name]]
       closed = sub if isinstance(sub, jax_core.ClosedJaxpr) else jax_core.ClosedJaxpr(sub, ())
@@ -58,21 +58,36 @@ def _eval_unrolled(jaxpr, consts, *args):
   return [read(v) for v in jaxpr.outvars]
 
 
-def _unroll_scan(params, invals):
+def _scan_layout(eqn, body) -> tuple:
+  """(number of consts, number of carry leaves) among a scan's operands (consts, carry, xs)."""
+  if 'num_consts' in eqn.params:  # JAX <= 0.10 says so.
+    return eqn.params['num_consts'], eqn.params['num_carry']
+  # JAX 0.11 no longer does: read it off the shapes. A carry output has its body output's shape,
+  # a stacked ys output one more leading axis; an xs operand has one more leading axis than its
+  # body input, a const or carry operand the same shape.
+  shape = lambda v: tuple(v.aval.shape)
+  n_carry = sum(shape(o) == shape(b) for o, b in zip(eqn.outvars, body.outvars))
+  n_xs = sum(shape(o) != shape(b) for o, b in zip(eqn.invars, body.invars))
+  return len(eqn.invars) - n_xs - n_carry, n_carry
+
+
+def _unroll_scan(eqn, invals):
   """scan(consts, carry, xs) as `length` applications of its body: (carry..., ys...)."""
-  body, length = params['jaxpr'], params['length']
-  n_consts, n_carry = params['num_consts'], params['num_carry']
+  params, body = eqn.params, eqn.params['jaxpr']
+  length = params['length']
+  body_jaxpr, body_consts = getattr(body, 'jaxpr', body), getattr(body, 'consts', ())
+  n_consts, n_carry = _scan_layout(eqn, body_jaxpr)
   consts, carry = invals[:n_consts], invals[n_consts:n_consts + n_carry]
   xs = invals[n_consts + n_carry:]
   ys = []
   steps = range(length - 1, -1, -1) if params['reverse'] else range(length)
   for i in steps:
-    outs = _eval_unrolled(body.jaxpr, body.consts, *consts, *carry, *[x[i] for x in xs])
+    outs = _eval_unrolled(body_jaxpr, body_consts, *consts, *carry, *[x[i] for x in xs])
     carry, y = outs[:n_carry], outs[n_carry:]
     ys.append(y)
   if params['reverse']:
     ys.reverse()
-  n_ys = len(body.jaxpr.outvars) - n_carry
+  n_ys = len(body_jaxpr.outvars) - n_carry
   stacked = [jnp.stack([y[j] for y in ys]) for j in range(n_ys)]
   return list(carry) + stacked
 
