@@ -15,31 +15,14 @@ McNemar test on the discordant pairs, per policy. Paired episodes whose recorded
 the program with one line: they were not the same episodes.
 """
 
-import os
-
 from absl import app, flags
 
 from experiments import cli
-from experiments.pool_evals import read_json
-from ld_mpc_jax import run_files, stats
+from experiments.pool_evals import read_records
+from ld_mpc_jax import stats
 
 _POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'], 'Policies to pair.')
 _SPLIT = flags.DEFINE_string('split', 'held_out', 'Goal split.')
-
-
-_INT_FIELDS = ('run', 'eval_seed', 'episode', 'success')
-
-
-def read_records(path: str) -> list:
-  """The per-episode records of an evaluation JSON or of a run's episodes.csv."""
-  if not path.endswith('.csv'):
-    return read_json(path)['records']
-  if not os.path.exists(path):
-    cli.fail(f'cannot read {path}: no such file')
-  rows = run_files.read_csv(path)
-  for r in rows:
-    r.update({k: int(r[k]) for k in _INT_FIELDS if r.get(k) not in (None, '')})
-  return rows
 
 
 def read_side(spec: str) -> dict:

@@ -1,8 +1,10 @@
 """Pools evaluation JSONs (experiments.evaluate --out) from per-episode records.
 
   python -m experiments.pool_evals runs/a/evaluation.json runs/b/evaluation.json ...
+  python -m experiments.pool_evals runs/online/ft_seed{0,1,2}/episodes.csv
 
-Each file's records count once (a file is one `run`, named by its path, so episodes of different
+A file is an `experiments.evaluate --out` JSON or a run's own `episodes.csv` (training or online
+fine-tuning). Each file's records count once (a file is one `run`, named by its path, so episodes of different
 checkpoints never pair up). Prints per goal split and policy the pooled successes with a Wilson
 interval and the rate of each file, then exact McNemar tests between policies on the same
 episodes. Multi-task evaluations (records with a `task`) first get the per-task table of
@@ -10,10 +12,11 @@ episodes. Multi-task evaluations (records with a `task`) first get the per-task 
 """
 
 import json
+import os
 import sys
 
 from experiments import cli
-from ld_mpc_jax import evaluation_suite, multitask_eval
+from ld_mpc_jax import evaluation_suite, multitask_eval, run_files
 
 
 def pool(results: list, names: list) -> dict:
@@ -34,14 +37,31 @@ def read_json(path: str) -> dict:
     cli.fail(f'cannot read {path}: {err}')
 
 
+_INT_FIELDS = ('run', 'eval_seed', 'episode', 'reset_seed', 'success', 'first_success',
+               'length', 'env_steps')
+_FLOAT_FIELDS = ('return',)
+
+
+def read_records(path: str) -> list:
+  """The per-episode records of an evaluation JSON or of a run's episodes.csv."""
+  if not path.endswith('.csv'):
+    records = read_json(path).get('records')
+    if records is None:
+      cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
+    return records
+  if not os.path.exists(path):
+    cli.fail(f'cannot read {path}: no such file')
+  rows = run_files.read_csv(path)
+  for r in rows:
+    r.update({k: int(r[k]) for k in _INT_FIELDS if r.get(k) not in (None, '')})
+    r.update({k: float(r[k]) for k in _FLOAT_FIELDS if r.get(k) not in (None, '')})
+  return rows
+
+
 def main(paths: list) -> None:
   if not paths:
     cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json ...')
-  results = []
-  for path in paths:
-    results.append(read_json(path))
-    if 'records' not in results[-1]:
-      cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
+  results = [{'records': read_records(path)} for path in paths]
   records = [r for res in results for r in res['records']]
   tasks = list(dict.fromkeys(r.get('task') for r in records))
   if len(tasks) > 1 and None in tasks:

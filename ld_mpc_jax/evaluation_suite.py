@@ -187,9 +187,11 @@ def markdown(summary: Dict[str, Any]) -> str:
     for mode, p in s['policies'].items():
       lo, hi = p['success_ci95']
       runs = ', '.join(f'{v:.2f}' for v in p['per_run']['rates'].values())
+      speed = p['decisions_per_s']
+      speed = 'not recorded' if np.isnan(speed) else f'{speed:.1f}'
       lines.append(f"| {split} | {POLICY_NAMES.get(mode, mode)} | {p['successes']}/"
                    f"{p['episodes']} = {p['success_rate']:.2f} | [{lo:.2f}, {hi:.2f}] | {runs} | "
-                   f"{p.get('mean_return', float('nan')):.1f} | {p['decisions_per_s']:.1f} |")
+                   f"{p.get('mean_return', float('nan')):.1f} | {speed} |")
   lines += ['', '| goals | comparison | episodes | only the first succeeded | only the second '
             '| McNemar exact p |', '| --- | --- | --- | --- | --- | --- |']
   for split, s in summary.items():

@@ -104,3 +104,17 @@ def test_compare_sweeps_reads_episodes_csv_and_refuses_other_goals(tmp_path, cap
   with pytest.raises(SystemExit) as err:
     compare_sweeps.paired_rows(other, side, ['plan'], 'held_out')
   assert err.value.code == 2 and 'goal gX in A but g1 in B' in capsys.readouterr().err
+
+
+def test_main_reads_a_runs_episodes_csv(tmp_path, capsys):
+  path = tmp_path / 'episodes.csv'
+  rows = ['run,policy,split,eval_seed,episode,reset_seed,goal_id,success,first_success,return,'
+          'length,env_steps']
+  for i, (p, a) in enumerate([(1, 0), (1, 0), (1, 1), (0, 0)]):
+    rows.append(f'0,plan,held_out,0,{i},{i},g{i},{p},,{10.0 * p},50,100')
+    rows.append(f'0,actor,held_out,0,{i},{i},g{i},{a},,2.5,50,100')
+  path.write_text('\n'.join(rows) + '\n')
+  pool_evals.main([str(path)])
+  out = capsys.readouterr().out
+  assert '| held_out | planner | 3/4 = 0.75 |' in out and '| 7.5 | not recorded |' in out
+  assert '| held_out | planner vs actor prior | 4 | 2 | 0 | 0.5 |' in out

@@ -164,3 +164,17 @@ def test_report_summary_states_speed_or_that_nothing_was_trained(steps_per_s, ex
   # 7 episodes only the planner solved, none only the actor: p = 2 / 2^7.
   assert '| held_out | planner vs actor prior | 50 | 7 | 0 | 0.0156 |' in md
   assert 'nan' not in md
+
+
+def test_same_seed_trains_bit_identical_parameters(tmp_path, data_dir):
+  """Two runs of one config and seed on one machine agree to the bit (results can be re-run)."""
+  import jax
+  params = []
+  for name in ('a', 'b'):
+    c = smoke(data_dir, num_steps=3)
+    c.eval.episodes = 0
+    train.train_and_evaluate(c, str(tmp_path / name))
+    params.append(checkpointing.load_for_evaluation(str(tmp_path / name))[1])
+  diffs = jax.tree_util.tree_map(lambda x, y: float(np.max(np.abs(np.asarray(x) - np.asarray(y)))),
+                                 *params)
+  assert max(jax.tree_util.tree_leaves(diffs)) == 0.0
