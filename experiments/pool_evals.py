@@ -4,8 +4,8 @@
   python -m experiments.pool_evals runs/online/ft_seed{0,1,2}/episodes.csv
 
 A file is an `experiments.evaluate --out` JSON or a run's own `episodes.csv` (training or online
-fine-tuning). Each file's records count once (a file is one `run`, named by its path, so episodes of different
-checkpoints never pair up). Prints per goal split and policy the pooled successes with a Wilson
+fine-tuning). Each file's records count once (a file is one `run`, named by its path, so
+episodes of different checkpoints never pair up). Prints per goal split and policy the pooled successes with a Wilson
 interval and the rate of each file, then exact McNemar tests between policies on the same
 episodes. Multi-task evaluations (records with a `task`) first get the per-task table of
 `multitask_eval`, pooled over the files.
