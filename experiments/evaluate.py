@@ -77,11 +77,11 @@ def main(argv):
       print(f"obs noise {std}: planner {pooled['successes']}/{pooled['episodes']} = "
             f"{pooled['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] (held-out goals)")
   if _VIDEO.value:
-    path = os.path.join(_WORKDIR.value, 'planner.mp4')
+    video = os.path.join(_WORKDIR.value, 'planner.mp4')  # Its own name: `path` is the JSON's.
     try:
-      path = run_evaluation(config, params, 'plan', 2, seeds[0], video_path=path)['video_path']
-      out['video'] = path
-      print(f'video: {path}')
+      video = run_evaluation(config, params, 'plan', 2, seeds[0], video_path=video)['video_path']
+      out['video'] = video
+      print(f'video: {video}')
     except Exception as err:  # pylint: disable=broad-except
       out['video_error'] = f'{type(err).__name__}: {err}'
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')

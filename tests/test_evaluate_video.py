@@ -1,0 +1,50 @@
+"""experiments.evaluate --video: the video and evaluation.json each go to their own file."""
+
+import json
+import os
+import subprocess
+import sys
+
+import jax
+
+from ld_mpc_jax import checkpointing, train
+from ld_mpc_jax.train_state import create_train_state
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MARKER = b'not json: a stand-in for the mp4'
+# The launcher with run_evaluation's video path replaced by a marker file (no rendering, so no
+# OpenGL); every other evaluation is the real one.
+_SCRIPT = f"""
+from absl import app
+from ld_mpc_jax import train
+real = train.run_evaluation
+def fake(config, params, mode, num_episodes, seed, video_path=None, **kwargs):
+  if video_path is None:
+    return real(config, params, mode, num_episodes, seed, **kwargs)
+  with open(video_path, 'wb') as f:
+    f.write({MARKER!r})
+  return dict(video_path=video_path)
+train.run_evaluation = fake
+from experiments import evaluate
+app.run(evaluate.main)
+"""
+
+
+def test_video_and_json_are_separate_files(tmp_path, smoke_config):
+  workdir = str(tmp_path / 'run')
+  checkpointing.save_config(smoke_config, workdir)
+  state = create_train_state(smoke_config, jax.random.key(0))
+  train.save_checkpoint(workdir, checkpointing.checkpoint_manager(workdir), state, 1, 0.0)
+  done = subprocess.run(
+      [sys.executable, '-c', _SCRIPT, f'--workdir={workdir}', '--video', '--modes=actor',
+       '--splits=held_out', '--episodes=1'],
+      cwd=REPO, capture_output=True, text=True, timeout=300,
+      env=dict(os.environ, PYTHONPATH=REPO))
+  assert done.returncode == 0, done.stderr[-3000:]
+  video = os.path.join(workdir, 'planner.mp4')
+  with open(video, 'rb') as f:
+    assert f.read() == MARKER  # Not overwritten by the JSON.
+  with open(os.path.join(workdir, 'evaluation.json')) as f:
+    out = json.load(f)
+  assert out['video'] == video and 'video_error' not in out
+  assert out['records'] and out['step'] == 0  # The state's own step
