@@ -2,6 +2,7 @@
 
 import contextlib
 import os
+import re
 import sys
 from typing import Iterable, NoReturn, Type
 
@@ -34,3 +35,19 @@ def check_new_output(path: str, overwrite: bool) -> None:
   if os.path.exists(path) and not overwrite:
     raise ValueError(f'{path} exists (an earlier result); choose another --out or pass '
                      '--overwrite')
+
+
+def parse_flags(argv):
+  """absl's flag parsing for `app.run(main, flags_parser=parse_flags)`, a bad flag failing in one
+  line. A config file's own error (an unknown :preset) is reported without the traceback that
+  ml_collections wraps into the flag error."""
+  from absl import flags  # pylint: disable=g-import-not-at-top
+  try:
+    return flags.FLAGS(argv)
+  except flags.Error as err:
+    cause = err
+    while cause.__cause__ or cause.__context__:
+      cause = cause.__cause__ or cause.__context__
+    name = re.match(r'flag (--[\w.-]+)', str(err))
+    message = f'{name.group(1)}: {cause}' if name and cause is not err else str(err)
+    fail(' '.join(message.split()))  # One line.

@@ -18,6 +18,7 @@ import sys
 from absl import app, flags, logging
 from ml_collections import config_flags
 
+from experiments import cli
 from experiments.configs import resolve_config_arg
 
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
@@ -50,9 +51,8 @@ def main(argv):
     if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
       from ld_mpc_jax.online import check_init_from
       check_init_from(_CONFIG.value)
-  except ValueError as err:
-    print(f'error: {err}', file=sys.stderr)
-    sys.exit(2)
+  except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
+    cli.fail(' '.join(str(err).split()))
   try:
     train_and_evaluate(_CONFIG.value, _WORKDIR.value)
   except DatasetError as err:  # Data that do not fit the config: also one line.
@@ -64,4 +64,4 @@ def main(argv):
 
 if __name__ == '__main__':
   sys.argv = resolve_config_arg(sys.argv)
-  app.run(main)
+  app.run(main, flags_parser=cli.parse_flags)  # A bad flag or :preset: one line, exit code 2.

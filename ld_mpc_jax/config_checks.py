@@ -181,6 +181,38 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   if not o.init_from and o.seed_steps < 1:
     raise ValueError('config.online.seed_steps must be >= 1 from scratch (no online.init_from): '
                      'the first updates need seed episodes')
+  check_online_budget(config)
+
+
+def check_online_budget(config: ml_collections.ConfigDict) -> None:
+  """ValueError when config.train.batch_size exceeds the windows of an online run's first update.
+
+  From scratch, the first update samples the seed episodes alone: the random-action waves of
+  `online.num_envs` full-length episodes (`online.episode_steps` environment steps,
+  ceil(episode_steps / eval.action_repeat) decisions) that start before `online.seed_steps`
+  environment steps; each episode of D decisions holds D - horizon windows of horizon + 2
+  observations (`train.window_length`, `data.ReplayBuffer`). No check when no update is ever made,
+  nor with `online.init_from`, whose offline dataset `train.check_config_for_data` checks.
+  """
+  o, batch = config.online, config.train.batch_size
+  if o.init_from or not o.update_ratio:
+    return
+  wave = o.num_envs * o.episode_steps  # Environment steps per wave (success ends no episode).
+  waves = -(-o.seed_steps // wave)
+  if waves * wave >= o.env_steps:  # The run ends before its first update.
+    return
+  decisions = -(-o.episode_steps // config.eval.action_repeat)
+  episodes = waves * o.num_envs
+  windows = episodes * max(decisions - config.horizon, 0)
+  if batch > windows:
+    raise ValueError(
+        f'config.train.batch_size ({batch}) is larger than the replay buffer at the first '
+        f'update: {windows} windows of {config.horizon + 2} observations in {episodes} seed '
+        f'episodes (config.online.seed_steps={o.seed_steps} gives {waves} wave(s) of '
+        f'config.online.num_envs={o.num_envs} episodes of config.online.episode_steps='
+        f'{o.episode_steps} environment steps, {decisions} decisions at '
+        f'config.eval.action_repeat={config.eval.action_repeat}, config.horizon='
+        f'{config.horizon}); lower the batch size or raise online.seed_steps')
 
 
 def _validate_tasks(config: ml_collections.ConfigDict) -> None:

@@ -49,10 +49,15 @@ PRESETS: Dict[str, Sequence[Dict[str, float]]] = {
 COLLECTOR_VERSION = 2
 
 
+def check_preset(preset: str, name: str = 'preset') -> None:
+  """One-line ValueError naming `name` when `preset` is not one of PRESETS."""
+  if preset not in PRESETS:
+    raise ValueError(f'unknown {name} {preset!r}; valid: {sorted(PRESETS)}')
+
+
 def level_assignment(preset: str, episodes: int, seed: int) -> np.ndarray:
   """int64 [episodes]: the PRESETS level index of each episode (shuffled)."""
-  if preset not in PRESETS:
-    raise ValueError(f'Unknown preset {preset!r}; valid: {sorted(PRESETS)}.')
+  check_preset(preset)
   fractions = np.array([lvl['fraction'] for lvl in PRESETS[preset]])
   counts = np.floor(fractions * episodes).astype(np.int64)
   remainder = fractions * episodes - counts

@@ -43,6 +43,8 @@ def check_source(config: ml_collections.ConfigDict) -> None:
       raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
                        'pattern or directory)')
     tdmpc2.from_metaworld_v3(config.task)
+  else:  # Scripted data, collected at this preset (one task or each of config.tasks).
+    collection.check_preset(config.data.preset, 'config.data.preset')
 
 
 @functools.lru_cache(maxsize=2)
