@@ -74,8 +74,8 @@ class MT10Agent:
         self.fresh[i] = False
       if self.step[i] % self.repeat == 0:
         key = jax.random.fold_in(self.key, self.episode[i])
-        action, self.prev[i] = self.act(self.params[i], np.asarray(obs, np.float32), key,
-                                        self.step[i] // self.repeat, self.prev[i])
+        action, self.prev[i], _ = self.act(self.params[i], np.asarray(obs, np.float32), key,
+                                           self.step[i] // self.repeat, self.prev[i])
         self.action[i] = np.asarray(action)
       out[i] = self.action[i]
       self.step[i] += 1

@@ -27,32 +27,41 @@ from ld_mpc_jax.planner import make_plan, make_propose
 MODES = ('plan', 'actor', 'proposal', 'mppi')
 
 
+# What a decision reports beside its action: int32 [3] = (kind of the winning candidate, an
+# index into search.CANDIDATE_KINDS or -1 for policies that do not plan; the refinement round it
+# came from; 1 if the planner departed from the actor prior's own sequence, else 0).
+NO_PLAN_INFO = (-1, 0, 0)
+
+
 def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
-  """act(params, obs [obs_dim], key, prev) -> (action [A], sequence [H, A]), not jitted."""
+  """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [3]),
+  not jitted. `noise`: std of Gaussian noise on the planner's executed action (acting only)."""
   nets = build_networks(config)
   encode = lambda params, obs: nets.encoder.apply({'params': params['encoder']}, obs)
+  no_plan = jnp.asarray(NO_PLAN_INFO, jnp.int32)
   if mode == 'plan':
     plan = make_plan(config)
-    def act(params, obs, key, prev):
-      out = plan(params, encode(params, obs), key, prev)
-      return out.action, out.sequence
+    def act(params, obs, key, prev, noise):
+      out = plan(params, encode(params, obs), key, prev, noise)
+      info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32)])
+      return out.action, out.sequence, info
   elif mode == 'actor':
-    def act(params, obs, key, prev):
+    def act(params, obs, key, prev, noise):
       a = nets.actor.apply({'params': params['actor']}, encode(params, obs))
-      return a, jnp.broadcast_to(a, (config.horizon,) + a.shape)
+      return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), no_plan
   elif mode == 'mppi':
     from ld_mpc_jax.mppi import make_ldmpc_mppi
     mppi_plan = make_ldmpc_mppi(config)
-    def act(params, obs, key, prev):
+    def act(params, obs, key, prev, noise):
       out = mppi_plan(params, encode(params, obs), key, prev)
-      return out.action, out.mean
+      return out.action, out.mean, no_plan
   elif mode == 'proposal':
     propose = make_propose(config, nets)
-    def act(params, obs, key, prev):
+    def act(params, obs, key, prev, noise):
       seq = jnp.clip(propose(params, encode(params, obs), key, 1)[0], -1.0, 1.0)
       if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
         seq = jnp.repeat(seq, config.horizon, axis=0)
-      return seq[0], seq
+      return seq[0], seq, no_plan
   else:
     raise ValueError(f'mode must be one of {MODES}, got {mode!r}')
   return act
@@ -64,15 +73,18 @@ def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
 
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
-  """Returns jitted act(params, obs [obs_dim], key, t [], prev) -> (action [A], sequence [H, A]).
+  """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0) -> (action [A],
+  sequence [H, A], info [3] int32: NO_PLAN_INFO's fields).
 
   The decision's key is fold_in(key, t). `prev` is the previous decision's sequence (or None at
   the start of an episode); only the planner with `plan.warm_start_steps` > 0 and MPPI (its
   Gaussian mean) use it. `sequence` is what to pass as the next `prev`.
   """
   act = _make_act_fn(config, mode)
-  return jax.jit(lambda params, obs, key, t, prev: act(params, obs, jax.random.fold_in(key, t),
-                                                       prev))
+  jitted = jax.jit(lambda params, obs, key, t, prev, noise: act(
+      params, obs, jax.random.fold_in(key, t), prev, noise))
+  return lambda params, obs, key, t, prev, noise=0.0: jitted(
+      params, obs, key, t, prev, jnp.asarray(noise, jnp.float32))
 
 
 def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
@@ -83,9 +95,9 @@ def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
 
 def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
                    chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
-  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N]).
+  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise []).
 
-  -> (actions [N, A], sequences [N, H, A]): `jax.lax.map` of the single-environment act over
+  -> (actions [N, A], sequences [N, H, A], infos [N, 3]): `jax.lax.map` of the single-environment act over
   the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
   environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
   vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
@@ -95,25 +107,26 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
   """
   act = _make_act_fn(config, mode)
 
-  def one(params, t, has_prev, inputs):
+  def one(params, t, noise, has_prev, inputs):
     obs, key, prev, active = inputs
     key = jax.random.fold_in(key, t)
     prev = prev if has_prev else None
-    run = lambda: act(params, obs, key, prev)
+    run = lambda: act(params, obs, key, prev, noise)
     zeros = lambda: jax.tree_util.tree_map(jnp.zeros_like, jax.eval_shape(run))
     return jax.lax.cond(active, run, zeros)
 
-  def local_act(has_prev, params, obs, keys, t, prev, active):
+  def local_act(has_prev, params, obs, keys, t, prev, active, noise):
     n = obs.shape[0]
-    return jax.lax.map(lambda x: one(params, t, has_prev, x), (obs, keys, prev, active),
+    return jax.lax.map(lambda x: one(params, t, noise, has_prev, x), (obs, keys, prev, active),
                        batch_size=min(chunk or n, n))
 
-  def batch_act(params, obs, keys, t, prev, active):
+  def batch_act(params, obs, keys, t, prev, active, noise=0.0):
+    noise = jnp.asarray(noise, jnp.float32)
     n = obs.shape[0]
     has_prev = prev is not None
     prev = prev if has_prev else jnp.zeros((n, config.horizon, config.action_dim))
     if mesh is None:
-      return local_act(has_prev, params, obs, keys, t, prev, active)
+      return local_act(has_prev, params, obs, keys, t, prev, active, noise)
     pad = -n % mesh.size  # Inactive rows, so that every device gets the same share.
     grow = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
     obs, keys, prev = grow(obs), grow(keys), grow(prev)
@@ -121,8 +134,9 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
     split, whole = PartitionSpec(sharding.BATCH_AXIS), PartitionSpec()
     # check_vma off: the replication check of shard_map does not follow the lax.cond above.
     out = jax.shard_map(lambda *args: local_act(has_prev, *args), mesh=mesh,
-                        in_specs=(whole, split, split, whole, split, split), out_specs=split,
-                        check_vma=False)(params, obs, keys, t, prev, active)
+                        in_specs=(whole, split, split, whole, split, split, whole),
+                        out_specs=split, check_vma=False)(params, obs, keys, t, prev, active,
+                                                          noise)
     return jax.tree_util.tree_map(lambda x: x[:n], out)
 
   return jax.jit(batch_act)
@@ -134,7 +148,7 @@ _BATCH_ACTS = {}
 def _compile_single(act, params, obs: np.ndarray, key, warm: bool) -> None:
   """Compiles a `make_act` function's first (cold) and later (warm) decisions."""
   obs = jnp.asarray(obs, jnp.float32)
-  _, sequence = act(params, obs, key, 0, None)
+  _, sequence, _ = act(params, obs, key, 0, None)
   jax.block_until_ready(act(params, obs, key, 1, sequence if warm else None))
 
 
@@ -167,6 +181,9 @@ class BatchAgentPolicy:
                           else make_batch_act(config, mode, chunk, mesh))
     self.act = _BATCH_ACTS[key]
     self.keys = self.prev = None
+    # Std of the noise on the executed action (the planner, while acting; 0 in evaluation).
+    self.action_noise = 0.0
+    self.last_info = None  # [N, 3] int32 of the last decision (NO_PLAN_INFO's fields).
 
   def set_params(self, params) -> None:
     """The parameters to act with from now on (replicated over the mesh, if any; copied to
@@ -188,28 +205,31 @@ class BatchAgentPolicy:
     obs = jnp.asarray(obs, jnp.float32)
     keys = episode_keys(self.seed, np.arange(obs.shape[0]))
     active = jnp.ones(obs.shape[0], bool)
-    _, seq = self.act(self.params, obs, keys, 0, None, active)
+    _, seq, _ = self.act(self.params, obs, keys, 0, None, active)
     jax.block_until_ready(self.act(self.params, obs, keys, 1, seq if self.warm else None, active))
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
     if self.per_env:
       return self._per_env(obs, t, active)
-    actions, sequences = self.act(self.params, jnp.asarray(obs, jnp.float32), self.keys, t,
-                                  self.prev, jnp.asarray(active))
+    actions, sequences, infos = self.act(self.params, jnp.asarray(obs, jnp.float32), self.keys,
+                                         t, self.prev, jnp.asarray(active), self.action_noise)
     if self.warm:
       self.prev = sequences
+    self.last_info = np.asarray(infos)
     return np.asarray(actions)
 
   def _per_env(self, obs, t, active):
     if self.prev is None:
       self.prev = [None] * obs.shape[0]
     actions = np.zeros((obs.shape[0], self.action_dim), np.float32)
+    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (obs.shape[0], 1))
     for i in np.flatnonzero(active):
-      action, sequence = self.act(self.params, jnp.asarray(obs[i], jnp.float32), self.keys[i],
-                                  t, self.prev[i])
+      action, sequence, info = self.act(self.params, jnp.asarray(obs[i], jnp.float32),
+                                        self.keys[i], t, self.prev[i], self.action_noise)
       if self.warm:
         self.prev[i] = sequence
-      actions[i] = np.asarray(action)
+      actions[i], infos[i] = np.asarray(action), np.asarray(info)
+    self.last_info = infos
     return actions
 
 
@@ -226,8 +246,8 @@ def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', s
   state = {'t': 0, 'prev': None, 'key': jax.random.key(seed)}
 
   def policy(obs: np.ndarray) -> np.ndarray:
-    action, sequence = act(params, jnp.asarray(obs, jnp.float32), state['key'], state['t'],
-                           state['prev'])
+    action, sequence, _ = act(params, jnp.asarray(obs, jnp.float32), state['key'], state['t'],
+                              state['prev'])
     state['t'] += 1
     if warm:
       state['prev'] = sequence

@@ -14,6 +14,12 @@ CONFIG_FILE = 'config.json'
 # Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
 _EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
                       baselines=('actor', 'proposal'))
+# Planner settings of experiments/configs/base.py for configs saved before they existed; the
+# values mean what those runs did (no pessimism before `plan.pessimism` existed, no search).
+_PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
+                      guidance_dynamics_steps=1, num_gaussian=0, gaussian_std=2.0, iterations=0,
+                      num_refine=64, num_elites=8, temperature=0.5, min_std=0.05,
+                      selection='argmax', safe_selection=False, safe_margin=1.0)
 
 
 def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointManager:
@@ -40,10 +46,16 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
     raise FileNotFoundError(f'no {CONFIG_FILE} in {workdir}: is it a training workdir?')
   with open(path) as f:
     raw = json.load(f)
-  config = ml_collections.ConfigDict(raw)
-  for name, default in _EVAL_DEFAULTS.items():  # Runs saved before these fields existed.
-    if name not in config.eval:
-      config.eval[name] = default
+  return migrate_config(ml_collections.ConfigDict(raw))
+
+
+def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """A saved config brought up to the current fields, once, on load: fields added since it was
+  saved get the values that mean what its run did; JSON lists become tuples again."""
+  for section, defaults in (('eval', _EVAL_DEFAULTS), ('plan', _PLAN_DEFAULTS)):
+    for name, default in defaults.items():  # Runs saved before these fields existed.
+      if name not in config[section]:
+        config[section][name] = default
   config.model.actor_hidden = tuple(config.model.actor_hidden)
   for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
     config.eval[name] = tuple(config.eval[name])

@@ -119,6 +119,14 @@ def pessimistic(values: jnp.ndarray, pessimism: float) -> jnp.ndarray:
   return jnp.mean(values, axis=0) - pessimism * jnp.std(values, axis=0)
 
 
+def make_terminal_members(config: ml_collections.ConfigDict, critics: Critics) -> Callable:
+  """members(params, z [..., D]) -> [num_values, ...]: each ensemble member's V(z), in reward
+  units."""
+  scale = objective_settings(config).value_scale
+  return lambda params, z: scale * critics.apply({'params': params['critics']}, z,
+                                                 method=Critics.value)
+
+
 def make_terminal_value(config: ml_collections.ConfigDict, critics: Critics,
                         pessimism: float = 0.0) -> Callable:
   """value(params, z [..., D]) -> [...]: the expectile ensemble's mean - pessimism * std,

@@ -166,7 +166,10 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
       if slots[0] is video_env and active[0]:
         frames.append(np.asarray(video_env.render(), np.uint8))
       actions = np.asarray(policy(obs, t, active))
+      infos = getattr(policy, 'last_info', None)  # Planners: [N, 3] (agent.NO_PLAN_INFO).
       for i in np.flatnonzero(active):
+        if infos is not None:  # Decisions that left the actor prior's own sequence.
+          rec[i]['departures'] = rec[i].get('departures', 0) + int(infos[i][2])
         o, reward, terminated, truncated, info = slots[i].step(actions[i])
         obs[i] = o
         r = rec[i]

@@ -25,13 +25,15 @@ import ml_collections
 
 from ld_mpc_jax import diffusion
 from ld_mpc_jax.config_checks import validate_config
-from ld_mpc_jax.critics import make_terminal_value, objective_settings
+from ld_mpc_jax.critics import make_terminal_members, objective_settings
 from ld_mpc_jax.losses import discounted_return, two_hot_decode
 from ld_mpc_jax.models import (ActionProposal, Networks, TrajectoryDynamics, build_networks,
                                dynamics_type, make_transition, normalizes_dynamics, proposal_type,
                                rms_normalize)
+from ld_mpc_jax.search import (CANDIDATE_KINDS, Pool, as_members, combine, refine, select,
+                               validate_search)
 
-# score_fn(params, latents [K, H+1, D], actions [K, H, A]) -> returns [K].
+# score_fn(params, latents [K, H+1, D], actions [K, H, A]) -> J [K], or J per member [M, K].
 ScoreFn = Callable[[dict, jnp.ndarray, jnp.ndarray], jnp.ndarray]
 
 
@@ -42,34 +44,39 @@ class PlanOutput:
   sequence: jnp.ndarray  # [H, A] the best candidate (for warm starts and inspection).
   scores: jnp.ndarray  # [K] J of every candidate.
   candidates: jnp.ndarray  # [K, H, A] every candidate action sequence.
-  index: jnp.ndarray  # [] argmax of scores.
+  index: jnp.ndarray  # [] the executed candidate (softmax selection: its best elite).
   kind: jnp.ndarray  # [] which kind of candidate won: an index into CANDIDATE_KINDS.
+  iteration: jnp.ndarray  # [] after which refinement round it was found (0: the first round).
+  departed: jnp.ndarray  # [] bool: the executed sequence is not the actor prior's own.
 
 
-# The candidates of one plan: the proposal's first, then the actor prior's (plan.num_prior_...).
-CANDIDATE_KINDS = ('proposal', 'actor_prior')
-
-
-def make_objective_score(config: ml_collections.ConfigDict, nets: Networks) -> ScoreFn:
-  """J = sum_i gamma^i r_i + gamma^H V(z_H): rewards from the sequence objective (two-hot,
-  decoded); V from the expectile ensemble of z_H alone, mean - `plan.pessimism` x std over its
-  members (`objective.value` 'expectile'), or the objective's own behaviour-value head."""
+def make_member_scores(config: ml_collections.ConfigDict, nets: Networks) -> ScoreFn:
+  """J under each value-ensemble member: (params, latents [K, H+1, D], actions [K, H, A]) ->
+  [M, K], M = `objective.num_values` (expectile ensemble) or 1 (the objective's own behaviour-
+  value head). J_m = sum_i gamma^i r_i + gamma^H V_m(z_H), rewards from the sequence objective
+  (two-hot, decoded), V_m from member m of the ensemble of z_H alone."""
   m, gamma = config.model, config.gamma
-  if objective_settings(config).value == 'expectile':
-    terminal = make_terminal_value(config, nets.critics, config.plan.get('pessimism', 0.0))
-  else:
-    terminal = None
+  expectile = objective_settings(config).value == 'expectile'
+  members = make_terminal_members(config, nets.critics) if expectile else None
 
   def score(params, latents, actions):
     r_logits, v_logits = nets.objective.apply({'params': params['objective']}, latents, actions)
     rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [K, H]
-    if terminal is None:
-      value = two_hot_decode(v_logits[..., -1, :], m.vmin, m.vmax)  # [K]
+    if members is None:
+      value = two_hot_decode(v_logits[..., -1, :], m.vmin, m.vmax)[None]  # [1, K]
     else:
-      value = terminal(params, latents[..., -1, :])
-    return discounted_return(rewards, value, gamma)
+      value = members(params, latents[..., -1, :])  # [M, K]
+    return discounted_return(rewards[None], value, gamma)
 
   return score
+
+
+def make_objective_score(config: ml_collections.ConfigDict, nets: Networks) -> ScoreFn:
+  """J = sum_i gamma^i r_i + gamma^H V(z_H) -> [K]: the member scores of `make_member_scores`
+  combined as mean - `plan.pessimism` x std over the members (search.combine)."""
+  members = make_member_scores(config, nets)
+  pessimism = config.plan.pessimism
+  return lambda params, latents, actions: combine(members(params, latents, actions), pessimism)
 
 
 def make_step_proposal(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
@@ -237,51 +244,100 @@ def make_plan(config: ml_collections.ConfigDict,
   Args:
     config: an LD-MPC config (see experiments/configs/base.py).
     score_fn: optional replacement for the learned objective,
-      (params, latents [K, H+1, D], actions [K, H, A]) -> [K]; for tests and custom objectives.
+      (params, latents [K, H+1, D], actions [K, H, A]) -> J [K] or J per member [M, K]; for
+      tests and custom objectives.
   Returns:
-    plan(params, z [latent_dim], key, prev_sequence=None) -> PlanOutput, one jitted pure
-    function. With `plan.warm_start_steps` > 0, passing the previous call's `sequence` as
-    `prev_sequence` warm-starts the proposal from it, shifted by one step.
+    plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0) -> PlanOutput, one
+    jitted pure function. With `plan.warm_start_steps` > 0, passing the previous call's
+    `sequence` as `prev_sequence` warm-starts the proposal (and centres the Gaussian set) on it,
+    shifted by one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
+    the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
+
+  The first round's candidates are the proposal's K - P, then `plan.num_gaussian` broad Gaussian
+  sequences N(previous plan or 0, `plan.gaussian_std`^2) clipped to [-1, 1] (TD-MPC2's first
+  MPPI samples), then the P actor-prior ones (the first is the actor's own sequence);
+  `plan.iterations` refinement rounds follow (ld_mpc_jax.search.refine), whose elites are
+  appended to `candidates` and `scores`. Selection: ld_mpc_jax.search.select.
   """
   validate_config(config)
+  validate_search(config)
   nets = build_networks(config)
   p = config.plan
   k, num_prior, d = p.num_candidates, p.num_prior_candidates, config.model.latent_dim
-  score_fn = score_fn or make_objective_score(config, nets)
+  num_gauss, h, a_dim = p.num_gaussian, config.horizon, config.action_dim
+  member_fn = make_member_scores(config, nets) if score_fn is None else (
+      lambda *args: as_members(score_fn(*args)))
   propose = make_propose(config, nets)
   rollout = make_rollout(config, nets)
+  if p.iterations:  # Refined samples are fixed sequences: no actor-prior rollouts among them.
+    plain_config = ml_collections.ConfigDict(config.to_dict())
+    plain_config.plan.num_prior_candidates = 0
+    plain_rollout = make_rollout(plain_config, nets)
   sequence_proposal = proposal_type(config) == 'diffusion_seq'
-  draws = p.get('dynamics_draws', 1)
+  draws = p.dynamics_draws
+  anchor = k - num_prior + num_gauss if num_prior else -1  # The actor prior's own sequence.
 
-  def plan(params, z, key, prev_sequence=None) -> PlanOutput:
+  def score_draws(params, z, proposals, key, roll):
+    """(actions [N, H, A], scores [N], members [draws x M, N]): J per draw combined over the
+    value members, averaged over `plan.dynamics_draws` rollouts of the same candidates."""
+    def one(i):
+      acts, lats = roll(params, z, proposals, jax.random.fold_in(key, i))
+      return acts, member_fn(params, lats, acts)
+    actions, members = one(0)
+    if draws == 1:
+      return actions, combine(members, p.pessimism), members
+    more = jax.lax.map(lambda i: one(i)[1], jnp.arange(1, draws))  # [draws - 1, M, N]
+    everything = jnp.concatenate([members[None], more])
+    scores = jnp.mean(jax.vmap(lambda m: combine(m, p.pessimism))(everything), axis=0)
+    return actions, scores, everything.reshape((-1,) + members.shape[1:])
+
+  def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
     if z.shape != (d,):
       raise ValueError(f'plan expects one latent of shape ({d},), got {z.shape}; '
                        'use encode(params, obs) first, and jax.vmap for a batch')
     prop_key, noise_key, dyn_key = jax.random.split(key, 3)
     init = None
     if prev_sequence is not None:
-      if prev_sequence.shape != (config.horizon, config.action_dim):
-        raise ValueError(f'prev_sequence must have shape ({config.horizon}, '
-                         f'{config.action_dim}), got {prev_sequence.shape}')
+      if prev_sequence.shape != (h, a_dim):
+        raise ValueError(f'prev_sequence must have shape ({h}, {a_dim}), '
+                         f'got {prev_sequence.shape}')
       init = shift_sequence(prev_sequence)
     if sequence_proposal:
       proposals = propose(params, z, prop_key, k - num_prior, init)
       if p.action_noise_std > 0:
         noise = jax.random.normal(noise_key, proposals.shape)
         proposals = jnp.clip(proposals + p.action_noise_std * noise, -1.0, 1.0)
+      if num_gauss:
+        centre = jnp.zeros((h, a_dim)) if init is None else init
+        eps = jax.random.normal(jax.random.fold_in(noise_key, 1), (num_gauss, h, a_dim))
+        proposals = jnp.concatenate(
+            [proposals, jnp.clip(centre + p.gaussian_std * eps, -1.0, 1.0)])
     else:  # Single-step proposals are drawn inside the rollout.
       proposals = k - num_prior
-    actions, latents = rollout(params, z, proposals, dyn_key)
-    scores = score_fn(params, latents, actions)
-    if draws > 1:  # J averaged over independent dynamics draws of the same candidates.
-      def redraw(i):
-        acts, lats = rollout(params, z, proposals, jax.random.fold_in(dyn_key, i))
-        return score_fn(params, lats, acts)
-      scores = (scores + jax.lax.map(redraw, jnp.arange(1, draws)).sum(0)) / draws
-    index = jnp.argmax(scores)
-    sequence = actions[index]
-    return PlanOutput(action=jnp.clip(sequence[0], -1.0, 1.0), sequence=sequence,
-                      scores=scores, candidates=actions, index=index,
-                      kind=(index >= k - num_prior).astype(jnp.int32))
+    actions, scores, members = score_draws(params, z, proposals, dyn_key, rollout)
+    n = actions.shape[0]
+    kind = jnp.concatenate([jnp.zeros(k - num_prior, jnp.int32),
+                            jnp.full(num_gauss, CANDIDATE_KINDS.index('gaussian'), jnp.int32),
+                            jnp.ones(num_prior, jnp.int32)])
+    iteration = jnp.zeros(n, jnp.int32)
+    if p.iterations:
+      def score_samples(samples, key):
+        return score_draws(params, z, samples, key, plain_rollout)[2]
+      pool = refine(score_samples, Pool(actions, scores, members, kind, iteration),
+                    jax.random.fold_in(dyn_key, 10_000), p.iterations, p.num_refine,
+                    p.num_elites, p.temperature, p.min_std, p.gaussian_std, p.pessimism)
+      actions = jnp.concatenate([actions, pool.actions])
+      scores = jnp.concatenate([scores, pool.scores])
+      members = jnp.concatenate([members, pool.members], axis=1)
+      kind = jnp.concatenate([kind, pool.kind])
+      iteration = jnp.concatenate([iteration, pool.iteration])
+    sequence, index, departed, _ = select(actions, scores, members, anchor, p.safe_selection,
+                                          p.safe_margin, p.selection, p.num_elites,
+                                          p.temperature)
+    noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
+    action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)
+    return PlanOutput(action=action, sequence=sequence, scores=scores, candidates=actions,
+                      index=index, kind=kind[index], iteration=iteration[index],
+                      departed=departed)
 
   return jax.jit(plan)

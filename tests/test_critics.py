@@ -8,7 +8,7 @@ import optax
 import pytest
 
 from experiments.overrides import with_overrides
-from ld_mpc_jax import critics, models, planner
+from ld_mpc_jax import checkpointing, critics, models, planner
 from ld_mpc_jax.losses import discounted_return, two_hot_decode
 
 
@@ -171,7 +171,7 @@ def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
     del legacy['model'][name]
   for name in ('pessimism', 'dynamics_draws'):
     del legacy['plan'][name]
-  legacy = ml_collections.ConfigDict(legacy)
+  legacy = checkpointing.migrate_config(ml_collections.ConfigDict(legacy))  # As on load.
   params = models.init_params(legacy, jax.random.key(0))
   assert 'critics' not in params and 'obs_mean' not in params['encoder']
   out = planner.make_plan(legacy)(params, models.encode(params, np.ones(39)), jax.random.key(1))

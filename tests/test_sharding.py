@@ -112,9 +112,9 @@ out = {}
 for name, m in (('one', None), ('two', mesh)):
   act = agent.make_batch_act(c, 'plan', chunk=1, mesh=m)
   p = params if m is None else sharding.replicate(params, m)
-  a0, seq = act(p, obs, keys, 0, None, active)
-  a1, _ = act(p, obs, keys, 1, seq, active)
-  cold, _ = act(p, obs, keys, 1, None, active)
+  a0, seq, _ = act(p, obs, keys, 0, None, active)
+  a1, _, _ = act(p, obs, keys, 1, seq, active)
+  cold, _, _ = act(p, obs, keys, 1, None, active)
   out[name] = [np.asarray(a0).tolist(), np.asarray(a1).tolist(), np.asarray(cold).tolist()]
   out[name + '_devices'] = len(seq.sharding.device_set)
 # The evaluation's policy object on the mesh (chunk 0: one environment at a time per device).

@@ -72,6 +72,24 @@ def get_config() -> ml_collections.ConfigDict:
   # (uncertainty penalties as in MOPO and PBRL), against the optimiser's curse of an argmax.
   p.pessimism = 1.0
   p.dynamics_draws = 1  # J averaged over this many dynamics rollouts per candidate.
+  # Search (ld_mpc_jax.search). A broad Gaussian candidate set beside the proposal and the actor
+  # prior, centred on the previous plan (or 0): TD-MPC2's first MPPI samples, std its max_std.
+  p.num_gaussian = 0
+  p.gaussian_std = 2.0
+  # Refinement rounds around the elites (0 = selection only): TD-MPC2's MPPI update, 6 rounds
+  # of 512 samples, 64 elites, temperature 0.5, std at least 0.05.
+  p.iterations = 0
+  p.num_refine = 64  # New samples per round.
+  p.num_elites = 8  # Elites kept between rounds (TD-MPC2: 64 of 512, an eighth).
+  p.temperature = 0.5  # Softmax weights exp(temperature (J - max J)) of the elites.
+  p.min_std = 0.05
+  # What is executed: 'argmax' of J, or 'softmax': MPPI's weighted mean of the elites.
+  p.selection = 'argmax'
+  # Safe selection: keep the actor prior's own sequence unless the winner beats it by more than
+  # safe_margin x the std over value members (and dynamics draws) of their score difference
+  # (SPIBB-style safe improvement; ld_mpc_jax.search.select). Needs num_prior_candidates >= 1.
+  p.safe_selection = False
+  p.safe_margin = 1.0
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()

@@ -1,0 +1,160 @@
+"""Search and selection inside `plan`: refinement around the elites, and safe selection.
+
+Pure functions of arrays, used by ld_mpc_jax.planner (which builds the candidates and scores
+them). Scores come per *member*: J under each member of the value ensemble (and each dynamics
+draw), an array [M, K]; a candidate's score is mean - pessimism x std over the members.
+
+Refinement (`plan.iterations` > 0) follows TD-MPC2's MPPI update (Hansen et al. 2024, planning
+in `tdmpc2.py`): keep the `plan.num_elites` best sequences, fit a mean and a std to them with
+softmax weights exp(temperature (J - max J)), draw `plan.num_refine` new sequences from that
+Gaussian (std at least `plan.min_std`), score them, keep the best of elites and new samples, and
+repeat. The std shrinks as the elites agree: the search anneals itself.
+
+Safe selection (`plan.safe_selection`): the actor prior's own sequence is always a candidate, and
+the planner departs from it only when the best candidate's score exceeds the actor's by more than
+`plan.safe_margin` times the spread of their difference over the members (a paired comparison:
+both are scored by the same ensemble members and dynamics draws). In the spirit of safe policy
+improvement (SPIBB, Laroche et al. 2019: keep the baseline's action where the data cannot
+support a change) and of uncertainty-penalised planning (MOPO, FOWM).
+"""
+
+from typing import Callable, NamedTuple, Tuple
+
+import jax
+import jax.numpy as jnp
+import ml_collections
+
+# The candidates of one plan, in this order: the diffusion proposal's, the broad Gaussian set's,
+# the actor prior's (its first one is the actor's own sequence), then the refined samples.
+CANDIDATE_KINDS = ('proposal', 'actor_prior', 'gaussian', 'refined')
+SELECTIONS = ('argmax', 'softmax')
+
+
+def combine(members: jnp.ndarray, pessimism: float) -> jnp.ndarray:
+  """Member scores [M, K] -> [K]: mean - pessimism x std over the members (std 0 for M = 1)."""
+  return jnp.mean(members, axis=0) - pessimism * jnp.std(members, axis=0)
+
+
+def as_members(scores: jnp.ndarray) -> jnp.ndarray:
+  """A score function's output [K] or [M, K] -> [M, K]."""
+  return scores[None] if scores.ndim == 1 else scores
+
+
+def elite_moments(actions: jnp.ndarray, scores: jnp.ndarray, temperature: float,
+                  min_std: float, max_std: float) -> Tuple[jnp.ndarray, jnp.ndarray]:
+  """Softmax-weighted mean and std of elites: actions [E, H, A], scores [E] -> [H, A] x 2.
+
+  Weights exp(temperature (J - max J)), normalised (TD-MPC2's MPPI); std clipped to
+  [min_std, max_std].
+  """
+  w = jax.nn.softmax(temperature * (scores - jnp.max(scores)))[:, None, None]
+  mean = jnp.sum(w * actions, axis=0)
+  std = jnp.sqrt(jnp.sum(w * (actions - mean) ** 2, axis=0))
+  return mean, jnp.clip(std, min_std, max_std)
+
+
+class Pool(NamedTuple):
+  """The elites: E sequences with their scores and where they came from."""
+  actions: jnp.ndarray  # [E, H, A]
+  scores: jnp.ndarray  # [E]
+  members: jnp.ndarray  # [M, E]
+  kind: jnp.ndarray  # [E] int32, index into CANDIDATE_KINDS
+  iteration: jnp.ndarray  # [E] int32: 0 for the first round, i for the i-th refinement
+
+
+def top_pool(pool: Pool, num: int) -> Pool:
+  """The `num` best of a pool (by score)."""
+  _, idx = jax.lax.top_k(pool.scores, num)
+  return Pool(pool.actions[idx], pool.scores[idx], pool.members[:, idx], pool.kind[idx],
+              pool.iteration[idx])
+
+
+def refine(score_fn: Callable, first: Pool, key: jax.Array, iterations: int, num_samples: int,
+           num_elites: int, temperature: float, min_std: float, max_std: float,
+           pessimism: float) -> Pool:
+  """MPPI-style refinement: returns the final elites (E = num_elites) with their provenance.
+
+  score_fn(actions [N, H, A], key) -> member scores [M, N]. `first` is the first round's scored
+  candidates. Each of `iterations` rounds (lax.scan) draws `num_samples` sequences from the
+  elites' softmax-weighted Gaussian, clipped to [-1, 1], and keeps the best `num_elites` of
+  elites and samples.
+  """
+  pool = top_pool(first, num_elites)
+
+  def step(pool, i):
+    mean, std = elite_moments(pool.actions, pool.scores, temperature, min_std, max_std)
+    k_draw, k_score = jax.random.split(jax.random.fold_in(key, i))
+    eps = jax.random.normal(k_draw, (num_samples,) + mean.shape)
+    samples = jnp.clip(mean + std * eps, -1.0, 1.0)
+    members = score_fn(samples, k_score)
+    new = Pool(samples, combine(members, pessimism), members,
+               jnp.full((num_samples,), CANDIDATE_KINDS.index('refined'), jnp.int32),
+               jnp.full((num_samples,), i, jnp.int32))
+    merged = Pool(*(jnp.concatenate([x, y], axis=1 if name == 'members' else 0)
+                    for name, x, y in zip(Pool._fields, pool, new)))
+    return top_pool(merged, num_elites), None
+
+  pool, _ = jax.lax.scan(step, pool, jnp.arange(1, iterations + 1))
+  return pool
+
+
+def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anchor: int,
+           safe: bool, margin: float, selection: str, num_elites: int, temperature: float
+           ) -> Tuple[jnp.ndarray, jnp.ndarray, jnp.ndarray, jnp.ndarray]:
+  """Chooses what to execute among K scored candidates.
+
+  actions [K, H, A], scores [K], members [M, K]; anchor: the index of the actor prior's own
+  sequence (or -1: none). Returns (sequence [H, A], index [], departed [] bool, weights [K]):
+  - 'argmax': the best candidate; 'softmax': the softmax-weighted mean of the `num_elites` best
+    (weights exp(temperature (J - max J)), MPPI), `index` its best elite;
+  - with `safe`, the anchor's sequence unless the best candidate beats the anchor by more than
+    margin x std over members of (J_best - J_anchor); ties keep the anchor.
+  `departed` is whether the executed sequence is not the anchor's (always True without one).
+  """
+  best = jnp.argmax(scores)
+  if selection == 'softmax':
+    e = min(num_elites, scores.shape[0])
+    top_scores, top_idx = jax.lax.top_k(scores, e)
+    w_top = jax.nn.softmax(temperature * (top_scores - top_scores[0]))
+    weights = jnp.zeros_like(scores).at[top_idx].set(w_top)
+    chosen = jnp.sum(weights[:, None, None] * actions, axis=0)
+  else:
+    weights = jax.nn.one_hot(best, scores.shape[0], dtype=scores.dtype)
+    chosen = actions[best]
+  if anchor < 0:
+    return chosen, best, jnp.asarray(True), weights
+  if safe:
+    diff = members[:, best] - members[:, anchor]
+    depart = scores[best] - scores[anchor] > margin * jnp.std(diff)
+  else:
+    depart = best != anchor if selection == 'argmax' else jnp.asarray(True)
+  sequence = jnp.where(depart, chosen, actions[anchor])
+  weights = jnp.where(depart, weights, jax.nn.one_hot(anchor, scores.shape[0],
+                                                      dtype=scores.dtype))
+  return sequence, jnp.where(depart, best, anchor), depart, weights
+
+
+def validate_search(config: ml_collections.ConfigDict) -> None:
+  """One-line ValueErrors for the search and selection settings of config.plan."""
+  p = config.plan
+  if p.selection not in SELECTIONS:
+    raise ValueError(f'config.plan.selection must be one of {SELECTIONS}, got {p.selection!r}')
+  for name in ('num_gaussian', 'iterations'):
+    if p[name] < 0:
+      raise ValueError(f'config.plan.{name} must be >= 0, got {p[name]}')
+  if p.iterations and (p.num_refine < 1 or p.num_elites < 1):
+    raise ValueError('config.plan.num_refine and config.plan.num_elites must be >= 1 when '
+                     f'config.plan.iterations > 0, got {p.num_refine} and {p.num_elites}')
+  if p.iterations and p.num_elites > p.num_candidates + p.num_gaussian:
+    raise ValueError(f'config.plan.num_elites ({p.num_elites}) exceeds the first round\'s '
+                     f'candidates ({p.num_candidates + p.num_gaussian})')
+  if p.min_std <= 0 or p.gaussian_std <= 0:
+    raise ValueError('config.plan.min_std and config.plan.gaussian_std must be > 0')
+  if p.safe_selection and p.num_prior_candidates < 1:
+    raise ValueError('config.plan.safe_selection needs the actor prior\'s own sequence as a '
+                     'candidate: set config.plan.num_prior_candidates >= 1')
+  if p.safe_margin < 0:
+    raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
+  if (p.num_gaussian or p.iterations) and config.model.proposal_type != 'diffusion_seq':
+    raise ValueError('config.plan.num_gaussian and config.plan.iterations need whole action '
+                     "sequences: config.model.proposal_type='diffusion_seq'")
