@@ -56,6 +56,11 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
     for name, default in defaults.items():  # Runs saved before these fields existed.
       if name not in config[section]:
         config[section][name] = default
+  if 'online' in config:  # Online runs saved before acting had its own settings.
+    for name, default in (('act_pessimism', config.plan.pessimism), ('exec_noise_start', 0.0),
+                          ('exec_noise_end', 0.0), ('updates_per_call', 1), ('reward', 'dense')):
+      if name not in config.online:
+        config.online[name] = default
   config.model.actor_hidden = tuple(config.model.actor_hidden)
   for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
     config.eval[name] = tuple(config.eval[name])

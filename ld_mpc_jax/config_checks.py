@@ -137,11 +137,15 @@ def _validate_objective(config: ml_collections.ConfigDict) -> None:
   o = config.objective
   if o.value not in ('expectile', 'behaviour'):
     raise ValueError(f"config.objective.value must be 'expectile' or 'behaviour', got {o.value!r}")
-  if o.actor not in ('awr', 'bc'):
-    raise ValueError(f"config.objective.actor must be 'awr' or 'bc', got {o.actor!r}")
-  if o.get('td_target', 'one_step') not in ('one_step', 'window'):
-    raise ValueError(f"config.objective.td_target must be 'one_step' or 'window', "
+  from ld_mpc_jax.critics import ACTOR_KINDS, TD_TARGETS
+  if o.actor not in ACTOR_KINDS:
+    raise ValueError(f'config.objective.actor must be one of {ACTOR_KINDS}, got {o.actor!r}')
+  if o.get('td_target', 'one_step') not in TD_TARGETS:
+    raise ValueError(f'config.objective.td_target must be one of {TD_TARGETS}, '
                      f'got {o.td_target!r}')
+  if o.actor == 'maxq' and o.value != 'expectile':
+    raise ValueError("config.objective.actor 'maxq' needs the Q ensemble: "
+                     "config.objective.value='expectile'")
   if not 0.0 < o.expectile < 1.0:
     raise ValueError(f'config.objective.expectile must be in (0, 1), got {o.expectile}')
   for name in ('num_values', 'num_q', 'rollout_steps'):
@@ -182,6 +186,15 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
     raise ValueError('config.online.seed_steps must be >= 1 from scratch (no online.init_from): '
                      'the first updates need seed episodes')
   check_online_budget(config)
+  o = config.online
+  if o.reward not in ('dense', 'sparse'):
+    raise ValueError(f"config.online.reward must be 'dense' or 'sparse', got {o.reward!r}")
+  if not isinstance(o.updates_per_call, int) or o.updates_per_call < 1:
+    raise ValueError(f'config.online.updates_per_call must be an integer >= 1, '
+                     f'got {o.updates_per_call!r}')
+  if min(o.exec_noise_start, o.exec_noise_end, o.act_pessimism) < 0:
+    raise ValueError('config.online.exec_noise_start, exec_noise_end and act_pessimism must be '
+                     '>= 0')
 
 
 def check_online_budget(config: ml_collections.ConfigDict) -> None:

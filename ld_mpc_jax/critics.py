@@ -29,7 +29,12 @@ import ml_collections
 from ld_mpc_jax.networks import MLP
 
 VALUE_KINDS = ('expectile', 'behaviour')
-ACTOR_KINDS = ('awr', 'bc')
+# 'maxq': a stochastic policy trained to maximise Q with an entropy bonus (TD-MPC2, SAC), for
+# learning online; 'awr' and 'bc' rank only the data's own actions (offline).
+ACTOR_KINDS = ('awr', 'bc', 'maxq')
+# 'policy': Q <- r_t + gamma min_j Q_ema(z'_{t+1}, pi(z'_{t+1})) and V(z) <- min_j Q_ema(z,
+# pi(z)) (TD-MPC2): values of the current policy, which extrapolate beyond the data's actions.
+TD_TARGETS = ('one_step', 'window', 'policy')
 # Objective settings of experiments/configs/base.py for configs saved before they existed: the
 # behaviour value of the sequence objective, a BC actor, no latent rollouts in the loss.
 LEGACY_OBJECTIVE = dict(value='behaviour', actor='bc', latent_rollout=False, num_values=1,
@@ -140,8 +145,13 @@ def make_terminal_value(config: ml_collections.ConfigDict, critics: Critics,
   return value
 
 
-def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics) -> Callable:
+def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
+                     policy: Optional[Callable] = None) -> Callable:
   """Returns critic_loss(params, target_params, z, z_ema, z_model, action, reward).
+
+  policy(params, z [..., D]) -> a [..., A]: the actor prior's action, needed by
+  `objective.td_target = 'policy'` (TD-MPC2's targets: Q onto r + gamma min Q_ema(z', pi(z')),
+  V onto min Q_ema(z, pi(z)) by squared error instead of the expectile).
 
   z, z_ema [B, H+2, D]: online and EMA encoder latents of the window; z_model [B, H+1, D] or
   None: the dynamics model's latents from z_0 under the data's actions (stop-gradient), on which
@@ -155,7 +165,12 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics) -> Cal
     sg = jax.lax.stop_gradient
     z_t, ze_t = z[:, :h + 1], z_ema[:, :h + 1]
     v_next = jnp.mean(apply(target_params, z_ema[:, 1:], method=Critics.value), axis=0)
-    if o.get('td_target', 'one_step') == 'window':  # n-step: rewards to the window's end.
+    on_policy = o.get('td_target', 'one_step') == 'policy'
+    if on_policy:  # TD-MPC2: the next action from the policy, the min over target Qs.
+      q_next = jnp.min(apply(target_params, z_ema[:, 1:], sg(policy(params, z_ema[:, 1:])),
+                             method=Critics.q_value), axis=0)
+      q_target = sg(reward / o.value_scale + gamma * q_next)
+    elif o.get('td_target', 'one_step') == 'window':  # n-step: rewards to the window's end.
       q_target = sg(window_returns(reward / o.value_scale, v_next[:, -1], gamma))
     else:
       q_target = sg(reward / o.value_scale + gamma * v_next)  # [B, H+1]
@@ -167,7 +182,13 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics) -> Cal
     z_sets = (z_t,) if z_model is None else (z_t, z_model)
     v_all = apply(params, jnp.stack(z_sets), method=Critics.value)
     v = v_all[:, 0]  # [num_values, B, H+1], on the encoder's latents.
-    l_v = jnp.mean(expectile_loss(q_ema - v_all, o.expectile))
+    if on_policy:  # V(z) = Q(z, pi(z)): the value of the policy, the planner's terminal value.
+      q_pi = sg(jnp.min(apply(target_params, ze_t, sg(policy(params, ze_t)),
+                              method=Critics.q_value), axis=0))
+      v_target = jnp.stack([q_pi] * len(z_sets))[None]
+      l_v = jnp.mean((v_target - v_all) ** 2)
+    else:
+      l_v = jnp.mean(expectile_loss(q_ema - v_all, o.expectile))
     advantage = o.value_scale * (q_ema - sg(jnp.mean(v, axis=0)))  # reward units
     weights = awr_weights(advantage, o.awr_temperature, o.awr_max_weight)
     metrics: Dict[str, jnp.ndarray] = {

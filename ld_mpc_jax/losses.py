@@ -87,7 +87,9 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   gamma, h = config.gamma, config.horizon
   kind_p, kind_d = proposal_type(config), dynamics_type(config)
   o = objective_settings(config)
-  critic_loss = make_critic_loss(config, nets.critics) if nets.critics is not None else None
+  policy = lambda params, z: nets.actor.apply({'params': params['actor']}, z)
+  critic_loss = (make_critic_loss(config, nets.critics, policy)
+                 if nets.critics is not None else None)
   transition = (make_transition(config, nets, steps=o.rollout_steps, eta=0.0)
                 if o.latent_rollout else None)
 
@@ -157,9 +159,18 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     l_val = soft_cross_entropy(v_logits, two_hot(v_target, m.num_bins, m.vmin, m.vmax)).mean()
     return l_rew, l_val, v_target.mean()
 
+  def maxq_actor_loss(params, z, key):
+    """E[alpha log pi(a|z) - mean_j Q_j(z, a)], a ~ pi(.|z) reparameterised; Q's parameters
+    held fixed (value_scale units, so Q is O(1) as TD-MPC2's scale-normalised Q)."""
+    a, log_prob = nets.actor.apply({'params': params['actor']}, z, key,
+                                   method=nets.actor.sample)
+    q = nets.critics.apply({'params': jax.lax.stop_gradient(params['critics'])}, z, a,
+                           method=nets.critics.q_value)
+    return jnp.mean(o.entropy_coef * log_prob - jnp.mean(q, axis=0))
+
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
-    k_dyn, k_act, k_drop, k_roll = jax.random.split(key, 4)
+    k_dyn, k_act, k_drop, k_roll, k_pi = jax.random.split(key, 5)
     drop = lambda i: {'dropout': jax.random.fold_in(k_drop, i)}  # One stream per network.
     sg = jax.lax.stop_gradient
 
@@ -187,12 +198,15 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
                                                     action, reward)
       l_q, l_v = critic['q'], critic['v']
       metrics.update(critic_metrics)
-    if o.actor == 'bc':
-      weights, z_actor = jnp.ones(reward.shape), z[:, :-1]
-    else:  # As TD-MPC2's policy loss, on detached latents: the weights do not drive the encoder.
-      z_actor = sg(z[:, :-1])
-    a_pi = nets.actor.apply({'params': params['actor']}, z_actor)
-    l_actor = jnp.mean(weights * jnp.sum((a_pi - action) ** 2, axis=-1))
+    if o.actor == 'maxq':  # TD-MPC2 / SAC: max Q + entropy, on detached latents and Q.
+      l_actor = maxq_actor_loss(params, sg(z[:, :-1]), k_pi)
+    else:
+      if o.actor == 'bc':
+        weights, z_actor = jnp.ones(reward.shape), z[:, :-1]
+      else:  # As TD-MPC2's policy loss, on detached latents: weights do not drive the encoder.
+        z_actor = sg(z[:, :-1])
+      a_pi = nets.actor.apply({'params': params['actor']}, z_actor)
+      l_actor = jnp.mean(weights * jnp.sum((a_pi - action) ** 2, axis=-1))
 
     loss = (w.w_dyn * l_dyn + w.w_act * l_act + w.w_rew * l_rew + w.w_val * l_val
             + w.w_actor * l_actor + w.get('w_consistency', 0.0) * l_cons

@@ -24,7 +24,7 @@ import ml_collections
 
 from ld_mpc_jax import diffusion, tasks
 from ld_mpc_jax.config_checks import validate_config
-from ld_mpc_jax.critics import Critics, build_critics
+from ld_mpc_jax.critics import Critics, build_critics, objective_settings
 from ld_mpc_jax.networks import MLP, TimeEmbedding, Transformer, position_embedding
 
 
@@ -234,13 +234,33 @@ class SequenceObjective(nn.Module):
 
 
 class Actor(nn.Module):
-  """Policy prior a = tanh(MLP(z)) in [-1, 1]^A."""
+  """Policy prior a = tanh(MLP(z)) in [-1, 1]^A.
+
+  `stochastic`: the MLP also outputs a log-std, and `sample` draws the tanh-squashed Gaussian
+  policy of SAC / TD-MPC2 (log-std in [-10, 2], TD-MPC2's bounds); calling the module gives its
+  mode tanh(mean), which the planner and the actor-alone policy use.
+  """
   hidden: tuple
   action_dim: int
+  stochastic: bool = False
 
-  @nn.compact
+  def setup(self):
+    out = self.action_dim * (2 if self.stochastic else 1)
+    self.mlp = MLP(tuple(self.hidden) + (out,))
+
   def __call__(self, z: jnp.ndarray) -> jnp.ndarray:
-    return jnp.tanh(MLP(tuple(self.hidden) + (self.action_dim,), name='mlp')(z))
+    return jnp.tanh(self.mlp(z)[..., :self.action_dim])
+
+  def sample(self, z: jnp.ndarray, key: jax.Array):
+    """z [..., D] -> (a [..., A] in (-1, 1), log pi(a|z) [...]), reparameterised."""
+    out = self.mlp(z)
+    mean, log_std = out[..., :self.action_dim], jnp.clip(out[..., self.action_dim:], -10., 2.)
+    eps = jax.random.normal(key, mean.shape)
+    u = mean + jnp.exp(log_std) * eps
+    a = jnp.tanh(u)
+    log_prob = jnp.sum(-0.5 * eps ** 2 - log_std - 0.5 * jnp.log(2 * jnp.pi)
+                       - jnp.log(1.0 - a ** 2 + 1e-6), axis=-1)
+    return a, log_prob
 
 
 PROPOSAL_TYPES = ('diffusion_seq', 'diffusion_step', 'mlp')
@@ -289,7 +309,8 @@ def build_networks(config: ml_collections.ConfigDict) -> Networks:
       proposal=proposal,
       dynamics=dynamics,
       objective=SequenceObjective(num_blocks=m.objective_blocks, num_bins=m.num_bins, **common),
-      actor=Actor(tuple(m.actor_hidden), config.action_dim),
+      actor=Actor(tuple(m.actor_hidden), config.action_dim,
+                  stochastic=objective_settings(config).actor == 'maxq'),
       critics=build_critics(config),
   )
 

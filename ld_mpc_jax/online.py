@@ -39,7 +39,8 @@ from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.models import count_params, set_obs_normalization
-from ld_mpc_jax.train_state import create_train_state, make_update
+from ld_mpc_jax.search import CANDIDATE_KINDS
+from ld_mpc_jax.train_state import create_train_state, make_multi_update, make_update
 
 ONLINE_CSV = 'online.csv'
 LOSSES_CSV = 'losses.csv'
@@ -47,11 +48,23 @@ BUFFER_DIR = 'online'
 
 
 def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """A copy of config whose planner adds `config.online`'s exploration noise to its candidates."""
+  """A copy of config for the planner while acting: `config.online`'s exploration noise on its
+  candidates and its acting pessimism (`online.act_pessimism`; evaluation keeps
+  `plan.pessimism`): unfamiliar states are model error offline, opportunity online."""
   c = ml_collections.ConfigDict(config.to_dict())
   c.plan.action_noise_std = config.online.action_noise_std
   c.plan.prior_noise_std = config.online.prior_noise_std
+  c.plan.pessimism = config.online.act_pessimism
   return c
+
+
+def executed_noise(config: ml_collections.ConfigDict, env_steps: int, learn_start: int) -> float:
+  """Std of the noise on the executed action at `env_steps`: linear from
+  `online.exec_noise_start` when the planner starts acting to `online.exec_noise_end` at
+  `online.env_steps`."""
+  o = config.online
+  frac = np.clip((env_steps - learn_start) / max(o.env_steps - learn_start, 1), 0.0, 1.0)
+  return float(o.exec_noise_start + frac * (o.exec_noise_end - o.exec_noise_start))
 
 
 def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collections.ConfigDict]:
@@ -152,7 +165,9 @@ class _Run:
       self.state = create_train_state(config, jax.random.key(config.seed))
       self.counters['normalized'] = not config.model.get('normalize_obs', False)
     self.learn_start = 0 if self.source is not None else o.seed_steps
-    self.update = make_update(config)
+    self.per_call = o.updates_per_call
+    self.update = (make_update(config) if self.per_call == 1
+                   else make_multi_update(config, self.per_call))
     self.update_key = jax.random.key(config.seed + 1)
     self.act_config = acting_config(config)
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
@@ -180,12 +195,15 @@ class _Run:
       self.state = self.state.replace(  # Copies: the update donates both trees.
           params=params, ema_params=jax.tree_util.tree_map(jnp.copy, params))
       c['normalized'] = True
-    target = int(self.config.online.update_ratio * c['env_steps'])
-    while c['updates'] < target:
+    target, batch, n = (int(self.config.online.update_ratio * c['env_steps']),
+                        self.config.train.batch_size, self.per_call)
+    while c['updates'] + n <= target:  # `online.updates_per_call` updates per jitted call.
+      windows = self.buffer.sample(batch * n)
+      if n > 1:
+        windows = {k: v.reshape((n, batch) + v.shape[1:]) for k, v in windows.items()}
       self.state, self.metrics = self.update(
-          self.state, self.buffer.sample(self.config.train.batch_size),
-          jax.random.fold_in(self.update_key, c['updates']))
-      c['updates'] += 1
+          self.state, windows, jax.random.fold_in(self.update_key, c['updates']))
+      c['updates'] += n
 
   def wave(self):
     """One episode per environment: (planner acted, episodes), by the planner or at random."""
@@ -202,14 +220,27 @@ class _Run:
                                 seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
       policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
                     for i, s in enumerate(seeds)])
+      policy.action_noise = executed_noise(self.config, self.counters['env_steps'],
+                                           self.learn_start)
     obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(self.envs, seeds)])
     eps = [dict(obs=[x], action=[], reward=[], success=[]) for x in obs]
     active, t = np.ones(n, bool), 0
+    # Which kind of candidate won each acting decision; the last entry counts departures.
+    self.winners = np.zeros(len(CANDIDATE_KINDS) + 1, np.int64)
+    self.dense_max = 0.0
     while active.any():
       actions = (policy(obs, t, active) if planner
                  else rng.uniform(-1.0, 1.0, (n, act_dim)).astype(np.float32))
+      if planner and policy.last_info is not None:
+        for info_i in policy.last_info[active]:
+          if info_i[0] >= 0:
+            self.winners[info_i[0]] += 1
+          self.winners[-1] += info_i[2]
       for i in np.flatnonzero(active):
         obs[i], reward, terminated, truncated, info = self.envs[i].step(actions[i])
+        self.dense_max = max(self.dense_max, float(reward))
+        if o.reward == 'sparse':  # Success only: the case the idea was made for.
+          reward = float(info['success'])
         for name, value in (('obs', obs[i]), ('action', actions[i]), ('reward', reward),
                             ('success', info['success'])):
           eps[i][name].append(np.copy(value))
@@ -243,17 +274,24 @@ class _Run:
                           self.workdir, self.writer)
       write_plots(self.workdir)
 
-  def log(self, planner: bool, episodes, seconds: float, steps: int) -> None:
+  def log(self, planner: bool, episodes, seconds: float, steps: int, before_steps: int) -> None:
     metrics = {k: float(v) for k, v in sorted(jax.device_get(self.metrics).items())}
     if metrics and not np.isfinite(metrics['loss']):
       raise FloatingPointError(
           f"non-finite loss {metrics['loss']} at environment step {self.counters['env_steps']}; "
           f'stopping. The last good checkpoint (step {self.manager.latest_step()}) is kept.')
     step = self.counters['env_steps']
+    decisions = max(int(self.winners[:-1].sum()), 1)
     row = dict(env_steps=step, episodes=self.counters['episodes'],
                updates=self.counters['updates'], acting='planner' if planner else 'random',
                episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
                episode_success=float(np.mean([e['success'].any() for e in episodes])),
+               max_step_reward=self.dense_max,  # Dense reward, also under a sparse one.
+               **{f'won_{k}': float(self.winners[j] / decisions)
+                  for j, k in enumerate(CANDIDATE_KINDS)},
+               departed=float(self.winners[-1] / decisions),
+               exec_noise=executed_noise(self.config, before_steps, self.learn_start)
+               if planner else float('nan'),
                env_steps_per_s=steps / seconds)
     run_files.append_csv(os.path.join(self.workdir, ONLINE_CSV), row)
     if metrics:  # Losses of the wave's last update, from the first update on.
@@ -285,7 +323,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
     run.buffer.add(episodes)
     seconds = time.perf_counter() - start
     c['train_seconds'] += seconds
-    run.log(planner, episodes, seconds, c['env_steps'] - before)
+    run.log(planner, episodes, seconds, c['env_steps'] - before, before)
     run.bar.set_postfix(updates=c['updates'],
                         success=np.mean([e['success'].any() for e in episodes]))
     if c['env_steps'] // o.eval_every > before // o.eval_every and c['env_steps'] < o.env_steps:

@@ -103,9 +103,28 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
     return new_state, metrics
 
   if mesh is None and not config.train.get('data_parallel', False):
-    return jax.jit(update, donate_argnums=0)
+    jitted = jax.jit(update, donate_argnums=0)
+    jitted.unjitted = update  # For make_multi_update.
+    return jitted
   mesh = sharding.make_mesh() if mesh is None else mesh
   sharding.local_batch_size(config.train.batch_size, mesh)  # Raises if B % devices != 0.
   rep = sharding.replicated(mesh)
   return jax.jit(update, in_shardings=(rep, sharding.batch_sharded(mesh), rep),
                  out_shardings=(rep, rep), donate_argnums=0)
+
+
+def make_multi_update(config: ml_collections.ConfigDict, num: int) -> Callable:
+  """Returns jitted update(state, batches, key) -> (state, metrics of the last update): `num`
+  updates in one call (lax.scan), batches stacked on a leading axis [num, B, ...], the i-th
+  update's key fold_in(key, i). One dispatch for `num` small updates: on a 2-core CPU about
+  3x fewer seconds per update at the online `:cpu` size (docs/online.md). State donated."""
+  update = make_update(config).unjitted
+
+  def multi(state, batches, key):
+    def body(state, inputs):
+      batch, i = inputs
+      return update(state, batch, jax.random.fold_in(key, i))
+    state, metrics = jax.lax.scan(body, state, (batches, jnp.arange(num)))
+    return state, jax.tree_util.tree_map(lambda x: x[-1], metrics)
+
+  return jax.jit(multi, donate_argnums=0)

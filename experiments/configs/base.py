@@ -117,11 +117,14 @@ def get_config() -> ml_collections.ConfigDict:
   o.num_q = 2  # Clipped double Q for V's target (IQL, TD3).
   o.hidden = (256, 256)  # MLP widths of each V and Q head (TD-MPC2's Q MLP).
   o.value_scale = 100.0  # Values are regressed in these units (returns reach hundreds).
-  # Actor prior: advantage-weighted regression (IQL eq. 7) or plain behaviour cloning ('bc').
+  # Actor prior: advantage-weighted regression (IQL eq. 7), plain behaviour cloning ('bc'), or
+  # 'maxq' (online): a stochastic policy maximising Q with an entropy bonus (TD-MPC2).
   o.actor = 'awr'
   # IQL's beta is 3 for rewards of a few units per step; Meta-World's reach 10, so 1.
   o.awr_temperature = 1.0
   o.awr_max_weight = 100.0  # IQL's clip of the exponentiated advantage.
+  # Actor 'maxq' (online): entropy bonus of the max-Q policy, TD-MPC2's entropy_coef.
+  o.entropy_coef = 1e-4
   # Train reward and value heads on the dynamics model's own H-step latent rollouts as well as on
   # encoder latents, with a latent-consistency loss on the rollout (TD-MPC2).
   o.latent_rollout = True

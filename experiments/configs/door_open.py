@@ -11,7 +11,7 @@ import ml_collections
 from experiments.configs import base
 
 
-def _resize(c: ml_collections.ConfigDict, width: int, heads: int, blocks: int) -> None:
+def resize(c: ml_collections.ConfigDict, width: int, heads: int, blocks: int) -> None:
   """Same architecture, smaller: latent, encoder and blocks of `width`, `blocks` per network."""
   m = c.model
   m.latent_dim = m.encoder_hidden = m.width = width
@@ -25,7 +25,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset in (None, '', 'reference'):
     return c
   if preset == 'cpu':
-    _resize(c, width=128, heads=4, blocks=2)
+    resize(c, width=128, heads=4, blocks=2)
     c.model.actor_hidden = (128, 128)
     c.objective.hidden = (128, 128)
     c.model.dropout = 0.0  # Short training on plentiful data: dropout only slows fitting.
@@ -49,7 +49,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset == 'ablation':
     # Sized so that experiments.ablations (6 variants x 4 runs + baselines, 50-episode
     # evaluations) fits in about two hours on a 2-core CPU.
-    _resize(c, width=64, heads=4, blocks=1)
+    resize(c, width=64, heads=4, blocks=1)
     c.model.actor_hidden = (64, 64)
     c.objective.hidden = (64, 64)
     c.model.dropout = 0.0
@@ -68,7 +68,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.train.checkpoint_every = 1_000
     return c
   if preset == 'smoke':
-    _resize(c, width=16, heads=2, blocks=1)
+    resize(c, width=16, heads=2, blocks=1)
     c.model.actor_hidden = (16,)
     c.objective.hidden = (16,)
     c.objective.num_values = 3

@@ -34,6 +34,16 @@ def online_settings() -> ml_collections.ConfigDict:
   # still picks among them, so noise widens what is tried without acting blindly.
   o.action_noise_std = 0.2  # Gaussian, on the proposal's sequences (then clipped).
   o.prior_noise_std = 0.2  # Gaussian, on the actor-prior candidates' actions (not the first).
+  # Pessimism while acting (evaluation keeps plan.pessimism): penalising ensemble disagreement
+  # steers away from exactly the unfamiliar states exploration should reach (TD-MPC2 has none).
+  o.act_pessimism = 0.0
+  # Gaussian noise on the executed action while acting, its std linear from start to end over
+  # the run (DDPG/TD3-style action noise, annealed; 0 and 0 = the planner's action as chosen).
+  o.exec_noise_start = 0.0
+  o.exec_noise_end = 0.0
+  o.updates_per_call = 1  # Updates per jitted call (lax.scan): fewer dispatches on a CPU.
+  # 'dense': Meta-World's shaped reward; 'sparse': 1 on steps where the task is solved, else 0.
+  o.reward = 'dense'
   # Planner environments per vmap (0: one jitted plan per environment, the faster on a 2-core
   # CPU; an accelerator wants them all in one vmap).
   o.plan_chunk = 4
@@ -42,9 +52,39 @@ def online_settings() -> ml_collections.ConfigDict:
   return o
 
 
+def _budget(c: ml_collections.ConfigDict) -> None:
+  """The `:cpu` online preset: 100k environment steps at 0.5 updates per step in about an hour
+  on a 2-core CPU (README), with a planner that searches and values that extrapolate."""
+  door_open.resize(c, width=64, heads=4, blocks=1)  # 50k updates must fit (docs/online.md).
+  c.model.actor_hidden = c.objective.hidden = (64, 64)
+  c.model.dropout = 0.0
+  c.train.warmup_steps = 100
+  p = c.plan
+  # First round: 16 proposal sequences, 32 broad Gaussian ones, 8 actor-prior ones (TD-MPC2
+  # mixes 24 policy rollouts into 512 samples); then 3 MPPI rounds of 32 around 8 elites
+  # (TD-MPC2: 6 rounds of 512 around 64), at this CPU's budget.
+  p.num_candidates, p.num_prior_candidates = 24, 8
+  p.num_gaussian = 32
+  p.iterations, p.num_refine, p.num_elites = 3, 32, 8
+  # TD-MPC2's targets and policy: values of the current policy, not of the buffer's actions.
+  c.objective.td_target = 'policy'
+  c.objective.actor = 'maxq'
+  o = c.online
+  # TD-MPC2's training episodes: 100 decisions at action repeat 2 (evaluation keeps
+  # Meta-World's 500 steps), so 500 resets in 100k steps instead of 200.
+  o.episode_steps = 200
+  o.seed_steps = 1_600  # 2 waves of 4 random-action episodes (TD-MPC2: 5 episodes).
+  o.update_ratio = 0.5  # TD-MPC2: one update per decision.
+  o.updates_per_call = 8
+  o.exec_noise_start, o.exec_noise_end = 0.3, 0.05  # Down to TD-MPC2's min_std.
+  o.plan_chunk = 0
+  c.eval.splits = ('held_out',)  # The headline split; train goals at the end cost 10 minutes.
+
+
 def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
-  if preset not in (None, '', 'reference', 'cpu', 'finetune', 'smoke'):
-    raise ValueError(f"unknown preset {preset!r}: use '', 'cpu', 'finetune' or 'smoke'")
+  if preset not in (None, '', 'reference', 'cpu', 'cpu_v1', 'finetune', 'smoke'):
+    raise ValueError(f"unknown preset {preset!r}: use '', 'cpu', 'cpu_v1', 'finetune' or "
+                     "'smoke'")
   size = {'cpu': 'cpu', 'finetune': 'cpu', 'smoke': 'smoke'}.get(preset)
   c = door_open.get_config(size)
   c.online = o = online_settings()
@@ -52,10 +92,17 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   # reaches later (the door barely moves in them): raw observations from scratch, as TD-MPC2.
   c.model.normalize_obs = False
   if preset == 'cpu':
+    _budget(c)
+  elif preset == 'cpu_v1':  # The first :cpu preset (0.1 updates per step; docs/log.md).
+    c = door_open.get_config('cpu')
+    c.online = o = online_settings()
+    c.model.normalize_obs = False
+    o.act_pessimism = c.plan.pessimism
     o.plan_chunk = 0
     o.update_ratio = 0.1
   elif preset == 'finetune':
     c.model.normalize_obs = True  # The offline checkpoint's networks (its data's statistics).
+    o.act_pessimism = c.plan.pessimism  # As measured (README): acting as it evaluates.
     o.plan_chunk = 0
     o.update_ratio = 0.1
     o.env_steps = 50_000
