@@ -64,6 +64,19 @@ def discounted_return(rewards: jnp.ndarray, terminal_value: jnp.ndarray,
 n_step_targets = window_returns  # The behaviour value's targets (ld_mpc_jax.critics).
 
 
+def maxq_actor_loss(nets: Networks, params, z: jnp.ndarray, key: jax.Array,
+                    entropy_coef: float) -> jnp.ndarray:
+  """E[alpha log pi(a|z) - mean_j Q_j(z, a)], a ~ pi(.|z) reparameterised (SAC, TD-MPC2).
+
+  z [..., D] (detached by the caller); Q's parameters are held fixed, so only the actor learns
+  from it; Q in value_scale units is O(1), as TD-MPC2's scale-normalised Q.
+  """
+  a, log_prob = nets.actor.apply({'params': params['actor']}, z, key, method=nets.actor.sample)
+  q = nets.critics.apply({'params': jax.lax.stop_gradient(params['critics'])}, z, a,
+                         method=nets.critics.q_value)
+  return jnp.mean(entropy_coef * log_prob - jnp.mean(q, axis=0))
+
+
 def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   """Returns loss_fn(params, target_params, batch, key) -> (loss, metrics).
 
@@ -159,15 +172,6 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     l_val = soft_cross_entropy(v_logits, two_hot(v_target, m.num_bins, m.vmin, m.vmax)).mean()
     return l_rew, l_val, v_target.mean()
 
-  def maxq_actor_loss(params, z, key):
-    """E[alpha log pi(a|z) - mean_j Q_j(z, a)], a ~ pi(.|z) reparameterised; Q's parameters
-    held fixed (value_scale units, so Q is O(1) as TD-MPC2's scale-normalised Q)."""
-    a, log_prob = nets.actor.apply({'params': params['actor']}, z, key,
-                                   method=nets.actor.sample)
-    q = nets.critics.apply({'params': jax.lax.stop_gradient(params['critics'])}, z, a,
-                           method=nets.critics.q_value)
-    return jnp.mean(o.entropy_coef * log_prob - jnp.mean(q, axis=0))
-
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
     k_dyn, k_act, k_drop, k_roll, k_pi = jax.random.split(key, 5)
@@ -199,7 +203,7 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
       l_q, l_v = critic['q'], critic['v']
       metrics.update(critic_metrics)
     if o.actor == 'maxq':  # TD-MPC2 / SAC: max Q + entropy, on detached latents and Q.
-      l_actor = maxq_actor_loss(params, sg(z[:, :-1]), k_pi)
+      l_actor = maxq_actor_loss(nets, params, sg(z[:, :-1]), k_pi, o.entropy_coef)
     else:
       if o.actor == 'bc':
         weights, z_actor = jnp.ones(reward.shape), z[:, :-1]

@@ -276,6 +276,8 @@ def make_plan(config: ml_collections.ConfigDict,
   sequence_proposal = proposal_type(config) == 'diffusion_seq'
   draws = p.dynamics_draws
   anchor = k - num_prior + num_gauss if num_prior else -1  # The actor prior's own sequence.
+  # Settings read now, not at trace time: a config changed after make_plan changes nothing.
+  p = ml_collections.ConfigDict(p.to_dict())
 
   def score_draws(params, z, proposals, key, roll):
     """(actions [N, H, A], scores [N], members [draws x M, N]): J per draw combined over the

@@ -209,3 +209,38 @@ def test_window_returns_hand_computed():
   out = critics.window_returns(r, jnp.array([10.0]), 0.5)
   # i = 2: 3 + 0.5 * 10 = 8; i = 1: 2 + 0.5 * 8 = 6; i = 0: 1 + 0.5 * 6 = 4.
   np.testing.assert_allclose(out, [[4.0, 6.0, 8.0]])
+
+
+def test_policy_td_targets_against_hand_computed_values(smoke_config):
+  """objective.td_target 'policy' (TD-MPC2): Q <- r + gamma min_j Q_ema(z', pi(z')), V <- min_j
+  Q_ema(z, pi(z)); linear heads, so the targets are computed here by hand."""
+  c = smoke_config
+  c.horizon, c.gamma = 1, 0.9
+  o = c.objective
+  o.hidden, o.num_values, o.num_q, o.value_scale, o.td_target = (), 2, 2, 1.0, 'policy'
+  d, a_dim = 3, 2
+  net = critics.Critics((), 2, 2)
+  rng = np.random.default_rng(0)
+  z = rng.normal(size=(1, 3, d)).astype(np.float32)  # [B, H+2, D]
+  z_ema = z + 0.5
+  action = rng.uniform(-1, 1, (1, 2, a_dim)).astype(np.float32)
+  reward = np.array([[1.0, 2.0]], np.float32)
+  a_pi = np.array([0.3, -0.7], np.float32)
+  params = {'critics': net.init(jax.random.key(0), z[:, :2], action)['params']}
+  target = {'critics': jax.tree_util.tree_map(lambda x: x * 0.5, params['critics'])}
+  policy = lambda p, zz: jnp.broadcast_to(a_pi, zz.shape[:-1] + (a_dim,))
+  loss = critics.make_critic_loss(c, net, policy)
+  losses, _, _ = loss(params, target, z, z_ema, None, action, reward)
+
+  def linear(p, head, x):  # Every member of one ensemble: [num, ...].
+    k, b = p[head]['heads']['dense_0']['kernel'], p[head]['heads']['dense_0']['bias']
+    return np.einsum('...i,nio->n...o', x, np.asarray(k))[..., 0] + np.asarray(b)[:, None, None, 0]
+
+  sa = lambda zz, aa: np.concatenate([zz, np.broadcast_to(aa, zz.shape[:-1] + (a_dim,))], -1)
+  q_next = linear(target['critics'], 'q', sa(z_ema[:, 1:], a_pi)).min(0)  # [B, 2]
+  q_target = reward + 0.9 * q_next
+  q = linear(params['critics'], 'q', sa(z[:, :2], action))
+  np.testing.assert_allclose(losses['q'], np.mean((q - q_target) ** 2), rtol=1e-5)
+  v_target = linear(target['critics'], 'q', sa(z_ema[:, :2], a_pi)).min(0)
+  v = linear(params['critics'], 'v', z[:, :2])
+  np.testing.assert_allclose(losses['v'], np.mean((v - v_target) ** 2), rtol=1e-5)

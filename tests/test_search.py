@@ -1,0 +1,153 @@
+"""ld_mpc_jax.search inside plan(): refinement, safe selection, softmax selection, acting noise."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import ml_collections
+import pytest
+
+from ld_mpc_jax import encode, make_plan, search
+from ld_mpc_jax.search import CANDIDATE_KINDS
+
+TARGET = jnp.array([0.6, -0.4, 0.2, -0.8])  # The toy optimum: this action at every step.
+
+
+def toy_score(params, latents, actions):
+  """J = -sum over steps of ||a_i - TARGET||^2: the best sequence repeats TARGET."""
+  return -jnp.sum((actions - TARGET) ** 2, axis=(-2, -1))
+
+
+@pytest.fixture
+def z(smoke_params):
+  return encode(smoke_params, np.linspace(-1, 1, 39).astype(np.float32))
+
+
+def search_config(smoke_config, iterations):
+  c = ml_collections.ConfigDict(smoke_config.to_dict())
+  c.plan.num_candidates, c.plan.num_prior_candidates = 6, 2
+  c.plan.num_gaussian, c.plan.gaussian_std = 8, 2.0
+  c.plan.iterations, c.plan.num_refine, c.plan.num_elites = iterations, 32, 4
+  return c
+
+
+def test_refinement_moves_toward_the_toy_optimum(smoke_config, smoke_params, z):
+  first = make_plan(search_config(smoke_config, 0), toy_score)
+  refined = make_plan(search_config(smoke_config, 5), toy_score)
+  gains, kinds = [], []
+  for seed in range(5):
+    a = first(smoke_params, z, jax.random.key(seed))
+    b = refined(smoke_params, z, jax.random.key(seed))
+    gains.append(float(b.scores[b.index] - a.scores[a.index]))
+    kinds.append(CANDIDATE_KINDS[int(b.kind)])
+    assert int(b.iteration) >= 1 or kinds[-1] != 'refined'
+  # Refinement keeps the first round's elites, so it is never worse, and it gets closer.
+  assert min(gains) >= 0.0 and np.mean(gains) > 0.1
+  assert kinds.count('refined') >= 4
+  b = refined(smoke_params, z, jax.random.key(0))
+  assert float(jnp.max(jnp.abs(b.sequence - TARGET))) < 0.5
+  assert b.candidates.shape[0] == 6 + 8 + 4  # The first round, then the final elites.
+
+
+def test_elite_moments_weight_the_best():
+  actions = jnp.stack([jnp.zeros((2, 1)), jnp.ones((2, 1))])
+  mean, std = search.elite_moments(actions, jnp.array([0.0, 100.0]), 0.5, 0.05, 2.0)
+  np.testing.assert_allclose(mean, 1.0, atol=1e-6)
+  np.testing.assert_allclose(std, 0.05, atol=1e-6)  # Clipped at the minimum.
+  mean, _ = search.elite_moments(actions, jnp.array([0.0, 0.0]), 0.5, 0.05, 2.0)
+  np.testing.assert_allclose(mean, 0.5, atol=1e-6)
+
+
+def safe_config(smoke_config, margin, selection='argmax'):
+  c = smoke_config
+  c.plan.num_candidates, c.plan.num_prior_candidates = 6, 2
+  c.plan.safe_selection, c.plan.safe_margin, c.plan.selection = True, margin, selection
+  return c
+
+
+def actor_sequence(plan_fn, params, z, key):
+  """The actor prior's own sequence: index K - P (no Gaussian set)."""
+  out = plan_fn(params, z, key)
+  return out.candidates[4], out
+
+
+def test_equal_scores_return_the_actor_prior(smoke_config, smoke_params, z):
+  flat = lambda params, latents, actions: jnp.zeros(actions.shape[0])
+  plan = make_plan(safe_config(smoke_config, 0.0), flat)
+  seq, out = actor_sequence(plan, smoke_params, z, jax.random.key(3))
+  np.testing.assert_array_equal(out.sequence, seq)
+  assert not bool(out.departed) and CANDIDATE_KINDS[int(out.kind)] == 'actor_prior'
+
+
+def noisy_members(params, latents, actions):
+  """[M = 5, K]: the toy J plus member noise of std 1 (a disagreeing ensemble)."""
+  noise = jax.random.normal(jax.random.key(42), (5, actions.shape[0]))
+  return toy_score(params, latents, actions)[None] + noise
+
+
+def test_large_margin_always_keeps_the_actor_prior(smoke_config, smoke_params, z):
+  plan = make_plan(safe_config(smoke_config, 1e6), noisy_members)
+  for seed in range(4):
+    seq, out = actor_sequence(plan, smoke_params, z, jax.random.key(seed))
+    np.testing.assert_array_equal(out.action, jnp.clip(seq[0], -1, 1))
+    assert not bool(out.departed)
+
+
+def test_zero_margin_is_the_argmax(smoke_config, smoke_params, z):
+  plan = make_plan(safe_config(smoke_config, 0.0), noisy_members)
+  departed = []
+  for seed in range(4):
+    out = plan(smoke_params, z, jax.random.key(seed))
+    assert int(out.index) == int(jnp.argmax(out.scores))
+    np.testing.assert_array_equal(out.sequence, out.candidates[out.index])
+    departed.append(bool(out.departed))
+  assert any(departed)
+
+
+def test_softmax_selection_weights_the_elites(smoke_config, smoke_params, z):
+  c = smoke_config
+  c.plan.num_candidates, c.plan.num_prior_candidates, c.plan.selection = 6, 0, 'softmax'
+  c.plan.num_elites, c.plan.temperature = 3, 1e-6  # Nearly equal weights over 3 elites.
+  out = make_plan(c, toy_score)(smoke_params, z, jax.random.key(0))
+  top = np.argsort(-np.asarray(out.scores))[:3]
+  np.testing.assert_allclose(out.sequence, np.mean(np.asarray(out.candidates)[top], 0),
+                             atol=1e-5)
+
+
+def test_action_noise_only_when_asked_and_no_recompile(smoke_config, smoke_params, z):
+  plan = make_plan(smoke_config)
+  key = jax.random.key(5)
+  quiet = plan(smoke_params, z, key)
+  np.testing.assert_array_equal(quiet.action, jnp.clip(quiet.sequence[0], -1, 1))
+  noisy, sizes = [], []
+  for std in (0.3, 0.1, 0.05):
+    noisy.append(plan(smoke_params, z, key, None, std))
+    sizes.append(plan._cache_size())
+  for out in noisy:
+    np.testing.assert_array_equal(out.sequence, quiet.sequence)  # Same plan, noisy action.
+    assert float(jnp.max(jnp.abs(out.action - quiet.action))) > 1e-3
+  assert sizes[0] == sizes[-1]  # Annealing the noise never recompiles.
+
+
+def test_acting_policy_has_no_noise_unless_set(smoke_config, smoke_params):
+  from ld_mpc_jax.agent import BatchAgentPolicy
+  from ld_mpc_jax.envs import goals
+  obs = np.zeros((2, 39), np.float32)
+  policy = BatchAgentPolicy(smoke_config, smoke_params, 'plan', seed=0, chunk=0)
+  eps = [goals.Episode('x', i, 0, i, '', None) for i in range(2)]
+  policy.start(eps)
+  quiet = policy(obs, 0, np.ones(2, bool))
+  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 3)
+  policy.start(eps)
+  policy.action_noise = 0.5
+  noisy = policy(obs, 0, np.ones(2, bool))
+  assert np.max(np.abs(noisy - quiet)) > 1e-3
+
+
+def test_bad_search_settings_fail_in_one_line(smoke_config):
+  c = smoke_config
+  c.plan.safe_selection, c.plan.num_prior_candidates = True, 0
+  with pytest.raises(ValueError, match='num_prior_candidates >= 1'):
+    make_plan(c)
+  c.plan.safe_selection, c.plan.selection = False, 'best'
+  with pytest.raises(ValueError, match='selection must be one of'):
+    make_plan(c)
