@@ -79,6 +79,17 @@ def candidate_wins(config, params, obs) -> dict:
   return {kind: float(c / len(kinds)) for kind, c in zip(planner.CANDIDATE_KINDS, counts)}
 
 
+def departures(records) -> dict:
+  """The share of the planner's decisions that left the actor prior's own sequence, and the
+  success of episodes with at least one such decision and of those with none."""
+  decisions = sum(r['length'] for r in records)
+  went = [r for r in records if r.get('departures', 0) > 0]
+  stayed = [r for r in records if r.get('departures', 0) == 0]
+  solved = lambda rs: [sum(r['success'] for r in rs), len(rs)]
+  return dict(departure_share=sum(r.get('departures', 0) for r in records) / max(decisions, 1),
+              success_with_departures=solved(went), success_without_departures=solved(stayed))
+
+
 def success_by_k(config, params, ks, episodes: int, seed: int) -> list:
   """Planner success on held-out goals per K, paired with the largest K."""
   p = config.plan
@@ -89,11 +100,16 @@ def success_by_k(config, params, ks, episodes: int, seed: int) -> list:
     r = evaluation_suite.evaluate_policy(cfg, params, 'plan', episodes, seed, 'held_out')
     outcomes[k] = [rec['success'] for rec in sorted(r['records'], key=lambda x: x['episode'])]
     rows.append(dict(k=k, prior=prior, successes=r['successes'], episodes=episodes,
-                     success_rate=r['success_rate'], success_ci95=r['success_ci95']))
+                     success_rate=r['success_rate'], success_ci95=r['success_ci95'],
+                     **departures(r['records'])))
   top = max(ks)
   for row in rows:
     row['vs_largest_k'] = stats.mcnemar_exact(outcomes[row['k']], outcomes[top])
   return rows
+
+
+def _ratio(pair) -> str:
+  return f'{pair[0]}/{pair[1]}'
 
 
 def markdown(report: dict) -> str:
@@ -103,13 +119,17 @@ def markdown(report: dict) -> str:
            'held-out dataset episodes: dynamics-model rollout '
            f"{c['spearman_model']:.3f}, encoder latents {c['spearman_encoder']:.3f}.", '',
            '| K | actor-prior candidates | held-out success | 95% CI | vs largest K '
-           '(only this K / only largest) | p |', '| ---: | ---: | --- | --- | --- | ---: |']
+           '(only this K / only largest) | p | decisions departing from the actor prior | '
+           'success of episodes with / without departures |',
+           '| ---: | ---: | --- | --- | --- | ---: | ---: | --- |']
   for r in report['success_by_k']:
     m = r['vs_largest_k']
     lines.append(f"| {r['k']} | {r['prior']} | {r['successes']}/{r['episodes']} = "
                  f"{r['success_rate']:.2f} | [{r['success_ci95'][0]:.2f}, "
                  f"{r['success_ci95'][1]:.2f}] | {m['a_only']} / {m['b_only']} | "
-                 f"{m['p_value']:.2g} |")
+                 f"{m['p_value']:.2g} | {r['departure_share']:.2f} | "
+                 f"{_ratio(r['success_with_departures'])} / "
+                 f"{_ratio(r['success_without_departures'])} |")
   wins = ', '.join(f'{k} {v:.2f}' for k, v in report['candidate_wins'].items())
   lines += ['', f'Winning candidate kinds (K = {report["k"]}, planning from the windows\' start '
             f'states): {wins}.', '']

@@ -168,6 +168,9 @@ def summarize(records: Sequence[dict]) -> Dict[str, Any]:
       s = stats.summarize(mine)
       s['per_run'] = stats.spread(mine, 'run')
       s['per_eval_seed'] = stats.spread(mine, 'eval_seed')['rates']
+      if all('departures' in r for r in mine):  # Decisions that left the actor prior's plan.
+        s['departure_share'] = (sum(r['departures'] for r in mine)
+                                / max(sum(r['length'] for r in mine), 1))
       s['decisions_per_s'] = float(np.median([r['decisions_per_s'] for r in mine
                                               if 'decisions_per_s' in r] or [np.nan]))
       policies[mode] = s
