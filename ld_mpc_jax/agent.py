@@ -205,8 +205,9 @@ class BatchAgentPolicy:
     obs = jnp.asarray(obs, jnp.float32)
     keys = episode_keys(self.seed, np.arange(obs.shape[0]))
     active = jnp.ones(obs.shape[0], bool)
-    _, seq, _ = self.act(self.params, obs, keys, 0, None, active)
-    jax.block_until_ready(self.act(self.params, obs, keys, 1, seq if self.warm else None, active))
+    _, seq, _ = self.act(self.params, obs, keys, 0, None, active, self.action_noise)
+    jax.block_until_ready(self.act(self.params, obs, keys, 1, seq if self.warm else None, active,
+                                   self.action_noise))
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
     if self.per_env:

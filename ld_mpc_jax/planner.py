@@ -323,19 +323,21 @@ def make_plan(config: ml_collections.ConfigDict,
                             jnp.ones(num_prior, jnp.int32)])
     iteration = jnp.zeros(n, jnp.int32)
     if p.iterations:
-      def score_samples(samples, key):
-        return score_draws(params, z, samples, key, plain_rollout)[2]
+      def score_samples(samples, key):  # (scores [N], members): as the first round's.
+        return score_draws(params, z, samples, key, plain_rollout)[1:]
       pool = refine(score_samples, Pool(actions, scores, members, kind, iteration),
                     jax.random.fold_in(dyn_key, 10_000), p.iterations, p.num_refine,
-                    p.num_elites, p.temperature, p.min_std, p.gaussian_std, p.pessimism)
+                    p.num_elites, p.temperature, p.min_std, p.gaussian_std)
       actions = jnp.concatenate([actions, pool.actions])
       scores = jnp.concatenate([scores, pool.scores])
       members = jnp.concatenate([members, pool.members], axis=1)
       kind = jnp.concatenate([kind, pool.kind])
       iteration = jnp.concatenate([iteration, pool.iteration])
+    # Elites kept from the first round appear twice: once only in the softmax over elites.
+    unique = jnp.concatenate([jnp.ones(n, bool), iteration[n:] > 0]) if p.iterations else None
     sequence, index, departed, _ = select(actions, scores, members, anchor, p.safe_selection,
                                           p.safe_margin, p.selection, p.num_elites,
-                                          p.temperature)
+                                          p.temperature, unique)
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
     action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)
     return PlanOutput(action=action, sequence=sequence, scores=scores, candidates=actions,

@@ -18,7 +18,7 @@ improvement (SPIBB, Laroche et al. 2019: keep the baseline's action where the da
 support a change) and of uncertainty-penalised planning (MOPO, FOWM).
 """
 
-from typing import Callable, NamedTuple, Tuple
+from typing import Callable, NamedTuple, Optional, Tuple
 
 import jax
 import jax.numpy as jnp
@@ -70,11 +70,11 @@ def top_pool(pool: Pool, num: int) -> Pool:
 
 
 def refine(score_fn: Callable, first: Pool, key: jax.Array, iterations: int, num_samples: int,
-           num_elites: int, temperature: float, min_std: float, max_std: float,
-           pessimism: float) -> Pool:
+           num_elites: int, temperature: float, min_std: float, max_std: float) -> Pool:
   """MPPI-style refinement: returns the final elites (E = num_elites) with their provenance.
 
-  score_fn(actions [N, H, A], key) -> member scores [M, N]. `first` is the first round's scored
+  score_fn(actions [N, H, A], key) -> (scores [N], member scores [M, N]), scored as the first
+  round's candidates were (the same draws and pessimism). `first` is the first round's scored
   candidates. Each of `iterations` rounds (lax.scan) draws `num_samples` sequences from the
   elites' softmax-weighted Gaussian, clipped to [-1, 1], and keeps the best `num_elites` of
   elites and samples.
@@ -86,8 +86,8 @@ def refine(score_fn: Callable, first: Pool, key: jax.Array, iterations: int, num
     k_draw, k_score = jax.random.split(jax.random.fold_in(key, i))
     eps = jax.random.normal(k_draw, (num_samples,) + mean.shape)
     samples = jnp.clip(mean + std * eps, -1.0, 1.0)
-    members = score_fn(samples, k_score)
-    new = Pool(samples, combine(members, pessimism), members,
+    scores, members = score_fn(samples, k_score)
+    new = Pool(samples, scores, members,
                jnp.full((num_samples,), CANDIDATE_KINDS.index('refined'), jnp.int32),
                jnp.full((num_samples,), i, jnp.int32))
     merged = Pool(*(jnp.concatenate([x, y], axis=1 if name == 'members' else 0)
@@ -99,14 +99,16 @@ def refine(score_fn: Callable, first: Pool, key: jax.Array, iterations: int, num
 
 
 def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anchor: int,
-           safe: bool, margin: float, selection: str, num_elites: int, temperature: float
+           safe: bool, margin: float, selection: str, num_elites: int, temperature: float,
+           unique: Optional[jnp.ndarray] = None
            ) -> Tuple[jnp.ndarray, jnp.ndarray, jnp.ndarray, jnp.ndarray]:
   """Chooses what to execute among K scored candidates.
 
   actions [K, H, A], scores [K], members [M, K]; anchor: the index of the actor prior's own
   sequence (or -1: none). Returns (sequence [H, A], index [], departed [] bool, weights [K]):
   - 'argmax': the best candidate; 'softmax': the softmax-weighted mean of the `num_elites` best
-    (weights exp(temperature (J - max J)), MPPI), `index` its best elite;
+    (weights exp(temperature (J - max J)), MPPI), `index` its best elite; `unique` [K] bool
+    leaves repeated candidates out of the softmax;
   - with `safe`, the anchor's sequence unless the best candidate beats the anchor by more than
     margin x std over members of (J_best - J_anchor); ties keep the anchor.
   `departed` is whether the executed sequence is not the anchor's (always True without one).
@@ -114,7 +116,8 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
   best = jnp.argmax(scores)
   if selection == 'softmax':
     e = min(num_elites, scores.shape[0])
-    top_scores, top_idx = jax.lax.top_k(scores, e)
+    masked = scores if unique is None else jnp.where(unique, scores, -jnp.inf)
+    top_scores, top_idx = jax.lax.top_k(masked, e)
     w_top = jax.nn.softmax(temperature * (top_scores - top_scores[0]))
     weights = jnp.zeros_like(scores).at[top_idx].set(w_top)
     chosen = jnp.sum(weights[:, None, None] * actions, axis=0)

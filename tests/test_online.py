@@ -162,3 +162,27 @@ def test_bad_online_config_exits_2_with_one_line(tmp_path, override, match):
   assert done.returncode == 2
   lines = done.stderr.strip().splitlines()
   assert len(lines) == 1 and lines[0].startswith('error:') and match in lines[0]
+
+
+@pytest.mark.parametrize('overrides, match', [
+    (dict(reward='sparse', init_from='runs/x'), 'mix the offline'),
+    (dict(reward='shaped'), "'dense' or 'sparse'"),
+    (dict(updates_per_call=0), 'updates_per_call must be an integer'),
+    (dict(exec_noise_start=-0.1), 'must be >= 0'),
+])
+def test_acting_settings_are_checked(overrides, match):
+  from ld_mpc_jax.config_checks import validate_config
+  c = door_open_online.get_config('smoke')
+  c.online.update(overrides)
+  with pytest.raises(ValueError, match=match):
+    validate_config(c)
+
+
+def test_executed_noise_anneals_linearly():
+  c = door_open_online.get_config('cpu')
+  start, end = c.online.exec_noise_start, c.online.exec_noise_end
+  assert online.executed_noise(c, 0, 1_600) == pytest.approx(start)  # Before learning starts.
+  assert online.executed_noise(c, 1_600, 1_600) == pytest.approx(start)
+  mid = (1_600 + c.online.env_steps) // 2
+  assert online.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
+  assert online.executed_noise(c, c.online.env_steps, 1_600) == pytest.approx(end)
