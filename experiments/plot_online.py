@@ -53,21 +53,21 @@ def main(argv):
       ax.plot(*zip(*pts), 's--', color='gray', alpha=0.7,
               label='TD-MPC2 (published, per seed)' if seed == min(r['seed'] for r in rows)
               else None)
-  for run in FLAGS.runs:
-    name = os.path.basename(os.path.normpath(run))
+  for i, run in enumerate(FLAGS.runs):
+    name, color = os.path.basename(os.path.normpath(run)), f'C{i}'
     ev = read_csv(os.path.join(run, 'eval.csv'))
     x = [int(float(r['step'])) for r in ev]
-    ax.plot(x, [float(r['success_rate']) for r in ev], 'o-', label=f'{name}, held-out goals')
+    ax.plot(x, [float(r['success_rate']) for r in ev], 'o-', color=color,
+            label=f'{name}, held-out goals')
     ax.fill_between(x, [float(r['ci_lo']) for r in ev], [float(r['ci_hi']) for r in ev],
-                    alpha=0.2)
+                    color=color, alpha=0.15)
     waves = read_csv(os.path.join(run, 'online.csv'))
     wx = [int(r['env_steps']) for r in waves]
-    diag.plot(wx, [float(r['episode_success']) for r in waves], '.-', alpha=0.7,
+    diag.plot(wx, [float(r['episode_success']) for r in waves], '-', color=color,
               label=f'{name}: training episodes solved')
     if waves and 'won_refined' in waves[0]:
-      for kind in ('proposal', 'actor_prior', 'gaussian', 'refined'):
-        diag.plot(wx, [float(r[f'won_{kind}']) for r in waves], alpha=0.6,
-                  label=f'{name}: {kind} won (acting)')
+      diag.plot(wx, [float(r['won_refined']) for r in waves], ':', color=color,
+                label=f'{name}: refined candidate won (acting)')
   ax.set_xlabel('environment steps'); ax.set_ylabel('success rate')
   ax.set_xlim(0, FLAGS.max_steps); ax.set_ylim(-0.02, 1.02); ax.legend(fontsize=8)
   diag.set_xlabel('environment steps'); diag.set_ylabel('share')
@@ -76,6 +76,33 @@ def main(argv):
   os.makedirs(os.path.dirname(os.path.abspath(FLAGS.out)), exist_ok=True)
   fig.savefig(FLAGS.out, dpi=100)
   print(f'wrote {FLAGS.out}')
+  print(curve_table(FLAGS.runs))
+
+
+def curve_table(runs) -> str:
+  """Markdown: held-out planner successes per run at each evaluation, and pooled over the runs
+  at the steps every run reached (Wilson 95% interval)."""
+  from ld_mpc_jax import stats
+  per_run = {}
+  for run in runs:
+    for r in read_csv(os.path.join(run, 'eval.csv')):
+      n = int(r['episodes'])
+      k = round(float(r['success_rate']) * n)
+      per_run.setdefault(round(int(float(r['step'])), -3), {})[run] = (k, n)
+  names = [os.path.basename(os.path.normpath(r)) for r in runs]
+  lines = ['| environment steps | ' + ' | '.join(names) + ' | pooled | 95% CI (Wilson) |',
+           '| --- |' + ' --- |' * (len(runs) + 2)]
+  for step in sorted(per_run):
+    cells = [per_run[step].get(run) for run in runs]
+    shown = [f'{c[0]}/{c[1]}' if c else '-' for c in cells]
+    if all(cells):
+      k, n = sum(c[0] for c in cells), sum(c[1] for c in cells)
+      lo, hi = stats.wilson_interval(k, n)
+      pooled = [f'{k}/{n} = {k / n:.2f}', f'[{lo:.2f}, {hi:.2f}]']
+    else:
+      pooled = ['-', '-']
+    lines.append(f'| {step // 1000}k | ' + ' | '.join(shown + pooled) + ' |')
+  return '\n'.join(lines)
 
 
 if __name__ == '__main__':
