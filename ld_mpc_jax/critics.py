@@ -135,14 +135,10 @@ def make_terminal_members(config: ml_collections.ConfigDict, critics: Critics) -
 def make_terminal_value(config: ml_collections.ConfigDict, critics: Critics,
                         pessimism: float = 0.0) -> Callable:
   """value(params, z [..., D]) -> [...]: the expectile ensemble's mean - pessimism * std,
-  in reward units. It sees the latent alone, never the actions that led to it."""
-  scale = objective_settings(config).value_scale
-
-  def value(params, z):
-    v = critics.apply({'params': params['critics']}, z, method=Critics.value)
-    return scale * pessimistic(v, pessimism)
-
-  return value
+  in reward units (of `make_terminal_members`). It sees the latent alone, never the actions
+  that led to it."""
+  members = make_terminal_members(config, critics)
+  return lambda params, z: pessimistic(members(params, z), pessimism)
 
 
 def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
