@@ -198,9 +198,9 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   if not isinstance(o.updates_per_call, int) or o.updates_per_call < 1:
     raise ValueError(f'config.online.updates_per_call must be an integer >= 1, '
                      f'got {o.updates_per_call!r}')
-  if min(o.exec_noise_start, o.exec_noise_end, o.act_pessimism) < 0:
-    raise ValueError('config.online.exec_noise_start, exec_noise_end and act_pessimism must be '
-                     '>= 0')
+  if min(o.exec_noise_start, o.exec_noise_end) < 0:
+    raise ValueError('config.online.exec_noise_start and exec_noise_end must be >= 0')
+  # act_pessimism < 0 is optimism while acting: mean + |act_pessimism| std of the value ensemble.
 
 
 def check_online_budget(config: ml_collections.ConfigDict) -> None:
