@@ -127,8 +127,7 @@ def _validate_variant(config: ml_collections.ConfigDict) -> None:
 def _validate_objective(config: ml_collections.ConfigDict) -> None:
   """config.objective (ld_mpc_jax.critics) and the planner's robust-selection settings."""
   p = config.plan
-  if p.get('pessimism', 0.0) < 0:
-    raise ValueError(f'config.plan.pessimism must be >= 0, got {p.pessimism}')
+  # plan.pessimism < 0 is optimism (mean + |pessimism| std): online.act_pessimism while acting.
   draws = p.get('dynamics_draws', 1)
   if not isinstance(draws, int) or draws < 1:
     raise ValueError(f'config.plan.dynamics_draws must be an integer >= 1, got {draws!r}')
