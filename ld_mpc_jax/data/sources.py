@@ -7,7 +7,7 @@
   a glob pattern or a directory). TD-MPC2 recorded Meta-World v2; its 'mw-door-open' is this
   project's 'door-open-v3' (`tdmpc2.from_metaworld_v3`).
 A multi-task config (`config.tasks`) gets every task's scripted dataset joined, with each
-episode's task index (`multitask.load`).
+episode's task index (`load_multitask`).
 """
 
 import functools
@@ -17,6 +17,7 @@ import ml_collections
 from ld_mpc_jax import tasks
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import dataset as dataset_lib
+from ld_mpc_jax.data import multitask
 from ld_mpc_jax.data import tdmpc2
 
 SOURCES = ('metaworld', 'tdmpc2')
@@ -72,8 +73,7 @@ def load_for_config(config: ml_collections.ConfigDict,
   """
   check_source(config)
   if tasks.is_multitask(config):  # Every task's dataset, task_ids per episode.
-    from ld_mpc_jax.data import multitask  # pylint: disable=g-import-not-at-top
-    return multitask.load(config, progress=progress)
+    return load_multitask(config, progress=progress)
   d = config.data
   if source(config) == 'metaworld':
     ds = collection.get_or_collect(config.task, d.preset, d.episodes, d.seed, d.dir,
@@ -87,3 +87,13 @@ def load_for_config(config: ml_collections.ConfigDict,
         f'({ds.obs_dim}, {ds.act_dim}), but config.obs_dim/action_dim are '
         f'({config.obs_dim}, {config.action_dim})')
   return ds
+
+
+def load_multitask(config: ml_collections.ConfigDict, progress: bool = True) -> dataset_lib.Dataset:
+  """All tasks' datasets, back to back; episode e of task k has task_ids[e] = k.
+
+  Metadata: 'tasks' (the names, in index order) and 'per_task' (each task's own metadata).
+  """
+  parts = [load_for_config(tasks.task_config(config, k), progress=progress)
+           for k in range(tasks.num_tasks(config))]
+  return multitask.concatenate(parts, list(tasks.task_names(config)))
