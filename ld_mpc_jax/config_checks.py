@@ -209,8 +209,8 @@ def check_online_budget(config: ml_collections.ConfigDict) -> None:
   `online.num_envs` full-length episodes (`online.episode_steps` environment steps,
   ceil(episode_steps / eval.action_repeat) decisions) that start before `online.seed_steps`
   environment steps; each episode of D decisions holds D - horizon windows of horizon + 2
-  observations (`train.window_length`, `data.ReplayBuffer`). No check when no update is ever made,
-  nor with `online.init_from`, whose offline dataset `train.check_config_for_data` checks.
+  observations (`runs.window_length`, `data.ReplayBuffer`). No check when no update is ever made,
+  nor with `online.init_from`, whose offline dataset `runs.check_config_for_data` checks.
   """
   o, batch = config.online, config.train.batch_size
   if o.init_from or not o.update_ratio:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import checkpointing, run_files, train
+from ld_mpc_jax import checkpointing, run_files, runs, train
 from ld_mpc_jax.data import replay
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -58,7 +58,7 @@ def test_smoke_run_end_to_end(tmp_path, data_dir):
   np.testing.assert_allclose(params['encoder']['obs_mean'], ds.observations.mean(0), rtol=1e-4,
                              atol=1e-5)
   assert 'critics' in params
-  result = train.run_evaluation(config, params, 'actor', 1, seed=0)
+  result = runs.run_evaluation(config, params, 'actor', 1, seed=0)
   assert result['num_episodes'] == 1
   # Both goal splits, held-out first, every policy on the same episodes, records on disk.
   assert list(report['evaluation']) == ['held_out', 'train']
