@@ -23,7 +23,7 @@ def get_config() -> ml_collections.ConfigDict:
   m.mlp_ratio = 4  # Standard transformer MLP expansion.
   m.dropout = 0.1
   # Report silent on proposal depth; 4 blocks keeps the proposal below the 5-block dynamics
-  # model; the reference plan is then 136 GFLOP per call (ld_mpc_jax.bench.flops.plan_flops).
+  # model; the reference plan is then 136 GFLOP per call (benchmarks.flops.plan_flops).
   m.proposal_blocks = 4
   m.dynamics_blocks = 5
   m.objective_blocks = 10
