@@ -141,7 +141,7 @@ def benchmark_update(name: str, config: ml_collections.ConfigDict, repeats: int,
   b = config.train.batch_size
   single_config = ml_collections.ConfigDict(config.to_dict())  # The plain single-device update.
   single_config.train.data_parallel = False
-  data_parallel = data_parallel or config.train.get('data_parallel', False)
+  data_parallel = data_parallel or config.train.data_parallel
   mesh = sharding.make_mesh() if data_parallel else None
   update = make_update(single_config, mesh)
   state = create_train_state(config, jax.random.key(0))

@@ -12,6 +12,8 @@ from typing import Any, Dict
 import jax
 import numpy as np
 
+from ld_mpc_jax import envs
+
 ONLINE_CSV = 'online.csv'  # One row per wave of an online run (ld_mpc_jax.online).
 LOSSES_CSV = 'losses.csv'  # An online run's losses, the last update of each wave.
 
@@ -19,7 +21,7 @@ LOSSES_CSV = 'losses.csv'  # An online run's losses, the last update of each wav
 def versions() -> Dict[str, str]:
   """Versions of the packages a result depends on, and the device kind."""
   out = {}
-  for name in ('jax', 'jaxlib', 'flax', 'optax', 'orbax-checkpoint', 'metaworld', 'mujoco',
+  for name in ('jax', 'jaxlib', 'flax', 'optax', 'orbax-checkpoint', *envs.SUITE.packages,
                'numpy'):
     try:
       out[name] = importlib_metadata.version(name)

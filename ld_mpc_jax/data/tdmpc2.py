@@ -100,7 +100,7 @@ def true_dims(task: str, dims: Optional[Dict[str, Tuple[int, int]]] = None
                    f'pass dims={{{task!r}: (obs_dim, act_dim)}}.')
 
 
-def from_metaworld_v3(task: str) -> str:
+def tdmpc2_task_name(task: str) -> str:
   """TD-MPC2's name of a Meta-World v3 task: 'door-open-v3' -> 'mw-door-open'.
 
   TD-MPC2's data were collected on the Meta-World v2 version of the same task.
@@ -112,7 +112,7 @@ def from_metaworld_v3(task: str) -> str:
   return name
 
 
-def to_metaworld_v3(task: str) -> str:
+def v3_task_name(task: str) -> str:
   """This project's (v3) name of a TD-MPC2 Meta-World task: 'mw-door-open' -> 'door-open-v3'."""
   if task not in _MW50:
     raise ValueError(f'{task!r} is not one of TD-MPC2\'s 50 Meta-World tasks (mw-*).')
