@@ -58,6 +58,21 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      f'got {p.warm_start_steps!r}')
   if not 0.0 < p.warm_start_t <= 1.0:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
+  _validate_eval_and_data(config)
+  _validate_variant(config)
+  _validate_objective(config)
+  _validate_online(config)
+  _validate_tasks(config)
+  t = config.train
+  if not 0.0 <= t.ema_decay < 1.0:
+    raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
+  if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
+    raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
+                     f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
+
+
+def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
+  """config.eval (policies, episodes, splits, batching) and config.data's source."""
   if 'eval' in config:
     bad = set(config.eval.baselines) - {'plan', 'actor', 'proposal', 'mppi'}
     if bad:
@@ -80,16 +95,6 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     if config.data.source == 'tdmpc2' and not config.data.path:
       raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
                        'pattern or directory)')
-  _validate_variant(config)
-  _validate_objective(config)
-  _validate_online(config)
-  _validate_tasks(config)
-  t = config.train
-  if not 0.0 <= t.ema_decay < 1.0:
-    raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
-  if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
-    raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
-                     f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
 
 
 def _validate_variant(config: ml_collections.ConfigDict) -> None:

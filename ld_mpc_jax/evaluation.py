@@ -128,10 +128,8 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
     second of the episode loop: policy calls, environment steps and resets included; the
     policy's compilation is not (a warm-up call precedes the loop).
   """
-  if not episodes:
-    raise ValueError('no episodes to run')
-  if batch_size < 1:
-    raise ValueError(f'batch_size must be >= 1, got {batch_size}')
+  if not episodes or batch_size < 1:
+    raise ValueError(f'no episodes to run ({len(episodes)}) or batch_size < 1 ({batch_size})')
   factory = env_factory or envs.make_env
   kwargs = dict(task=task, seed=int(env_seed), action_repeat=action_repeat,
                 max_episode_steps=max_episode_steps, obs_noise_std=obs_noise_std,
@@ -140,12 +138,10 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
   pool = _envs(factory, n_env, kwargs)
   video_env = (factory(**kwargs, render_mode='rgb_array', image_size=image_size)
                if video_path else None)
-  # The protocol bounds episodes by environment steps; this also bounds environments that do
-  # not truncate by themselves.
+  # The protocol bounds episodes by environment steps (also for environments that do not
+  # truncate by themselves).
   max_decisions = -(-max_episode_steps // action_repeat)
-  records: List[dict] = []
-  frames: List[np.ndarray] = []
-  seconds = 0.0
+  records, frames, seconds = [], [], 0.0
   bar = tqdm.tqdm(total=len(episodes), desc=desc, disable=not progress, dynamic_ncols=True)
   for w, first in enumerate(range(0, len(episodes), n_env)):
     wave = list(episodes[first:first + n_env])
