@@ -111,7 +111,7 @@ def train_variant(base, name, dataset, seed, root, episodes) -> dict:
 def evaluate_on(root, source, dataset, seed, tag, overrides, mode, episodes, noise=0.0) -> dict:
   """Evaluates `mode` on `source`'s checkpoint with overrides; cached as <tag>.json beside it."""
   from ld_mpc_jax import checkpointing
-  from ld_mpc_jax.train import run_evaluation
+  from ld_mpc_jax.runs import run_evaluation
   workdir = os.path.join(root, dataset, source, f'seed{seed}')
   path = os.path.join(workdir, f'{tag}.json')
   if os.path.exists(path):

@@ -29,8 +29,8 @@ import numpy as np
 from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
-from ld_mpc_jax import bench
-from ld_mpc_jax.bench.hardware import device_info, measure_peak  # Shared with benchmark_training.
+import benchmarks as bench
+from benchmarks.hardware import device_info, measure_peak  # Shared with benchmark_training.
 
 
 # name -> overrides (dotted config field -> value, or a function of the config for values that
@@ -111,7 +111,7 @@ def variant_config(base: ml_collections.ConfigDict, sizes: ml_collections.Config
 
 def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warmup: int) -> dict:
   import ld_mpc_jax as ldmpc
-  from ld_mpc_jax.bench import flops
+  from benchmarks import flops
   params = ldmpc.init_params(config, jax.random.key(0))
   plan = ldmpc.make_plan(config)
   z = ldmpc.encode(params, np.linspace(-1.0, 1.0, config.obs_dim, dtype=np.float32))
@@ -137,7 +137,7 @@ def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warm
 
 def run_mppi(repeats: int, warmup: int) -> dict:
   from ld_mpc_jax import mppi
-  from ld_mpc_jax.bench import flops
+  from benchmarks import flops
   from ld_mpc_jax.models import count_params
   mppi_cfg, model_cfg = mppi.MPPIConfig(), mppi.TDMPC2Config()
   params = mppi.init_tdmpc2_params(model_cfg, jax.random.key(0))

@@ -46,8 +46,8 @@ def load_config(spec: str):
 def main(argv):
   del argv
   from experiments.overrides import parse_items, with_overrides
-  from ld_mpc_jax import bench
-  from ld_mpc_jax.bench import hardware, training
+  import benchmarks as bench
+  from benchmarks import hardware, training
   from ld_mpc_jax.config_checks import validate_config
   configs = {}
   with cli.one_line_errors():

@@ -44,6 +44,8 @@ def parse_flags(argv):
   from absl import flags  # pylint: disable=g-import-not-at-top
   try:
     return flags.FLAGS(argv)
+  except (AttributeError, KeyError) as err:  # ml_collections: an override of no such field.
+    fail(_unknown_field(argv, err))
   except flags.Error as err:
     cause = err
     while cause.__cause__ or cause.__context__:
@@ -51,3 +53,15 @@ def parse_flags(argv):
     name = re.match(r'flag (--[\w.-]+)', str(err))
     message = f'{name.group(1)}: {cause}' if name and cause is not err else str(err)
     fail(' '.join(message.split()))  # One line.
+
+
+def _unknown_field(argv, err) -> str:
+  """One line for a `--config.a.b=v` override that names a field the config does not have."""
+  name = str(err).strip('"\'')
+  for arg in argv:
+    flag = arg.split('=', 1)[0]
+    parts = flag[2:].split('.')
+    if flag.startswith('--') and name in parts[1:]:
+      missing = '.'.join(parts[:parts.index(name, 1) + 1])
+      return f'{flag}: the config has no field {missing!r}'
+  return f'a config override names a field the config does not have ({name!r})'

@@ -39,7 +39,7 @@ def _compile_from(root: str, config):
       del sys.modules[name]
   sys.path.insert(0, root)
   try:
-    from ld_mpc_jax.bench.training import random_batch
+    from benchmarks.training import random_batch
     from ld_mpc_jax.train_state import create_train_state, make_update
     module = os.path.abspath(sys.modules['ld_mpc_jax'].__file__)
     if not module.startswith(os.path.abspath(root) + os.sep):

@@ -40,7 +40,7 @@ def main(argv):
   from ld_mpc_jax import checkpointing, evaluation_suite, multitask_eval, tasks
   from ld_mpc_jax.config_checks import validate_config
   from ld_mpc_jax.run_files import git_commit
-  from ld_mpc_jax.train import run_evaluation
+  from ld_mpc_jax.runs import run_evaluation
   from experiments.overrides import parse_items, with_overrides
   with cli.one_line_errors():
     seeds = [int(s) for s in _SEEDS.value]

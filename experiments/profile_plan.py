@@ -7,7 +7,7 @@
 Traces `--calls` calls of the jitted plan, or with --target=update of the training update on a
 synthetic batch (random parameters, after compilation and one warm-up)
 with jax.profiler and prints, in ms per call, the time of the XLA ops grouped by network and by
-kind of work (ld_mpc_jax/bench/profiling.py); writes the numbers as JSON with --out. Method:
+kind of work (benchmarks/profiling.py); writes the numbers as JSON with --out. Method:
 docs/benchmark.md.
 """
 
@@ -32,7 +32,7 @@ _OUT = flags.DEFINE_string('out', None, 'JSON output (optional).')
 
 def main(argv):
   del argv
-  from ld_mpc_jax.bench import profiling
+  from benchmarks import profiling
   from ld_mpc_jax.config_checks import validate_config
   with cli.one_line_errors():
     validate_config(_CONFIG.value)

@@ -8,6 +8,8 @@ import jax
 import ml_collections
 import orbax.checkpoint as ocp
 
+from ld_mpc_jax import envs
+from ld_mpc_jax.tasks import TASK_DIM
 from ld_mpc_jax.train_state import TrainState, create_train_state
 
 CONFIG_FILE = 'config.json'
@@ -20,6 +22,16 @@ _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
                       guidance_dynamics_steps=1, num_gaussian=0, gaussian_std=2.0, iterations=0,
                       num_refine=64, num_elites=8, temperature=0.5, min_std=0.05,
                       selection='argmax', safe_selection=False, safe_margin=1.0)
+
+# Data, training and model settings of experiments/configs/base.py for configs saved before they
+# existed, with the values those runs used (one device, no observation normalisation).
+_TRAIN_DEFAULTS = dict(data_parallel=False)
+_MODEL_DEFAULTS = dict(normalize_obs=False, task_dim=TASK_DIM)
+
+
+def _data_defaults() -> dict:
+  """Runs saved before config.data.source trained on the suite's scripted episodes."""
+  return dict(source=envs.SUITE.name, path='', max_episode_steps=envs.MAX_EPISODE_STEPS)
 
 
 def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointManager:
@@ -61,6 +73,13 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
                           ('exec_noise_end', 0.0), ('updates_per_call', 1), ('reward', 'dense')):
       if name not in config.online:
         config.online[name] = default
+  for section, defaults in (('data', _data_defaults()), ('train', _TRAIN_DEFAULTS),
+                            ('model', _MODEL_DEFAULTS)):
+    for name, default in defaults.items():
+      if name not in config[section]:
+        config[section][name] = default
+  if 'data_parallel' not in config.eval:
+    config.eval.data_parallel = False
   config.model.actor_hidden = tuple(config.model.actor_hidden)
   for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
     config.eval[name] = tuple(config.eval[name])

@@ -58,29 +58,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      f'got {p.warm_start_steps!r}')
   if not 0.0 < p.warm_start_t <= 1.0:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
-  if 'eval' in config:
-    bad = set(config.eval.get('baselines', ())) - {'plan', 'actor', 'proposal', 'mppi'}
-    if bad:
-      raise ValueError(f'config.eval.baselines has unknown modes {sorted(bad)}; use plan, '
-                       'actor, proposal or mppi')
-  if 'eval' in config and config.eval.episodes < 0:
-    raise ValueError(f'config.eval.episodes must be >= 0 (0 skips evaluation), '
-                     f'got {config.eval.episodes}')
-  if 'eval' in config:
-    e = config.eval
-    bad = set(e.get('splits', ())) - {'held_out', 'train'}
-    if bad or not e.get('splits', ('held_out',)):
-      raise ValueError(f'config.eval.splits must name held_out and/or train, got {e.splits}')
-    for name, least in (('batch_size', 1), ('plan_chunk', 0)):
-      if name in e and (not isinstance(e[name], int) or e[name] < least):
-        raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
-  if 'data' in config:
-    source = config.data.get('source', 'metaworld')
-    if source not in ('metaworld', 'tdmpc2'):  # ld_mpc_jax.data.sources.SOURCES
-      raise ValueError(f"config.data.source must be 'metaworld' or 'tdmpc2', got {source!r}")
-    if source == 'tdmpc2' and not config.data.get('path'):
-      raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
-                       'pattern or directory)')
+  _validate_eval_and_data(config)
   _validate_variant(config)
   _validate_objective(config)
   _validate_online(config)
@@ -91,6 +69,32 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
     raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
                      f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
+
+
+def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
+  """config.eval (policies, episodes, splits, batching) and config.data's source."""
+  if 'eval' in config:
+    bad = set(config.eval.baselines) - {'plan', 'actor', 'proposal', 'mppi'}
+    if bad:
+      raise ValueError(f'config.eval.baselines has unknown modes {sorted(bad)}; use plan, '
+                       'actor, proposal or mppi')
+  if 'eval' in config and config.eval.episodes < 0:
+    raise ValueError(f'config.eval.episodes must be >= 0 (0 skips evaluation), '
+                     f'got {config.eval.episodes}')
+  if 'eval' in config:
+    e = config.eval
+    bad = set(e.splits) - {'held_out', 'train'}
+    if bad or not e.splits:
+      raise ValueError(f'config.eval.splits must name held_out and/or train, got {e.splits}')
+    for name, least in (('batch_size', 1), ('plan_chunk', 0)):
+      if name in e and (not isinstance(e[name], int) or e[name] < least):
+        raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
+  if 'data' in config:
+    from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
+    sources.SOURCES.check(config.data.source)
+    if config.data.source == 'tdmpc2' and not config.data.path:
+      raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
+                       'pattern or directory)')
 
 
 def _validate_variant(config: ml_collections.ConfigDict) -> None:
@@ -160,7 +164,7 @@ def _validate_objective(config: ml_collections.ConfigDict) -> None:
 
 def online_enabled(config: ml_collections.ConfigDict) -> bool:
   """Whether config asks for online training (`config.online.enabled`, ld_mpc_jax.online)."""
-  return 'online' in config and bool(config.online.get('enabled', False))
+  return 'online' in config and bool(config.online.enabled)
 
 
 def _validate_online(config: ml_collections.ConfigDict) -> None:
@@ -209,8 +213,8 @@ def check_online_budget(config: ml_collections.ConfigDict) -> None:
   `online.num_envs` full-length episodes (`online.episode_steps` environment steps,
   ceil(episode_steps / eval.action_repeat) decisions) that start before `online.seed_steps`
   environment steps; each episode of D decisions holds D - horizon windows of horizon + 2
-  observations (`train.window_length`, `data.ReplayBuffer`). No check when no update is ever made,
-  nor with `online.init_from`, whose offline dataset `train.check_config_for_data` checks.
+  observations (`runs.window_length`, `data.ReplayBuffer`). No check when no update is ever made,
+  nor with `online.init_from`, whose offline dataset `runs.check_config_for_data` checks.
   """
   o, batch = config.online, config.train.batch_size
   if o.init_from or not o.update_ratio:
@@ -241,9 +245,10 @@ def _validate_tasks(config: ml_collections.ConfigDict) -> None:
   if config.train.batch_size % num:
     raise ValueError(f'config.train.batch_size ({config.train.batch_size}) must be a multiple '
                      f'of the number of tasks ({num}): batches hold equal shares per task')
-  dim = config.model.get('task_dim', tasks.TASK_DIM)
+  dim = config.model.task_dim
   if not isinstance(dim, int) or dim < 1:
     raise ValueError(f'config.model.task_dim must be an integer >= 1, got {dim!r}')
-  if config.data.get('source', 'metaworld') != 'metaworld':
+  from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
+  if config.data.source != sources.SCRIPTED:
     raise ValueError('multi-task configs (config.tasks) train on the scripted data: '
-                     'config.data.source must be metaworld')
+                     f'config.data.source must be {sources.SCRIPTED}')

@@ -1,6 +1,6 @@
 """Meta-World success evaluation: episodes in lockstep, per-episode records, noise sweeps, video.
 
-Protocol (as `metaworld.evaluation.evaluation` does it): the environment terminates an episode at
+Protocol (as Meta-World's own evaluation does it): the environment terminates an episode at
 the first `info['success']` (here checked at every repeated sub-step), episodes last at most
 `max_episode_steps` = 500 ENVIRONMENT steps, and an episode counts as a success iff success was
 reached. Which goal configuration each episode starts from, and its seeds, are given by an
@@ -23,8 +23,8 @@ import numpy as np
 import tqdm
 
 from ld_mpc_jax import stats
+from ld_mpc_jax import envs
 from ld_mpc_jax.envs import goals as goals_lib
-from ld_mpc_jax.envs import metaworld_env
 
 Policy = Callable[[np.ndarray], np.ndarray]
 wilson_interval = stats.wilson_interval
@@ -96,14 +96,14 @@ def _envs(factory, n: int, kwargs: Dict[str, Any]) -> List[Any]:
 
 def seeded_episodes(seed: int, num_episodes: int) -> List[goals_lib.Episode]:
   """Episodes that draw the environment's own goal (no explicit goal), reset-seeded by `seed`."""
-  seeds = metaworld_env.episode_seeds(seed, num_episodes, 'eval')
+  seeds = envs.episode_seeds(seed, num_episodes, 'eval')
   return [goals_lib.Episode(split='env', index=i, eval_seed=int(seed), reset_seed=int(s),
                             goal_id='', goal=None) for i, s in enumerate(seeds)]
 
 
 def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], task: str, *,
                  batch_size: int = 1, action_repeat: int = 2,
-                 max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH,
+                 max_episode_steps: int = envs.MAX_EPISODE_STEPS,
                  obs_noise_std: float = 0.0, env_factory: Optional[Callable[..., Any]] = None,
                  video_path: Optional[str] = None, video_episodes: int = 3,
                  image_size: int = 256, env_seed: int = 0, progress: bool = True,
@@ -128,66 +128,30 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
     second of the episode loop: policy calls, environment steps and resets included; the
     policy's compilation is not (a warm-up call precedes the loop).
   """
-  if not episodes:
-    raise ValueError('no episodes to run')
-  if batch_size < 1:
-    raise ValueError(f'batch_size must be >= 1, got {batch_size}')
-  factory = env_factory or metaworld_env.make_env
+  if not episodes or batch_size < 1:
+    raise ValueError(f'no episodes to run ({len(episodes)}) or batch_size < 1 ({batch_size})')
+  factory = env_factory or envs.make_env
   kwargs = dict(task=task, seed=int(env_seed), action_repeat=action_repeat,
                 max_episode_steps=max_episode_steps, obs_noise_std=obs_noise_std,
                 terminate_on_success=True)
   n_env = min(batch_size, len(episodes))
-  envs = _envs(factory, n_env, kwargs)
+  pool = _envs(factory, n_env, kwargs)
   video_env = (factory(**kwargs, render_mode='rgb_array', image_size=image_size)
                if video_path else None)
-  # The protocol bounds episodes by environment steps; this also bounds environments that do
-  # not truncate by themselves.
+  # The protocol bounds episodes by environment steps (also for environments that do not
+  # truncate by themselves).
   max_decisions = -(-max_episode_steps // action_repeat)
-  records: List[dict] = []
-  frames: List[np.ndarray] = []
-  seconds, done_successes = 0.0, 0
+  records, frames, seconds = [], [], 0.0
   bar = tqdm.tqdm(total=len(episodes), desc=desc, disable=not progress, dynamic_ncols=True)
   for w, first in enumerate(range(0, len(episodes), n_env)):
     wave = list(episodes[first:first + n_env])
-    slots = list(envs[:len(wave)])
+    slots = list(pool[:len(wave)])
     if video_env is not None and w < video_episodes:
       slots[0] = video_env
-    obs = np.stack([e.reset(seed=ep.reset_seed,
-                            options={'goal': ep.goal} if ep.goal is not None else None)[0]
-                    for e, ep in zip(slots, wave)])
-    if w == 0 and hasattr(policy, 'warmup'):
-      policy.warmup(obs)  # Compiles outside the timed loop.
-    policy.start(wave)
-    start_time = time.perf_counter()
-    active = np.ones(len(wave), bool)
-    rec = [dict(ep.record(), success=0, first_success=None, **{'return': 0.0}, length=0,
-                env_steps=0) for ep in wave]
-    for t in range(max_decisions):
-      if slots[0] is video_env and active[0]:
-        frames.append(np.asarray(video_env.render(), np.uint8))
-      actions = np.asarray(policy(obs, t, active))
-      infos = getattr(policy, 'last_info', None)  # Planners: [N, 3] (agent.NO_PLAN_INFO).
-      for i in np.flatnonzero(active):
-        if infos is not None:  # Decisions that left the actor prior's own sequence.
-          rec[i]['departures'] = rec[i].get('departures', 0) + int(infos[i][2])
-        o, reward, terminated, truncated, info = slots[i].step(actions[i])
-        obs[i] = o
-        r = rec[i]
-        r['return'] += float(reward)
-        r['length'] = t + 1
-        r['env_steps'] = int(info.get('env_steps', (t + 1) * action_repeat))
-        if info.get('success', False) and not r['success']:
-          r['success'], r['first_success'] = 1, t + 1
-        if r['success'] or terminated or truncated:
-          active[i] = False
-          done_successes += r['success']
-          bar.update(1)
-          bar.set_postfix(success=f'{done_successes}/{bar.n}')
-      if not active.any():
-        break
-    seconds += time.perf_counter() - start_time
-    bar.update(int(active.sum()))  # Episodes cut at the decision limit.
-    records.extend(rec)
+    recs, wave_seconds = _run_wave(policy, wave, slots, max_decisions, action_repeat, bar,
+                                   frames if slots[0] is video_env else None, warmup=w == 0)
+    seconds += wave_seconds
+    records.extend(recs)
   bar.close()
   if video_env is not None and hasattr(video_env, 'close'):
     video_env.close()
@@ -196,6 +160,53 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
   return records, dict(seconds=seconds, decisions=decisions,
                        decisions_per_s=decisions / seconds if seconds > 0 else float('inf'),
                        video_path=written)
+
+
+def _run_wave(policy: BatchPolicy, wave: Sequence[goals_lib.Episode], slots: List[Any],
+              max_decisions: int, action_repeat: int, bar, frames: Optional[List[np.ndarray]],
+              warmup: bool) -> Tuple[List[dict], float]:
+  """One wave: len(wave) episodes on `slots` in lockstep; (records, seconds of the loop).
+
+  `frames` (if given) collects slot 0's rendered frames [H, W, 3] while its episode runs.
+  """
+  obs = np.stack([e.reset(seed=ep.reset_seed,
+                          options={'goal': ep.goal} if ep.goal is not None else None)[0]
+                  for e, ep in zip(slots, wave)])
+  if warmup and hasattr(policy, 'warmup'):
+    policy.warmup(obs)  # Compiles outside the timed loop.
+  policy.start(wave)
+  start_time = time.perf_counter()
+  active = np.ones(len(wave), bool)
+  rec = [dict(ep.record(), success=0, first_success=None, **{'return': 0.0}, length=0,
+              env_steps=0) for ep in wave]
+  for t in range(max_decisions):
+    if frames is not None and active[0]:
+      frames.append(np.asarray(slots[0].render(), np.uint8))
+    actions = np.asarray(policy(obs, t, active))
+    infos = getattr(policy, 'last_info', None)  # Planners: [N, 3] (agent.NO_PLAN_INFO).
+    for i in np.flatnonzero(active):
+      if infos is not None:  # Decisions that left the actor prior's own sequence.
+        rec[i]['departures'] = rec[i].get('departures', 0) + int(infos[i][2])
+      obs[i], reward, terminated, truncated, info = slots[i].step(actions[i])
+      _record_step(rec[i], t, reward, info, action_repeat)
+      if rec[i]['success'] or terminated or truncated:
+        active[i] = False
+        bar.update(1)
+    if not active.any():
+      break
+  seconds = time.perf_counter() - start_time
+  bar.update(int(active.sum()))  # Episodes cut at the decision limit.
+  return rec, seconds
+
+
+def _record_step(r: dict, t: int, reward: float, info: Dict[str, Any],
+                 action_repeat: int) -> None:
+  """Adds decision t's reward, length, environment steps and first success to record `r`."""
+  r['return'] += float(reward)
+  r['length'] = t + 1
+  r['env_steps'] = int(info.get('env_steps', (t + 1) * action_repeat))
+  if info.get('success', False) and not r['success']:
+    r['success'], r['first_success'] = 1, t + 1
 
 
 def result(records: Sequence[dict], info: Dict[str, Any]) -> Dict[str, Any]:
@@ -209,7 +220,7 @@ def result(records: Sequence[dict], info: Dict[str, Any]) -> Dict[str, Any]:
 
 def evaluate(policy: Policy, task: str, num_episodes: int = 50, seed: int = 0,
              action_repeat: int = 2,
-             max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH,
+             max_episode_steps: int = envs.MAX_EPISODE_STEPS,
              obs_noise_std: float = 0.0, video_path: Optional[str] = None,
              reset: Optional[Callable[[Any], None]] = None,
              env_factory: Optional[Callable[..., Any]] = None,
@@ -258,7 +269,7 @@ def scripted_policy_with_noise(task: str, noise_std: float,
   Used to measure the scripted policy's success under the protocol at a
   dataset preset's noise level.
   """
-  base = metaworld_env.scripted_policy(task)
+  base = envs.scripted_policy(task)
   rng = np.random.default_rng(seed)
 
   def policy(obs: np.ndarray) -> np.ndarray:

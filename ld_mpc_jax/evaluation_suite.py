@@ -18,7 +18,7 @@ import jax
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax import data, evaluation, sharding, stats
+from ld_mpc_jax import data, envs, evaluation, sharding, stats
 from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import online_enabled
 from ld_mpc_jax.envs import goals
@@ -31,8 +31,8 @@ POLICY_NAMES = {'plan': 'planner', 'actor': 'actor prior', 'proposal': 'proposal
 def _dataset_goals(task, preset, episodes, seed, data_dir, action_repeat, max_episode_steps):
   ds = data.get_or_collect(task, preset, episodes, seed, data_dir, action_repeat=action_repeat,
                            max_episode_steps=max_episode_steps)
-  mt1_seed = ds.metadata.get('seed') if ds.metadata.get('source') == 'metaworld-scripted' else None
-  return goals.dataset_goal_vectors(ds), mt1_seed
+  scripted = ds.metadata.get('source') == envs.SUITE.scripted_source
+  return goals.dataset_goal_vectors(ds), ds.metadata.get('seed') if scripted else None
 
 
 def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Optional[int]]:
@@ -46,10 +46,10 @@ def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Option
   d = config.data
   if online_enabled(config) and not config.online.init_from:
     return goals.mt1_goals(config.task, d.seed)[1], d.seed
-  if data.sources.source(config) == 'tdmpc2':
+  if d.source == 'tdmpc2':
     return goals.dataset_goal_vectors(data.load_for_config(config)), None
   return _dataset_goals(config.task, d.preset, d.episodes, d.seed, d.dir,
-                        config.eval.action_repeat, data.sources.max_episode_steps(config))
+                        config.eval.action_repeat, d.max_episode_steps)
 
 
 def available_splits(config: ml_collections.ConfigDict, splits: Sequence[str]) -> Tuple[str, ...]:
@@ -63,7 +63,7 @@ def available_splits(config: ml_collections.ConfigDict, splits: Sequence[str]) -
   kept = tuple(s for s in splits if s != 'train')
   if not kept:
     raise ValueError('the train goal split needs data collected on MT1 goals '
-                     '(config.data.source=metaworld); evaluate on held_out')
+                     f'(config.data.source={data.sources.SCRIPTED}); evaluate on held_out')
   return kept
 
 
@@ -89,7 +89,7 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   batch = batch_size or (1 if video_path else e.batch_size)
   chunk = e.plan_chunk if mode in ('plan', 'mppi') else None
   # This process's devices: with several processes, each runs its own evaluation.
-  mesh = sharding.make_mesh(jax.local_devices()) if e.get('data_parallel', False) else None
+  mesh = sharding.make_mesh(jax.local_devices()) if e.data_parallel else None
   policy = BatchAgentPolicy(config, params, mode, seed=seed, chunk=chunk, mesh=mesh)
   eps = episodes(config, split, seed, num_episodes)
   records, info = evaluation.run_episodes(

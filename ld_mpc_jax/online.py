@@ -32,9 +32,8 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 import tqdm
-from tensorboardX import SummaryWriter
 
-from ld_mpc_jax import checkpointing, data, envs, run_files, sharding, train
+from ld_mpc_jax import checkpointing, data, envs, run_files, runs, sharding
 from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.envs import goals
@@ -42,8 +41,8 @@ from ld_mpc_jax.models import count_params, set_obs_normalization
 from ld_mpc_jax.search import CANDIDATE_KINDS
 from ld_mpc_jax.train_state import create_train_state, make_multi_update, make_update
 
-ONLINE_CSV = 'online.csv'
-LOSSES_CSV = 'losses.csv'
+from ld_mpc_jax.run_files import LOSSES_CSV, ONLINE_CSV
+
 BUFFER_DIR = 'online'
 
 
@@ -85,7 +84,8 @@ def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collection
   shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, checkpointing.abstract_state(c))
   if shapes(source) != shapes(config):
     fields = [f'model.{k}' for k in config.model if k != 'dropout' and  # JSON: lists = tuples.
-              json.dumps(source.model.get(k)) != json.dumps(config.model[k])]
+              json.dumps(source.model[k] if k in source.model else None)
+              != json.dumps(config.model[k])]
     raise ValueError(f'config.online.init_from={path!r} has other networks than this config '
                      f'(differs in {", ".join(fields) or "objective/horizon"})')
   return source
@@ -136,35 +136,30 @@ def buffer_path(workdir: str, step: int) -> str:
   return os.path.join(workdir, BUFFER_DIR, f'buffer_{step}.npz')
 
 
-class _Run:
-  """One online run's state: TrainState, buffer, counters, environments, writers."""
+class OnlineJob:
+  """An online run as a `runs.Job`: each advance is one wave of episodes and its updates.
 
-  def __init__(self, config, workdir):
-    self.config, self.workdir, o = config, workdir, config.online
-    self.source = check_init_from(config)
-    if self.source is not None:  # Fine-tuning trains on the offline run's data too.
-      config.data.update(self.source.data.to_dict())
-    os.makedirs(workdir, exist_ok=True)
-    offline = data.load_for_config(config) if self.source is not None else None
-    if offline is not None:
-      train.check_config_for_data(config, offline)
-    checkpointing.save_config(config, workdir)
-    self.buffer = Buffer(train.window_length(config), offline, config.seed)
-    self.manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
+  Holds the TrainState, the buffer, the counters (environment steps: the job's progress) and the
+  environments.
+  """
+
+  def __init__(self, config, run: runs.Run, source, offline: Optional[data.Dataset]):
+    self.config, self.run, self.source, o = config, run, source, config.online
+    self.buffer = Buffer(runs.window_length(config), offline, config.seed)
     self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0)
-    self.state = checkpointing.restore_latest(self.manager, config)
+    self.state = run.restore()
     if self.state is not None:  # Resume: the buffer file of the same step.
-      step = self.manager.latest_step()
-      if not os.path.exists(buffer_path(workdir, step)):
-        raise FileNotFoundError(f'checkpoint {step} has no {buffer_path(workdir, step)}')
-      self.counters = self.buffer.load(buffer_path(workdir, step))
-    elif self.source is not None:
+      step = run.manager.latest_step()
+      if not os.path.exists(buffer_path(run.workdir, step)):
+        raise FileNotFoundError(f'checkpoint {step} has no {buffer_path(run.workdir, step)}')
+      self.counters = self.buffer.load(buffer_path(run.workdir, step))
+    elif source is not None:
       self.state = checkpointing.restore_latest(
           checkpointing.checkpoint_manager(o.init_from), config)
     else:  # From scratch; observation statistics come with the seed data (catch_up).
       self.state = create_train_state(config, jax.random.key(config.seed))
-      self.counters['normalized'] = not config.model.get('normalize_obs', False)
-    self.learn_start = 0 if self.source is not None else o.seed_steps
+      self.counters['normalized'] = not config.model.normalize_obs
+    self.learn_start = 0 if source is not None else o.seed_steps
     self.per_call = o.updates_per_call
     self.update = (make_update(config) if self.per_call == 1
                    else make_multi_update(config, self.per_call))
@@ -173,11 +168,13 @@ class _Run:
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,
                                max_episode_steps=o.episode_steps) for _ in range(o.num_envs)]
-    self.writer = SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary() else (
-        run_files.NoWriter())
-    self.metrics = {}
+    self.metrics, self.last = {}, None
     self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
                          unit='env step', dynamic_ncols=True)
+
+  @property
+  def progress(self) -> int:
+    return self.counters['env_steps']
 
   def learning(self) -> bool:
     return self.counters['env_steps'] >= self.learn_start
@@ -189,7 +186,7 @@ class _Run:
     episodes (`config.model.normalize_obs`) before any update.
     """
     c = self.counters
-    if not c.get('normalized', True):
+    if not c.get('normalized', True):  # Counters; fine-tuning starts normalized (no key).
       obs = np.concatenate([ep['obs'] for ep in self.buffer.episodes])
       params = set_obs_normalization(self.state.params, obs)
       self.state = self.state.replace(  # Copies: the update donates both trees.
@@ -205,8 +202,42 @@ class _Run:
           self.state, windows, jax.random.fold_in(self.update_key, c['updates']))
       c['updates'] += n
 
+  def advance(self) -> None:
+    """One wave: its episodes into the buffer, its acting and update time into the counters."""
+    start = time.perf_counter()
+    planner, episodes = self.wave()
+    self.buffer.add(episodes)
+    seconds = time.perf_counter() - start
+    self.counters['train_seconds'] += seconds
+    self.last = (planner, episodes, seconds)
+
+  def _policy(self, first: int, seeds):
+    """The planner acting for the wave's episodes (EMA parameters, exploration noise)."""
+    o = self.config.online
+    mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
+            if self.act_config.eval.data_parallel else None)
+    policy = BatchAgentPolicy(self.act_config, self.state.ema_params, 'plan',
+                              seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
+    policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
+                  for i, s in enumerate(seeds)])
+    policy.action_noise = executed_noise(self.config, self.counters['env_steps'],
+                                         self.learn_start)
+    return policy
+
+  def _count_winners(self, policy, active) -> None:
+    """Which kind of candidate won each acting decision; the last entry counts departures."""
+    if policy.last_info is None:
+      return
+    for info_i in policy.last_info[active]:
+      if info_i[0] >= 0:
+        self.winners[info_i[0]] += 1
+      self.winners[-1] += info_i[2]
+
   def wave(self):
-    """One episode per environment: (planner acted, episodes), by the planner or at random."""
+    """One episode per environment: (planner acted, episodes), by the planner or at random.
+
+    Episodes are dicts of obs [L+1, obs_dim], action [L, A], reward [L], success [L].
+    """
     o, n = self.config.online, len(self.envs)
     first, act_dim = self.counters['episodes'], self.config.action_dim
     seeds = envs.episode_seeds(self.config.seed, first + n, 'online')[first:]
@@ -214,28 +245,17 @@ class _Run:
     policy, rng = None, np.random.default_rng([self.config.seed, first, 17])
     if planner:
       self.catch_up()
-      mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
-              if self.act_config.eval.get('data_parallel', False) else None)
-      policy = BatchAgentPolicy(self.act_config, self.state.ema_params, 'plan',
-                                seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
-      policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
-                    for i, s in enumerate(seeds)])
-      policy.action_noise = executed_noise(self.config, self.counters['env_steps'],
-                                           self.learn_start)
+      policy = self._policy(first, seeds)
     obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(self.envs, seeds)])
     eps = [dict(obs=[x], action=[], reward=[], success=[]) for x in obs]
     active, t = np.ones(n, bool), 0
-    # Which kind of candidate won each acting decision; the last entry counts departures.
     self.winners = np.zeros(len(CANDIDATE_KINDS) + 1, np.int64)
     self.dense_max = 0.0
     while active.any():
       actions = (policy(obs, t, active) if planner
                  else rng.uniform(-1.0, 1.0, (n, act_dim)).astype(np.float32))
-      if planner and policy.last_info is not None:
-        for info_i in policy.last_info[active]:
-          if info_i[0] >= 0:
-            self.winners[info_i[0]] += 1
-          self.winners[-1] += info_i[2]
+      if planner:
+        self._count_winners(policy, active)
       for i in np.flatnonzero(active):
         obs[i], reward, terminated, truncated, info = self.envs[i].step(actions[i])
         self.dense_max = max(self.dense_max, float(reward))
@@ -259,28 +279,24 @@ class _Run:
 
   def checkpoint(self) -> None:
     """The buffer file, then the orbax step (environment steps); older buffer files go."""
-    step = self.counters['env_steps']
-    self.buffer.save(buffer_path(self.workdir, step), self.counters)
-    train.save_checkpoint(self.workdir, self.manager, self.state, step,
-                          self.counters['train_seconds'])
-    keep = {f'buffer_{s}.npz' for s in self.manager.all_steps()}
-    for name in os.listdir(os.path.join(self.workdir, BUFFER_DIR)):
+    step, workdir, manager = self.counters['env_steps'], self.run.workdir, self.run.manager
+    self.buffer.save(buffer_path(workdir, step), self.counters)
+    self.run.save(self.state, step, self.counters['train_seconds'])
+    keep = {f'buffer_{s}.npz' for s in manager.all_steps()}
+    for name in os.listdir(os.path.join(workdir, BUFFER_DIR)):
       if name.startswith('buffer_') and name not in keep:
-        os.remove(os.path.join(self.workdir, BUFFER_DIR, name))
+        os.remove(os.path.join(workdir, BUFFER_DIR, name))
 
-  def evaluate(self) -> None:
-    if self.config.eval.episodes > 0:
-      train.periodic_eval(self.config, self.state.ema_params, self.counters['env_steps'],
-                          self.workdir, self.writer)
-      write_plots(self.workdir)
+  def eval_params(self):
+    return self.state.ema_params
 
-  def log(self, planner: bool, episodes, seconds: float, steps: int, before_steps: int) -> None:
+  def log(self, before: int) -> None:
+    """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
+    planner, episodes, seconds = self.last
     metrics = {k: float(v) for k, v in sorted(jax.device_get(self.metrics).items())}
-    if metrics and not np.isfinite(metrics['loss']):
-      raise FloatingPointError(
-          f"non-finite loss {metrics['loss']} at environment step {self.counters['env_steps']}; "
-          f'stopping. The last good checkpoint (step {self.manager.latest_step()}) is kept.')
     step = self.counters['env_steps']
+    if metrics:
+      self.run.check_loss(metrics['loss'], f'environment step {step}')
     decisions = max(int(self.winners[:-1].sum()), 1)
     row = dict(env_steps=step, episodes=self.counters['episodes'],
                updates=self.counters['updates'], acting='planner' if planner else 'random',
@@ -290,15 +306,18 @@ class _Run:
                **{f'won_{k}': float(self.winners[j] / decisions)
                   for j, k in enumerate(CANDIDATE_KINDS)},
                departed=float(self.winners[-1] / decisions),
-               exec_noise=executed_noise(self.config, before_steps, self.learn_start)
+               exec_noise=executed_noise(self.config, before, self.learn_start)
                if planner else float('nan'),
-               env_steps_per_s=steps / seconds)
-    run_files.append_csv(os.path.join(self.workdir, ONLINE_CSV), row)
+               env_steps_per_s=(step - before) / seconds)
+    run_files.append_csv(os.path.join(self.run.workdir, ONLINE_CSV), row)
     if metrics:  # Losses of the wave's last update, from the first update on.
-      run_files.append_csv(os.path.join(self.workdir, LOSSES_CSV), dict(env_steps=step, **metrics))
+      run_files.append_csv(os.path.join(self.run.workdir, LOSSES_CSV),
+                           dict(env_steps=step, **metrics))
     for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
       if k != 'acting':
-        self.writer.add_scalar(f'online/{k}', v, step)
+        self.run.writer.add_scalar(f'online/{k}', v, step)
+    self.bar.set_postfix(updates=self.counters['updates'],
+                         success=np.mean([e['success'].any() for e in episodes]))
 
 
 def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
@@ -312,48 +331,33 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
   """
   validate_config(config)
   envs.check_task(config.task)
-  commit = run_files.git_commit()
-  run = _Run(config, workdir)
-  o, c = config.online, run.counters
-  if run.source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.
-    run.evaluate()
-  while c['env_steps'] < o.env_steps:
-    start, before = time.perf_counter(), c['env_steps']
-    planner, episodes = run.wave()
-    run.buffer.add(episodes)
-    seconds = time.perf_counter() - start
-    c['train_seconds'] += seconds
-    run.log(planner, episodes, seconds, c['env_steps'] - before, before)
-    run.bar.set_postfix(updates=c['updates'],
-                        success=np.mean([e['success'].any() for e in episodes]))
-    if c['env_steps'] // o.eval_every > before // o.eval_every and c['env_steps'] < o.env_steps:
-      run.evaluate()  # The last one is the final evaluation.
-    if (c['env_steps'] // o.checkpoint_every > before // o.checkpoint_every
-        or c['env_steps'] >= o.env_steps):
-      run.checkpoint()
-  run.bar.close()
-  final, baselines, summary, records = train.final_evaluation(
-      config, run.state.ema_params, c['env_steps'], workdir, run.writer)
-  run.writer.close()
-  report = _report(run, final, summary, commit)
-  if run_files.primary():
-    with open(os.path.join(workdir, 'report.json'), 'w') as f:
-      json.dump(report, f, indent=2)
-    with open(os.path.join(workdir, 'report.md'), 'w') as f:
-      f.write(_summary_md(report))
-  write_plots(workdir)
-  report['records'] = records
-  return report
+  source = check_init_from(config)
+  if source is not None:  # Fine-tuning trains on the offline run's data too.
+    config.data.update(source.data.to_dict())
+  os.makedirs(workdir, exist_ok=True)
+  offline = data.load_for_config(config) if source is not None else None
+  if offline is not None:
+    runs.check_config_for_data(config, offline)
+  run = runs.Run(config, workdir)
+  job = OnlineJob(config, run, source, offline)
+  o, c = config.online, job.counters
+  if source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.
+    run.periodic_eval(job.eval_params(), 0)
+  runs.loop(run, job, o.env_steps, o.checkpoint_every, o.eval_every)
+  job.bar.close()
+  final, _, summary, records = run.final_evaluation(job.eval_params(), c['env_steps'])
+  report = _report(job, final, summary, run.commit)
+  return run.write_report(report, _summary_md(report), records)
 
 
-def _report(run: _Run, final, summary, commit) -> Dict[str, Any]:
-  config, c = run.config, run.counters
+def _report(job: OnlineJob, final, summary, commit) -> Dict[str, Any]:
+  config, c = job.config, job.counters
   curve = [dict(env_steps=int(r['step']), episodes=int(r['episodes']),
                 success_rate=float(r['success_rate']), ci95=[float(r['ci_lo']), float(r['ci_hi'])],
                 mean_return=float(r['mean_return']))
-           for r in run_files.read_csv(os.path.join(run.workdir, 'eval.csv'))]
+           for r in run_files.read_csv(os.path.join(job.run.workdir, runs.EVAL_CSV))]
   return {
-      'task': config.task, 'mode': 'fine-tune' if run.source is not None else 'from scratch',
+      'task': config.task, 'mode': 'fine-tune' if job.source is not None else 'from scratch',
       'init_from': config.online.init_from or None,
       'env_steps': c['env_steps'], 'updates': c['updates'], 'episodes': c['episodes'],
       'train_seconds': c['train_seconds'],
@@ -361,12 +365,11 @@ def _report(run: _Run, final, summary, commit) -> Dict[str, Any]:
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
       'mean_return': final['mean_return'], 'eval_episodes': config.eval.episodes,
       'eval_seeds': list(config.eval.seeds), 'evaluation': summary, 'curve': curve,
-      'num_params': count_params(run.state.ema_params),
-      'buffer': {'online_episodes': len(run.buffer.episodes),
-                 'offline_episodes': (run.buffer.offline.num_episodes
-                                      if run.buffer.offline is not None else 0)},
-      'config': json.loads(config.to_json_best_effort()),
-      'versions': run_files.versions(), 'git_commit': commit,
+      'num_params': count_params(job.state.ema_params),
+      'buffer': {'online_episodes': len(job.buffer.episodes),
+                 'offline_episodes': (job.buffer.offline.num_episodes
+                                      if job.buffer.offline is not None else 0)},
+      **runs.provenance(config, commit),
   }
 
 
@@ -376,8 +379,7 @@ def _summary_md(report: Dict[str, Any]) -> str:
            f"{report['buffer']['online_episodes']} online episodes in the buffer)"
            if report['init_from'] else f"from scratch ({report['buffer']['online_episodes']} "
            'online episodes, seed episodes of random actions first)')
-  lines = [f"# LD-MPC online on {report['task']}", '',
-           f"{report['env_steps']:,} environment steps, {report['updates']:,} updates, {start}; "
+  lines = [f"{report['env_steps']:,} environment steps, {report['updates']:,} updates, {start}; "
            f"{report['train_seconds']:.0f} s acting and training "
            f"({report['env_steps_per_s']:.1f} environment steps/s with updates and compilation, "
            f"evaluations excluded); {report['num_params']:,} parameters.", '']
@@ -389,39 +391,5 @@ def _summary_md(report: Dict[str, Any]) -> str:
               f"[{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}] | {r['mean_return']:.1f} |"
               for r in report['curve']]
     lines.append('')
-  lines += train.evaluation_md_lines(report, 'Final evaluation, EMA parameters: ', 'training')
-  return '\n'.join(lines) + '\n'
-
-
-def write_plots(workdir: str) -> None:
-  """online.png: success and return against environment steps (training episodes and held-out
-  evaluations), and the loss."""
-  waves = run_files.read_csv(os.path.join(workdir, ONLINE_CSV))
-  if not run_files.primary() or not waves:
-    return
-  import matplotlib
-  matplotlib.use('Agg')
-  import matplotlib.pyplot as plt
-  evals = run_files.read_csv(os.path.join(workdir, 'eval.csv'))
-  col = lambda rows, name: np.array([float(r[name]) for r in rows])
-  x, ex = col(waves, 'env_steps'), col(evals, 'step')
-  fig, axes = plt.subplots(1, 3, figsize=(15, 4))
-  axes[0].plot(x, col(waves, 'episode_success'), '.-', alpha=0.6,
-               label='training episodes (exploration noise)')
-  if evals:
-    axes[0].plot(ex, col(evals, 'success_rate'), 'o-', label='planner, held-out goals')
-    axes[0].fill_between(ex, col(evals, 'ci_lo'), col(evals, 'ci_hi'), alpha=0.2)
-    axes[1].plot(ex, col(evals, 'mean_return'), 'o-', label='planner, held-out goals')
-  axes[0].set_ylabel('success rate'); axes[0].set_ylim(-0.02, 1.02)
-  axes[1].plot(x, col(waves, 'episode_return'), '.-', alpha=0.6, label='training episodes')
-  axes[1].set_ylabel('episode return')
-  losses = run_files.read_csv(os.path.join(workdir, LOSSES_CSV))
-  if losses:
-    axes[2].plot(col(losses, 'env_steps'), col(losses, 'loss'), '.-')
-    axes[2].set_yscale('log')
-  axes[2].set_ylabel('loss (last update of each wave)')
-  for ax in axes:
-    ax.set_xlabel('environment step')
-  axes[0].legend(); axes[1].legend()
-  fig.tight_layout(); fig.savefig(os.path.join(workdir, 'online.png'), dpi=100)
-  plt.close(fig)
+  return runs.summary_md(f"LD-MPC online on {report['task']}", lines, report,
+                         'Final evaluation, EMA parameters: ', 'training')

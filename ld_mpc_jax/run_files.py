@@ -12,11 +12,16 @@ from typing import Any, Dict
 import jax
 import numpy as np
 
+from ld_mpc_jax import envs
+
+ONLINE_CSV = 'online.csv'  # One row per wave of an online run (ld_mpc_jax.online).
+LOSSES_CSV = 'losses.csv'  # An online run's losses, the last update of each wave.
+
 
 def versions() -> Dict[str, str]:
   """Versions of the packages a result depends on, and the device kind."""
   out = {}
-  for name in ('jax', 'jaxlib', 'flax', 'optax', 'orbax-checkpoint', 'metaworld', 'mujoco',
+  for name in ('jax', 'jaxlib', 'flax', 'optax', 'orbax-checkpoint', *envs.SUITE.packages,
                'numpy'):
     try:
       out[name] = importlib_metadata.version(name)
@@ -86,13 +91,19 @@ def write_records(path: str, records) -> None:
   os.replace(path + '.tmp', path)
 
 
+def _pyplot():
+  import matplotlib  # pylint: disable=g-import-not-at-top
+  matplotlib.use('Agg')
+  import matplotlib.pyplot as plt  # pylint: disable=g-import-not-at-top
+  return plt
+
+
 def write_plots(workdir: str) -> None:
-  """losses.png and success.png from metrics.csv and eval.csv (those that exist)."""
+  """Every plot whose CSV exists: losses.png (metrics.csv), success.png (eval.csv) and, for an
+  online run, online.png (online.csv, eval.csv and losses.csv)."""
   if not primary():
     return
-  import matplotlib
-  matplotlib.use('Agg')
-  import matplotlib.pyplot as plt
+  plt = _pyplot()
   rows = read_csv(os.path.join(workdir, 'metrics.csv'))
   if rows:
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -105,7 +116,7 @@ def write_plots(workdir: str) -> None:
     plt.close(fig)
   rows = read_csv(os.path.join(workdir, 'eval.csv'))
   # Online runs (ld_mpc_jax.online writes online.csv) evaluate at environment steps.
-  x_label = ('environment step' if os.path.exists(os.path.join(workdir, 'online.csv'))
+  x_label = ('environment step' if os.path.exists(os.path.join(workdir, ONLINE_CSV))
              else 'update step')
   if rows:
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -117,3 +128,36 @@ def write_plots(workdir: str) -> None:
     ax.set_xlabel(x_label); ax.set_ylabel('success rate'); ax.set_ylim(-0.02, 1.02)
     ax.legend(); fig.tight_layout(); fig.savefig(os.path.join(workdir, 'success.png'), dpi=100)
     plt.close(fig)
+  _write_online_plot(workdir)
+
+
+def _write_online_plot(workdir: str) -> None:
+  """online.png: success and return against environment steps (training episodes and held-out
+  evaluations), and the loss."""
+  waves = read_csv(os.path.join(workdir, ONLINE_CSV))
+  if not waves:
+    return
+  plt = _pyplot()
+  evals = read_csv(os.path.join(workdir, 'eval.csv'))
+  col = lambda rows, name: np.array([float(r[name]) for r in rows])
+  x, ex = col(waves, 'env_steps'), col(evals, 'step')
+  fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+  axes[0].plot(x, col(waves, 'episode_success'), '.-', alpha=0.6,
+               label='training episodes (exploration noise)')
+  if evals:
+    axes[0].plot(ex, col(evals, 'success_rate'), 'o-', label='planner, held-out goals')
+    axes[0].fill_between(ex, col(evals, 'ci_lo'), col(evals, 'ci_hi'), alpha=0.2)
+    axes[1].plot(ex, col(evals, 'mean_return'), 'o-', label='planner, held-out goals')
+  axes[0].set_ylabel('success rate'); axes[0].set_ylim(-0.02, 1.02)
+  axes[1].plot(x, col(waves, 'episode_return'), '.-', alpha=0.6, label='training episodes')
+  axes[1].set_ylabel('episode return')
+  losses = read_csv(os.path.join(workdir, LOSSES_CSV))
+  if losses:
+    axes[2].plot(col(losses, 'env_steps'), col(losses, 'loss'), '.-')
+    axes[2].set_yscale('log')
+  axes[2].set_ylabel('loss (last update of each wave)')
+  for ax in axes:
+    ax.set_xlabel('environment step')
+  axes[0].legend(); axes[1].legend()
+  fig.tight_layout(); fig.savefig(os.path.join(workdir, 'online.png'), dpi=100)
+  plt.close(fig)

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax.bench import training
+from benchmarks import training
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

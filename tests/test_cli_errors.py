@@ -35,6 +35,9 @@ def _train(tmp_path, *args):
      ['config.data.preset', "'bogus'", "'mixed'", "'weak'"]),
     (['--config=door_open_online.py:smoke', '--config.train.batch_size=16'],
      ['config.train.batch_size (16)', '12 windows', 'config.online.seed_steps=40']),
+    (['--config=door_open.py:smoke', '--config.plan.nosuch=1'],
+     ['--config.plan.nosuch', "'config.plan.nosuch'", 'no field']),
+    (['--config=door_open.py:smoke', '--config.nosect.x=1'], ["'config.nosect'", 'no field']),
 ])
 def test_bad_preset_or_batch_is_one_line_and_exit_code_2(tmp_path, args, words):
   code, lines = _train(tmp_path, *args)
@@ -79,4 +82,4 @@ def test_online_batch_is_not_checked_without_seed_updates():
   config.online.env_steps, config.online.update_ratio = 120, 0.0  # No update at all.
   config_checks.check_online_budget(config)
   config.online.update_ratio, config.online.init_from = 0.1, '/runs/offline'  # Its dataset:
-  config_checks.check_online_budget(config)  # checked at start (train.check_config_for_data).
+  config_checks.check_online_budget(config)  # checked at start (runs.check_config_for_data).

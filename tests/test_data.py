@@ -214,3 +214,19 @@ def test_get_or_collect_caches_and_replaces_bad_files(tmp_path, monkeypatch):
   with pytest.warns(UserWarning, match='collecting again'):
     collection.get_or_collect(**args)
   assert len(calls) == 3
+
+
+def test_data_sources_are_a_registry_with_one_line_errors():
+  from experiments.configs import door_open
+  from ld_mpc_jax import envs
+  from ld_mpc_jax.data import sources
+  assert sources.SOURCES.names() == (envs.SUITE.name, 'tdmpc2')
+  assert sources.SCRIPTED == envs.SUITE.name
+  c = door_open.get_config('smoke')
+  c.data.source = 'nosuch'
+  with pytest.raises(ValueError, match=r"^config.data.source must be one of 'metaworld', "
+                                       r"'tdmpc2', got 'nosuch'$"):
+    sources.check_source(c)
+  c.data.source = 'tdmpc2'
+  with pytest.raises(ValueError, match='needs config.data.path'):
+    sources.check_source(c)

@@ -7,7 +7,7 @@ import sys
 
 import jax
 
-from ld_mpc_jax import checkpointing, train
+from ld_mpc_jax import checkpointing, runs
 from ld_mpc_jax.train_state import create_train_state
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -16,15 +16,15 @@ MARKER = b'not json: a stand-in for the mp4'
 # OpenGL); every other evaluation is the real one.
 _SCRIPT = f"""
 from absl import app
-from ld_mpc_jax import train
-real = train.run_evaluation
+from ld_mpc_jax import runs
+real = runs.run_evaluation
 def fake(config, params, mode, num_episodes, seed, video_path=None, **kwargs):
   if video_path is None:
     return real(config, params, mode, num_episodes, seed, **kwargs)
   with open(video_path, 'wb') as f:
     f.write({MARKER!r})
   return dict(video_path=video_path)
-train.run_evaluation = fake
+runs.run_evaluation = fake
 from experiments import evaluate
 app.run(evaluate.main)
 """
@@ -34,7 +34,7 @@ def test_video_and_json_are_separate_files(tmp_path, smoke_config):
   workdir = str(tmp_path / 'run')
   checkpointing.save_config(smoke_config, workdir)
   state = create_train_state(smoke_config, jax.random.key(0))
-  train.save_checkpoint(workdir, checkpointing.checkpoint_manager(workdir), state, 1, 0.0)
+  runs.save_checkpoint(workdir, checkpointing.checkpoint_manager(workdir), state, 1, 0.0)
   done = subprocess.run(
       [sys.executable, '-c', _SCRIPT, f'--workdir={workdir}', '--video', '--modes=actor',
        '--splits=held_out', '--episodes=1'],

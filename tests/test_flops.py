@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import pytest
 
 from ld_mpc_jax import mppi
-from ld_mpc_jax.bench import flops
+from benchmarks import flops
 from ld_mpc_jax.networks import TransformerBlock
 
 

@@ -1,118 +1,22 @@
-"""Online training at smoke size: acting, buffer, updates, checkpoints, SIGKILL and resume, noise.
+"""ld_mpc_jax.online at smoke size: exploration noise, acting settings, bad configs.
 
-The runs go through the launcher in subprocesses that share the session's compilation cache.
+The launched smoke runs (buffer, checkpoints, SIGKILL and resume) are tests/e2e/test_online_runs.py.
 """
 
-import json
 import os
-import signal
 import subprocess
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax import checkpointing, data, evaluation_suite, online, run_files
+from ld_mpc_jax import evaluation_suite, online
 from ld_mpc_jax.models import init_params
 from ld_mpc_jax.planner import make_plan
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ENV_STEPS = 200  # Five waves of 2 episodes x 20 environment steps; the first one random.
-
-
-@pytest.fixture(scope='module')
-def launch():
-  """launch(workdir) -> Popen of the smoke online job (no evaluation).
-
-  The subprocesses inherit the session's compilation cache (conftest.py), so the update and the
-  planner compile once for all of them.
-  """
-  def start(workdir):
-    cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open_online.py:smoke',
-           f'--workdir={workdir}', f'--config.online.env_steps={ENV_STEPS}',
-           '--config.eval.episodes=0']
-    return subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
-  return start
-
-
-@pytest.fixture(scope='module')
-def finished(launch, tmp_path_factory):
-  """Workdir of one uninterrupted smoke run."""
-  workdir = str(tmp_path_factory.mktemp('online') / 'run')
-  proc = launch(workdir)
-  _, err = proc.communicate(timeout=600)
-  assert proc.returncode == 0, err[-2000:]
-  return workdir
-
-
-def _buffer(workdir, step):
-  return data.load(online.buffer_path(workdir, step))
-
-
-@pytest.mark.long  # Its fixture runs the smoke job.
-def test_smoke_run_acts_fills_the_buffer_updates_and_checkpoints(finished):
-  waves = run_files.read_csv(os.path.join(finished, online.ONLINE_CSV))
-  assert [int(w['env_steps']) for w in waves] == [40, 80, 120, 160, 200]
-  assert [w['acting'] for w in waves] == ['random'] + ['planner'] * 4
-  # update_ratio 0.1: floor(0.1 x environment steps) updates, none before the seed wave is in.
-  assert [int(w['updates']) for w in waves] == [0, 8, 12, 16, 20]
-  ds = _buffer(finished, ENV_STEPS)
-  assert ds.num_episodes == 10 and list(ds.episode_lengths) == [10] * 10  # 10 decisions each.
-  assert ds.metadata['online'] == dict(env_steps=200, updates=20, episodes=10, normalized=True,
-                                       train_seconds=ds.metadata['online']['train_seconds'])
-  assert np.all(np.abs(ds.actions) <= 1.0) and np.all(np.isfinite(ds.observations))
-  manager = checkpointing.checkpoint_manager(finished)
-  assert manager.all_steps() == [120, 160, 200]  # train.max_checkpoints = 3, at environment steps.
-  assert sorted(os.listdir(os.path.join(finished, online.BUFFER_DIR))) == [
-      'buffer_120.npz', 'buffer_160.npz', 'buffer_200.npz']  # Each beside its orbax step.
-  config, _, step = checkpointing.load_for_evaluation(finished)
-  assert step == 20 and config.online.enabled  # TrainState.step counts updates.
-  losses = run_files.read_csv(os.path.join(finished, online.LOSSES_CSV))
-  assert [int(r['env_steps']) for r in losses] == [80, 120, 160, 200]
-  assert all(np.isfinite(float(r['loss'])) for r in losses)
-  with open(os.path.join(finished, 'report.json')) as f:
-    report = json.load(f)
-  assert (report['env_steps'], report['updates'], report['mode']) == (200, 20, 'from scratch')
-  assert os.path.getsize(os.path.join(finished, 'online.png')) > 0
-
-
-@pytest.mark.long
-def test_sigkill_and_resume_restore_buffer_and_step_counter_exactly(finished, launch, tmp_path):
-  workdir = str(tmp_path / 'run')
-  proc = launch(workdir)
-  ckpt_dir = os.path.join(workdir, 'checkpoints')
-  deadline = time.time() + 300
-  while time.time() < deadline and proc.poll() is None:  # Kill once a checkpoint with updates
-    if os.path.isdir(ckpt_dir) and '80' in os.listdir(ckpt_dir):  # is complete.
-      break
-    time.sleep(0.02)
-  assert proc.poll() is None, 'the run ended before it could be killed'
-  os.kill(proc.pid, signal.SIGKILL)
-  proc.wait()
-  manager = checkpointing.checkpoint_manager(workdir)
-  killed_at = manager.latest_step()
-  assert 80 <= killed_at < ENV_STEPS
-  saved = _buffer(workdir, killed_at)
-  assert saved.metadata['online']['env_steps'] == killed_at
-  resumed = launch(workdir)
-  _, err = resumed.communicate(timeout=600)
-  assert resumed.returncode == 0, err[-2000:]
-  # The resumed run kept the saved episodes, and ended where the uninterrupted run ended.
-  got, want = _buffer(workdir, ENV_STEPS), _buffer(finished, ENV_STEPS)
-  n = saved.observations.shape[0]
-  np.testing.assert_array_equal(got.observations[:n], saved.observations)
-  for name in ('observations', 'actions', 'rewards', 'episode_lengths'):
-    np.testing.assert_array_equal(getattr(got, name), getattr(want, name), err_msg=name)
-  for name in ('env_steps', 'updates', 'episodes'):
-    assert got.metadata['online'][name] == want.metadata['online'][name], name
-  assert got.metadata['sampler_rng'] == want.metadata['sampler_rng']
-  waves = run_files.read_csv(os.path.join(workdir, online.ONLINE_CSV))
-  assert int(waves[-1]['env_steps']) == ENV_STEPS
 
 
 def test_exploration_noise_only_when_acting(tmp_path, monkeypatch):

@@ -1,27 +1,45 @@
-"""ld_mpc_jax.bench.profiling: op classification, HLO parsing and a traced smoke plan."""
+"""benchmarks.profiling: a compiled program of known parts classified, HLO parsing and a traced
+smoke plan."""
 
 import jax
 import jax.numpy as jnp
 import pytest
 
-from ld_mpc_jax.bench import profiling
+from benchmarks import profiling
 
 
-@pytest.mark.parametrize('op_name,is_matmul,expected', [
-    ('jit(plan)/while/body/closed_call/ActionProposal.denoise/backbone/block_2/mlp_in/'
-     'dot_general', True, ('proposal', 'matmul')),
-    ('jit(plan)/while/body/closed_call/while/body/closed_call/LatentDynamics.denoise/backbone/'
-     'block_0/attn/add', False, ('dynamics', 'attention element-wise')),
-    ('jit(plan)/SequenceObjective/backbone/block_3/ln_mlp/reduce_sum', False,
-     ('objective', 'layernorm')),
-    ('jit(plan)/while/body/closed_call/ActionProposal.denoise/backbone/block_1/mul', False,
-     ('proposal', 'mlp element-wise (GELU, residual)')),
-    ('jit(plan)/while/body/jit(_normal)/jit(_normal_real)/jit(_uniform)/shift_right_logical',
-     False, ('other', 'random numbers')),
-    ('jit(plan)/argmax', False, ('other', 'other')),
-])
-def test_classify(op_name, is_matmul, expected):
-  assert profiling.classify(op_name, is_matmul) == expected
+def _known_program(x, w, key):
+  """A program whose parts sit where the networks' do: a proposal block (matmul, attention
+  element-wise, LayerNorm, MLP element-wise) and dynamics noise (random numbers)."""
+  with jax.named_scope('ActionProposal.denoise'), jax.named_scope('backbone'):
+    with jax.named_scope('block_0'):
+      with jax.named_scope('attn'):
+        h = jnp.tanh(x @ w)
+      with jax.named_scope('ln_mlp'):
+        h = h - h.mean(-1, keepdims=True)
+    with jax.named_scope('block_1'):
+      h = h * 3.0
+  with jax.named_scope('LatentDynamics.denoise'):
+    h = h + jax.random.normal(key, h.shape)
+  return jnp.argmax(h, -1)
+
+
+def test_compiled_known_program_is_classified_by_network_and_kind():
+  x, w = jnp.ones((8, 16)), jnp.ones((16, 16))
+  text = jax.jit(_known_program).lower(x, w, jax.random.key(0)).compile().as_text()
+  got = {}
+  for op_name, is_matmul in profiling.hlo_ops(text).values():
+    got.setdefault(profiling.classify(op_name, is_matmul), []).append(op_name)
+  assert {('proposal', 'matmul'), ('proposal', 'attention element-wise'),
+          ('proposal', 'layernorm'), ('proposal', 'mlp element-wise (GELU, residual)'),
+          ('dynamics', 'random numbers')} <= set(got)
+  # The one matrix product is the proposal's, and it is the only matmul.
+  matmuls = [n for (net, kind), names in got.items() if kind == 'matmul' for n in names]
+  assert matmuls and all('ActionProposal' in n and 'dot_general' in n for n in matmuls)
+  # Nothing outside a network's scope is given to a network.
+  for (net, _), names in got.items():
+    assert net == 'other' or all(('ActionProposal' if net == 'proposal' else 'LatentDynamics')
+                                 in n for n in names), (net, names)
 
 
 def test_hlo_ops_marks_matrix_products_only():

@@ -182,16 +182,16 @@ def _mt80_chunk(path, tasks, seed=0):
 
 
 def test_v3_names_map_to_tdmpc2_and_back():
-  assert tdmpc2.from_metaworld_v3('door-open-v3') == 'mw-door-open'
-  assert tdmpc2.from_metaworld_v3('peg-insert-side-v3') == 'mw-peg-insert-side'
-  assert tdmpc2.to_metaworld_v3('mw-pick-out-of-hole') == 'pick-out-of-hole-v3'
+  assert tdmpc2.tdmpc2_task_name('door-open-v3') == 'mw-door-open'
+  assert tdmpc2.tdmpc2_task_name('peg-insert-side-v3') == 'mw-peg-insert-side'
+  assert tdmpc2.v3_task_name('mw-pick-out-of-hole') == 'pick-out-of-hole-v3'
   from ld_mpc_jax.envs.metaworld_env import task_names
-  assert sorted(tdmpc2.to_metaworld_v3(t) for t in tdmpc2.TASK_SETS['mt80'][30:]) == task_names()
+  assert sorted(tdmpc2.v3_task_name(t) for t in tdmpc2.TASK_SETS['mt80'][30:]) == task_names()
   for bad in ('door-open-v2', 'walker-walk', 'mw-door-open'):
     with pytest.raises(ValueError, match='TD-MPC2 mt80'):
-      tdmpc2.from_metaworld_v3(bad)
+      tdmpc2.tdmpc2_task_name(bad)
   with pytest.raises(ValueError, match='50 Meta-World tasks'):
-    tdmpc2.to_metaworld_v3('walker-walk')
+    tdmpc2.v3_task_name('walker-walk')
 
 
 def test_source_config_errors(fake_torch, tmp_path, smoke_config):
@@ -199,7 +199,7 @@ def test_source_config_errors(fake_torch, tmp_path, smoke_config):
   from ld_mpc_jax.data import sources
   c = smoke_config
   c.data.source = 'd4rl'
-  with pytest.raises(ValueError, match="config.data.source must be 'metaworld' or 'tdmpc2'"):
+  with pytest.raises(ValueError, match="config.data.source must be one of 'metaworld', 'tdmpc2', got 'd4rl'"):
     validate_config(c)
   c.data.source = 'tdmpc2'
   with pytest.raises(ValueError, match='needs config.data.path'):

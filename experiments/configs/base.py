@@ -23,7 +23,7 @@ def get_config() -> ml_collections.ConfigDict:
   m.mlp_ratio = 4  # Standard transformer MLP expansion.
   m.dropout = 0.1
   # Report silent on proposal depth; 4 blocks keeps the proposal below the 5-block dynamics
-  # model; the reference plan is then 136 GFLOP per call (ld_mpc_jax.bench.flops.plan_flops).
+  # model; the reference plan is then 136 GFLOP per call (benchmarks.flops.plan_flops).
   m.proposal_blocks = 4
   m.dynamics_blocks = 5
   m.objective_blocks = 10
@@ -35,6 +35,7 @@ def get_config() -> ml_collections.ConfigDict:
   # Standardise observations by the dataset's mean and std (stored with the parameters), as
   # offline RL does for state inputs (IQL, TD3+BC); Meta-World features differ in scale.
   m.normalize_obs = True
+  m.task_dim = 96  # Task embedding size of a multi-task config (config.tasks); TD-MPC2's.
   # RMS-normalise the dynamics model's samples like the encoder's output, so that the objective
   # scores latents on the manifold it was trained on (TD-MPC2 normalises both with SimNorm).
   m.normalize_dynamics = True
@@ -170,6 +171,8 @@ def get_config() -> ml_collections.ConfigDict:
   c.data.source = 'metaworld'
   # TD-MPC2 chunk files (a file, a glob pattern or a directory of *.pt); only for source tdmpc2.
   c.data.path = ''
+  # Environment steps per collected episode (scripted data): Meta-World's own limit.
+  c.data.max_episode_steps = 500
 
   c.eval = e = ml_collections.ConfigDict()
   e.episodes = 50  # Final evaluation (Meta-World protocol), per split and evaluation seed.

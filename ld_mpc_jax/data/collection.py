@@ -1,6 +1,6 @@
 """Mixed-quality offline data from Meta-World's scripted policies.
 
-Each episode runs a task's scripted expert (`metaworld.policies`) with one
+Each episode runs a task's scripted expert (`envs.scripted_policy`) with one
 noise level: the expert's action gets Gaussian noise of std `noise_std`, and
 with probability `random_prob` per decision it is replaced by a uniform random
 action in [-1, 1]^4; the result is clipped to [-1, 1]. Episodes run the full
@@ -24,7 +24,7 @@ import numpy as np
 import tqdm
 
 from ld_mpc_jax.data import dataset as dataset_lib
-from ld_mpc_jax.envs import metaworld_env
+from ld_mpc_jax import envs
 
 # Each level: Gaussian action-noise std, per-decision probability of a uniform
 # random action, and the fraction of the preset's episodes at that level.
@@ -98,7 +98,7 @@ def run_episode(env, policy: Callable[[np.ndarray], np.ndarray],
 
 def collect(task: str, preset: str, episodes: int, seed: int = 0,
             action_repeat: int = 2,
-            max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH,
+            max_episode_steps: int = envs.MAX_EPISODE_STEPS,
             progress: bool = True) -> dataset_lib.Dataset:
   """Collects `episodes` noisy scripted episodes of `task` at `preset`.
 
@@ -115,14 +115,14 @@ def collect(task: str, preset: str, episodes: int, seed: int = 0,
   Returns:
     A validated Dataset; metadata and per-episode noise/seed in episode_data.
   """
-  metaworld_env.check_task(task)
+  envs.check_task(task)
   if episodes < 1:
     raise ValueError(f'episodes must be >= 1, got {episodes}')
   levels = level_assignment(preset, episodes, seed)
-  seeds = metaworld_env.episode_seeds(seed, episodes, 'collect')
-  env = metaworld_env.make_env(task, seed=seed, action_repeat=action_repeat,
-                               max_episode_steps=max_episode_steps)
-  policy = metaworld_env.scripted_policy(task)
+  seeds = envs.episode_seeds(seed, episodes, 'collect')
+  env = envs.make_env(task, seed=seed, action_repeat=action_repeat,
+                      max_episode_steps=max_episode_steps)
+  policy = envs.scripted_policy(task)
   spec = PRESETS[preset]
   out, start = [], time.time()
   bar = tqdm.tqdm(range(episodes), desc=f'collect {task}/{preset}',
@@ -142,12 +142,12 @@ def collect(task: str, preset: str, episodes: int, seed: int = 0,
       random_prob=np.array([spec[l]['random_prob'] for l in levels]),
       seed=seeds)
   metadata: Dict[str, Any] = dict(
-      source='metaworld-scripted', collector_version=COLLECTOR_VERSION, task=task, tasks=[task],
+      source=envs.SUITE.scripted_source, collector_version=COLLECTOR_VERSION, task=task, tasks=[task],
       preset=preset,
       levels=[dict(l) for l in spec], episodes=int(episodes), seed=int(seed),
       action_repeat=int(action_repeat),
       max_episode_steps=int(max_episode_steps),
-      obs_dim=metaworld_env.OBS_DIM, act_dim=metaworld_env.ACT_DIM,
+      obs_dim=envs.OBS_DIM, act_dim=envs.ACT_DIM,
       versions=dataset_lib.package_versions(),
       collection_seconds=round(time.time() - start, 2))
   return dataset_lib.Dataset.from_episodes(
@@ -156,9 +156,9 @@ def collect(task: str, preset: str, episodes: int, seed: int = 0,
 
 def dataset_path(data_dir: str, task: str, preset: str, episodes: int,
                  seed: int, action_repeat: int,
-                 max_episode_steps: int = metaworld_env.METAWORLD_MAX_PATH_LENGTH) -> str:
+                 max_episode_steps: int = envs.MAX_EPISODE_STEPS) -> str:
   """Cache file name of a collected dataset (episodes shorter than Meta-World's: `_T<steps>`)."""
-  steps = ('' if max_episode_steps == metaworld_env.METAWORLD_MAX_PATH_LENGTH
+  steps = ('' if max_episode_steps == envs.MAX_EPISODE_STEPS
            else f'_T{max_episode_steps}')
   return os.path.join(
       data_dir, f'{task}_{preset}_{episodes}ep_seed{seed}_ar{action_repeat}{steps}.npz')
@@ -167,7 +167,7 @@ def dataset_path(data_dir: str, task: str, preset: str, episodes: int,
 def get_or_collect(task: str, preset: str, episodes: int, seed: int,
                    data_dir: str, action_repeat: int = 2,
                    max_episode_steps: int = (
-                       metaworld_env.METAWORLD_MAX_PATH_LENGTH),
+                       envs.MAX_EPISODE_STEPS),
                    progress: bool = True) -> dataset_lib.Dataset:
   """Loads the cached dataset if present and valid, else collects and saves it.
 

@@ -40,6 +40,8 @@ from typing import Any, Dict, Mapping, Optional, Sequence
 
 import numpy as np
 
+from ld_mpc_jax import envs
+
 FORMAT_VERSION = 1
 _ARRAYS = ('observations', 'actions', 'rewards', 'successes',
            'episode_starts', 'episode_lengths', 'task_ids')
@@ -228,8 +230,9 @@ def load(path: str) -> Dataset:
   Raises:
     DatasetError: missing, truncated or corrupted file, missing arrays, wrong
       shapes, NaN/inf values, or a different format version. A different
-      metaworld MAJOR version only warns (RuntimeWarning): the data stays
-      readable but may not match the installed simulator.
+      MAJOR version of the environment suite's package only warns
+      (RuntimeWarning): the data stay readable but may not match the installed
+      simulator.
   """
   path = os.fspath(path)
   if not os.path.isfile(path):
@@ -256,7 +259,7 @@ def load(path: str) -> Dataset:
     raise DatasetError(
         f'{path} has dataset format version {version}, this code reads '
         f'version {FORMAT_VERSION}. Collect the data again.')
-  _check_metaworld_version(meta, path)
+  _check_suite_version(meta, path)
   ds = Dataset(metadata=meta, episode_data=extras, **arrays)
   try:
     ds.validate()
@@ -268,7 +271,7 @@ def load(path: str) -> Dataset:
 def package_versions() -> Dict[str, Optional[str]]:
   """Installed versions of the packages that shape collected data."""
   out = {}
-  for name in ('metaworld', 'mujoco', 'numpy', 'gymnasium'):
+  for name in envs.SUITE.packages + ('numpy', 'gymnasium'):
     try:
       out[name] = importlib_metadata.version(name)
     except importlib_metadata.PackageNotFoundError:
@@ -280,13 +283,14 @@ def _major(version: Optional[str]) -> Optional[str]:
   return None if not version else str(version).split('.')[0]
 
 
-def _check_metaworld_version(meta: Mapping[str, Any], path: str) -> None:
-  recorded = meta.get('versions', {}).get('metaworld')
+def _check_suite_version(meta: Mapping[str, Any], path: str) -> None:
+  package = envs.SUITE.packages[0]
+  recorded = meta.get('versions', {}).get(package)
   if recorded is None:
     return
-  installed = package_versions().get('metaworld')
+  installed = package_versions().get(package)
   if installed and _major(installed) != _major(recorded):
     warnings.warn(
-        f'{path} was collected with metaworld {recorded} but metaworld '
+        f'{path} was collected with {package} {recorded} but {package} '
         f'{installed} is installed (different major version): simulator and '
         'rewards may differ from the data.', RuntimeWarning, stacklevel=3)

@@ -1,8 +1,8 @@
 """Data of a multi-task config: every task's scripted dataset, and task-balanced batches.
 
 Each task's dataset is the single-task one (`sources.load_for_config` of `tasks.task_config`:
-the same presets, collected once and cached under the same file names). `load` joins them into
-one Dataset whose `task_ids` give each episode's task index (the position in config.tasks);
+the same presets, collected once and cached under the same file names). `concatenate` joins them
+into one Dataset whose `task_ids` give each episode's task index (the position in config.tasks);
 `TaskBalancedBuffer` draws the same number of windows from every task for each batch.
 """
 
@@ -14,17 +14,6 @@ import numpy as np
 from ld_mpc_jax import tasks
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import replay
-from ld_mpc_jax.data import sources
-
-
-def load(config: ml_collections.ConfigDict, progress: bool = True) -> dataset_lib.Dataset:
-  """All tasks' datasets, back to back; episode e of task k has task_ids[e] = k.
-
-  Metadata: 'tasks' (the names, in index order) and 'per_task' (each task's own metadata).
-  """
-  parts = [sources.load_for_config(tasks.task_config(config, k), progress=progress)
-           for k in range(tasks.num_tasks(config))]
-  return concatenate(parts, list(tasks.task_names(config)))
 
 
 def concatenate(parts: List[dataset_lib.Dataset], names: List[str]) -> dataset_lib.Dataset:

@@ -100,7 +100,7 @@ def true_dims(task: str, dims: Optional[Dict[str, Tuple[int, int]]] = None
                    f'pass dims={{{task!r}: (obs_dim, act_dim)}}.')
 
 
-def from_metaworld_v3(task: str) -> str:
+def tdmpc2_task_name(task: str) -> str:
   """TD-MPC2's name of a Meta-World v3 task: 'door-open-v3' -> 'mw-door-open'.
 
   TD-MPC2's data were collected on the Meta-World v2 version of the same task.
@@ -112,7 +112,7 @@ def from_metaworld_v3(task: str) -> str:
   return name
 
 
-def to_metaworld_v3(task: str) -> str:
+def v3_task_name(task: str) -> str:
   """This project's (v3) name of a TD-MPC2 Meta-World task: 'mw-door-open' -> 'door-open-v3'."""
   if task not in _MW50:
     raise ValueError(f'{task!r} is not one of TD-MPC2\'s 50 Meta-World tasks (mw-*).')
@@ -177,36 +177,14 @@ def load_tdmpc2(paths: Union[str, Sequence[str]], task_set: str,
   torch = _import_torch()
   obs_parts, act_parts, rew_parts, ids, files = [], [], [], [], []
   for path in _chunk_files(paths):
-    try:
-      td = torch.load(path, map_location='cpu', weights_only=False)
-    except Exception as err:  # pylint: disable=broad-except
-      raise dataset_lib.DatasetError(
-          f'Cannot read TD-MPC2 chunk {path}: {err}') from err
-    obs, act = _to_numpy(td, 'obs', path), _to_numpy(td, 'action', path)
-    rew, task = _to_numpy(td, 'reward', path), _to_numpy(td, 'task', path)
-    if obs.ndim != 3 or act.ndim != 3 or obs.shape[:2] != act.shape[:2]:
-      raise dataset_lib.DatasetError(
-          f'{path}: expected obs [N, L, D] and action [N, L, A], got '
-          f'{obs.shape} and {act.shape}.')
-    task = task.reshape(obs.shape[0], -1)[:, 0].astype(np.int64)
-    keep = np.isin(task, original)
-    if not keep.any():
+    part = _read_chunk(torch, path, original, obs_dim, act_dim)
+    if part is None:
       continue
     files.append(path)
-    obs, act, rew = obs[keep], act[keep], rew.reshape(keep.size, -1)[keep]
-    if obs.shape[2] < obs_dim or act.shape[2] < act_dim:
-      raise dataset_lib.DatasetError(
-          f'{path}: padded sizes {obs.shape[2]}/{act.shape[2]} are smaller '
-          f'than the true sizes {obs_dim}/{act_dim}.')
-    for name, arr, d in (('obs', obs, obs_dim), ('action', act[:, 1:], act_dim)):
-      if np.any(arr[..., d:] != 0):
-        raise dataset_lib.DatasetError(
-            f'{path}: {name} has non-zero values beyond dimension {d}; the '
-            'true sizes given for these tasks look wrong.')
-    obs_parts.append(obs[..., :obs_dim])
-    act_parts.append(act[..., :act_dim])
-    rew_parts.append(rew)
-    ids.append(np.array([remap[t] for t in task[keep]], np.int32))
+    obs_parts.append(part[0])
+    act_parts.append(part[1])
+    rew_parts.append(part[2])
+    ids.append(np.array([remap[t] for t in part[3]], np.int32))
   if not ids:
     raise dataset_lib.DatasetError(
         f'No episodes of {list(tasks)} in the given TD-MPC2 files.')
@@ -217,6 +195,37 @@ def load_tdmpc2(paths: Union[str, Sequence[str]], task_set: str,
                           obs_dim=obs_dim, act_dim=act_dim,
                           task_dims=[list(s) for s in sizes],
                           successes_recorded=False, files=files))
+
+
+def _read_chunk(torch, path: str, original: Sequence[int], obs_dim: int, act_dim: int):
+  """One chunk's episodes of the `original` task ids: (obs [n, L, obs_dim], act [n, L, act_dim],
+  rew [n, L], task ids [n]) cut to the true sizes, or None when it holds none of them."""
+  try:
+    td = torch.load(path, map_location='cpu', weights_only=False)
+  except Exception as err:  # pylint: disable=broad-except
+    raise dataset_lib.DatasetError(
+        f'Cannot read TD-MPC2 chunk {path}: {err}') from err
+  obs, act = _to_numpy(td, 'obs', path), _to_numpy(td, 'action', path)
+  rew, task = _to_numpy(td, 'reward', path), _to_numpy(td, 'task', path)
+  if obs.ndim != 3 or act.ndim != 3 or obs.shape[:2] != act.shape[:2]:
+    raise dataset_lib.DatasetError(
+        f'{path}: expected obs [N, L, D] and action [N, L, A], got '
+        f'{obs.shape} and {act.shape}.')
+  task = task.reshape(obs.shape[0], -1)[:, 0].astype(np.int64)
+  keep = np.isin(task, original)
+  if not keep.any():
+    return None
+  obs, act, rew = obs[keep], act[keep], rew.reshape(keep.size, -1)[keep]
+  if obs.shape[2] < obs_dim or act.shape[2] < act_dim:
+    raise dataset_lib.DatasetError(
+        f'{path}: padded sizes {obs.shape[2]}/{act.shape[2]} are smaller '
+        f'than the true sizes {obs_dim}/{act_dim}.')
+  for name, arr, d in (('obs', obs, obs_dim), ('action', act[:, 1:], act_dim)):
+    if np.any(arr[..., d:] != 0):
+      raise dataset_lib.DatasetError(
+          f'{path}: {name} has non-zero values beyond dimension {d}; the '
+          'true sizes given for these tasks look wrong.')
+  return obs[..., :obs_dim], act[..., :act_dim], rew, task[keep]
 
 
 def _to_dataset(obs: np.ndarray, act: np.ndarray, rew: np.ndarray,

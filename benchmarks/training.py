@@ -6,7 +6,7 @@ per iteration, and the update has scans: the latent rollout of the objective's t
 `unrolled_flops` corrects for them generally: it traces the function to a jaxpr, re-traces that
 jaxpr with every scan replaced by its iterations written out one after another (scans inside
 scans too), and reads the cost analysis of that scan-free program: the FLOPs of every iteration.
-(ld_mpc_jax.bench.flops corrects the planner instead by lowering each loop body on its own.)
+(benchmarks.flops corrects the planner instead by lowering each loop body on its own.)
 """
 
 import time
@@ -19,7 +19,7 @@ import ml_collections
 import numpy as np
 
 from ld_mpc_jax import sharding, tasks
-from ld_mpc_jax.bench.flops import compiled_flops
+from benchmarks.flops import compiled_flops
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
 
@@ -141,7 +141,7 @@ def benchmark_update(name: str, config: ml_collections.ConfigDict, repeats: int,
   b = config.train.batch_size
   single_config = ml_collections.ConfigDict(config.to_dict())  # The plain single-device update.
   single_config.train.data_parallel = False
-  data_parallel = data_parallel or config.train.get('data_parallel', False)
+  data_parallel = data_parallel or config.train.data_parallel
   mesh = sharding.make_mesh() if data_parallel else None
   update = make_update(single_config, mesh)
   state = create_train_state(config, jax.random.key(0))

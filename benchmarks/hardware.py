@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ld_mpc_jax.bench.flops import matmul_flops
+from benchmarks.flops import matmul_flops
 
 
 def device_info() -> dict:

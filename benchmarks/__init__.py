@@ -1,6 +1,8 @@
 """Benchmarking tools, apart from the model code: FLOP counts and profiles of a plan call.
 
-Only the benchmark launchers (experiments.benchmark_planning, experiments.profile_plan) use them.
+Outside the installed package (pyproject.toml installs ld_mpc_jax and experiments only): run
+the launchers that use them (experiments.benchmark_*, experiments.profile_plan) from the
+repository root.
 """
 
 

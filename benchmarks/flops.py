@@ -99,7 +99,7 @@ def plan_flops(config: ml_collections.ConfigDict) -> dict:
   k, num_prior = p.num_candidates, p.num_prior_candidates
   n = k - num_prior
   action_steps = p.action_steps
-  if p.get('warm_start_steps', 0):
+  if p.warm_start_steps:
     action_steps = p.warm_start_steps  # Warm-started proposals run the short schedule only.
 
   proposal_step = (time_embedding_flops(w) + dense_flops(a, w, n * h)
@@ -204,7 +204,7 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
   transition = xla_flops(rollout, params, z, f32(n, h, a), key)
 
   action_steps = p.action_steps
-  if p.get('warm_start_steps', 0):
+  if p.warm_start_steps:
     action_steps = p.warm_start_steps
   total = (plan_once + (action_steps - 1) * prop + (h - 1) * transition
            + h * (p.dynamics_steps - 1) * dyn)

@@ -27,7 +27,7 @@ import time
 import jax
 import numpy as np
 
-from ld_mpc_jax.bench.training import random_batch
+from benchmarks.training import random_batch
 from ld_mpc_jax.models import encode, init_params
 from ld_mpc_jax.planner import make_plan
 from ld_mpc_jax.train_state import create_train_state, make_update

@@ -1,0 +1,64 @@
+"""ld_mpc_jax.runs: the shared loop checkpoints and evaluates at the same crossings for any job."""
+
+import pytest
+
+from ld_mpc_jax import runs
+
+
+@pytest.mark.parametrize('before,after,every,expected', [
+    (0, 1, 5, False), (4, 5, 5, True), (5, 6, 5, False), (38, 42, 40, True), (40, 80, 40, True),
+    (41, 79, 40, False)])
+def test_crossed(before, after, every, expected):
+  assert runs.crossed(before, after, every) == expected
+
+
+class _Job:
+  """Advances by `step` units; records what the loop asked of it."""
+
+  def __init__(self, step, start=0):
+    self.progress, self.step, self.calls = start, step, []
+
+  def advance(self):
+    self.progress += self.step
+
+  def log(self, before):
+    self.calls.append(('log', before, self.progress))
+
+  def checkpoint(self):
+    self.calls.append(('checkpoint', self.progress))
+
+  def eval_params(self):
+    return 'params'
+
+
+class _Run:
+  def __init__(self):
+    self.evals = []
+
+  def periodic_eval(self, params, step):
+    self.evals.append((params, step))
+
+
+def test_loop_checkpoints_at_crossings_and_the_end_and_evaluates_before_the_end():
+  run, job = _Run(), _Job(step=40)  # Waves of 40 environment steps, as the online smoke run.
+  runs.loop(run, job, total=200, checkpoint_every=80, eval_every=100)
+  assert [c for c in job.calls if c[0] == 'checkpoint'] == [
+      ('checkpoint', 80), ('checkpoint', 160), ('checkpoint', 200)]
+  assert [c[1:] for c in job.calls if c[0] == 'log'] == [
+      (0, 40), (40, 80), (80, 120), (120, 160), (160, 200)]
+  assert run.evals == [('params', 120)]  # 200 is the final evaluation's, not the loop's.
+
+
+def test_loop_resumed_at_the_end_does_nothing():
+  run, job = _Run(), _Job(step=1, start=10)
+  runs.loop(run, job, total=10, checkpoint_every=5, eval_every=5)
+  assert job.calls == [] and run.evals == []
+
+
+def test_checkpoint_comes_before_the_evaluation_of_the_same_step():
+  order = []
+  run, job = _Run(), _Job(step=1)
+  job.checkpoint = lambda: order.append('checkpoint')
+  run.periodic_eval = lambda params, step: order.append('eval')
+  runs.loop(run, job, total=3, checkpoint_every=2, eval_every=2)
+  assert order == ['checkpoint', 'eval', 'checkpoint']
