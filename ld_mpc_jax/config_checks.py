@@ -28,7 +28,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     v = _get(config, name)
     if not isinstance(v, int) or isinstance(v, bool) or v < 1:
       raise ValueError(f'config.{name} must be an integer >= 1, got {v!r}')
-  m, p = config.model, config.plan
+  m = config.model
   if m.width % m.num_heads:
     raise ValueError(f'config.model.width ({m.width}) must be divisible by '
                      f'config.model.num_heads ({m.num_heads})')
@@ -44,20 +44,6 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   if config.diffusion.prediction not in ('x0', 'eps'):
     raise ValueError(f"config.diffusion.prediction must be 'x0' or 'eps', "
                      f'got {config.diffusion.prediction!r}')
-  for name in ('action_eta', 'dynamics_eta'):
-    if not 0.0 <= p[name] <= 1.0:
-      raise ValueError(f'config.plan.{name} must be in [0, 1], got {p[name]}')
-  if not 0 <= p.num_prior_candidates <= p.num_candidates:
-    raise ValueError(f'config.plan.num_prior_candidates must be in [0, num_candidates='
-                     f'{p.num_candidates}], got {p.num_prior_candidates}')
-  for name in ('prior_noise_std', 'action_noise_std'):
-    if p[name] < 0:
-      raise ValueError(f'config.plan.{name} must be >= 0, got {p[name]}')
-  if not isinstance(p.warm_start_steps, int) or p.warm_start_steps < 0:
-    raise ValueError(f'config.plan.warm_start_steps must be an integer >= 0, '
-                     f'got {p.warm_start_steps!r}')
-  if not 0.0 < p.warm_start_t <= 1.0:
-    raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
   if 'eval' in config:
     from ld_mpc_jax.agent import POLICY_MODES  # pylint: disable=g-import-not-at-top
     bad = set(config.eval.get('baselines', ())) - set(POLICY_MODES)
@@ -82,6 +68,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     if source == 'tdmpc2' and not config.data.get('path'):
       raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
                        'pattern or directory)')
+  _validate_plan(config)
   _validate_variant(config)
   _validate_objective(config)
   _validate_online(config)
@@ -92,6 +79,25 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
     raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
                      f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
+
+
+def _validate_plan(config: ml_collections.ConfigDict) -> None:
+  """config.plan settings every kind shares."""
+  p = config.plan
+  for name in ('action_eta', 'dynamics_eta'):
+    if not 0.0 <= p[name] <= 1.0:
+      raise ValueError(f'config.plan.{name} must be in [0, 1], got {p[name]}')
+  if not 0 <= p.num_prior_candidates <= p.num_candidates:
+    raise ValueError(f'config.plan.num_prior_candidates must be in [0, num_candidates='
+                     f'{p.num_candidates}], got {p.num_prior_candidates}')
+  for name in ('prior_noise_std', 'action_noise_std'):
+    if p[name] < 0:
+      raise ValueError(f'config.plan.{name} must be >= 0, got {p[name]}')
+  if not isinstance(p.warm_start_steps, int) or p.warm_start_steps < 0:
+    raise ValueError(f'config.plan.warm_start_steps must be an integer >= 0, '
+                     f'got {p.warm_start_steps!r}')
+  if not 0.0 < p.warm_start_t <= 1.0:
+    raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
 
 
 def _validate_variant(config: ml_collections.ConfigDict) -> None:

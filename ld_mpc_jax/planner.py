@@ -237,6 +237,16 @@ def _make_refine(config: ml_collections.ConfigDict, nets: Networks, score_draws:
   return refine_pool
 
 
+def _warm_start(prev_sequence: Optional[jnp.ndarray], h: int, a_dim: int
+                ) -> Optional[jnp.ndarray]:
+  """The previous plan [H, A] shifted one step (shift_sequence), or None without one."""
+  if prev_sequence is None:
+    return None
+  if prev_sequence.shape != (h, a_dim):
+    raise ValueError(f'prev_sequence must have shape ({h}, {a_dim}), got {prev_sequence.shape}')
+  return shift_sequence(prev_sequence)
+
+
 def make_plan(config: ml_collections.ConfigDict,
               score_fn: Optional[ScoreFn] = None) -> Callable:
   """Builds the jit-compiled planner.
@@ -279,12 +289,7 @@ def make_plan(config: ml_collections.ConfigDict,
       raise ValueError(f'plan expects one latent of shape ({d},), got {z.shape}; '
                        'use encode(params, obs) first, and jax.vmap for a batch')
     prop_key, noise_key, dyn_key = jax.random.split(key, 3)
-    init = None
-    if prev_sequence is not None:
-      if prev_sequence.shape != (h, a_dim):
-        raise ValueError(f'prev_sequence must have shape ({h}, {a_dim}), '
-                         f'got {prev_sequence.shape}')
-      init = shift_sequence(prev_sequence)
+    init = _warm_start(prev_sequence, h, a_dim)
     proposals_ = first_round(params, z, prop_key, noise_key, init)
     actions, scores, members = score_draws(params, z, proposals_, dyn_key, rollout)
     pool = Pool(actions, scores, members, _first_kinds(p),

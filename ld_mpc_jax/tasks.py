@@ -43,7 +43,7 @@ NETWORKS = ('encoder', 'proposal', 'dynamics', 'objective', 'actor', 'critics')
 
 def task_names(config: ml_collections.ConfigDict) -> Tuple[str, ...]:
   """The tasks of a multi-task config (config.tasks), else (config.task,)."""
-  names = tuple(config.get('tasks') or ())
+  names = tuple(config.tasks) if 'tasks' in config else ()
   return names if names else (config.task,)
 
 
