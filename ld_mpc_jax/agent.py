@@ -133,8 +133,8 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
                    chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise []).
 
-  -> (actions [N, A], sequences [N, H, A], infos [N, 3]): `jax.lax.map` of the single-environment act over
-  the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
+  -> (actions [N, A], sequences [N, H, A], infos [N, 3]): `jax.lax.map` of the
+  single-environment act over the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
   environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
   vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
   With a `mesh` (sharding.make_mesh), the N environments are split over its devices

@@ -46,7 +46,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      f'got {config.diffusion.prediction!r}')
   if 'eval' in config:
     from ld_mpc_jax.agent import POLICY_MODES  # pylint: disable=g-import-not-at-top
-    bad = set(config.eval.get('baselines', ())) - set(POLICY_MODES)
+    bad = set(config.eval.baselines) - set(POLICY_MODES)
     if bad:
       raise ValueError(f'config.eval.baselines has unknown modes {sorted(bad)}; use '
                        f'{", ".join(POLICY_MODES)}')
