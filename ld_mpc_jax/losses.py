@@ -143,7 +143,7 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     terms['actor'] = actor.loss(config, nets, params, z, action, weights, k_pi)
     loss = weighted_sum(terms, config.loss)
     metrics['loss'] = loss
-    for name in ('dyn', 'act', 'rew', 'val', 'actor', 'consistency', 'q', 'v'):
+    for name, _ in WEIGHTS:
       if name in terms:
         metrics[f'loss_{name}'] = terms[name]
     return loss, metrics
