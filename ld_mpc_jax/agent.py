@@ -12,7 +12,7 @@ environment keeps its keys, so the actions are those of a single device.
 """
 
 import json
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, NamedTuple, Optional, Sequence, Tuple
 
 import jax
 import jax.numpy as jnp
@@ -23,53 +23,89 @@ import numpy as np
 from ld_mpc_jax import sharding
 from ld_mpc_jax.models import build_networks
 from ld_mpc_jax.planner import make_plan, make_propose
-
-MODES = ('plan', 'actor', 'proposal', 'mppi')
-
+from ld_mpc_jax.registry import Registry
 
 # What a decision reports beside its action: int32 [3] = (kind of the winning candidate, an
 # index into search.CANDIDATE_KINDS or -1 for policies that do not plan; the refinement round it
 # came from; 1 if the planner departed from the actor prior's own sequence, else 0).
 NO_PLAN_INFO = (-1, 0, 0)
 
+# Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise []) ->
+# (action [A], sequence [H, A], info [3]) is built by make_act(config, nets), not jitted;
+# `uses_prev(config)`: whether it acts on the previous decision's sequence.
+POLICY_MODES = Registry('policy mode', 'mode')
+
+
+class PolicyMode(NamedTuple):
+  make_act: Callable
+  uses_prev: Callable = lambda config: False
+
+
+def _encode(nets, params, obs):
+  return nets.encoder.apply({'params': params['encoder']}, obs)
+
+
+def _plan_act(config, nets):
+  """The planner (ld_mpc_jax.planner); info is (kind, iteration, departed)."""
+  plan = make_plan(config)
+
+  def act(params, obs, key, prev, noise):
+    out = plan(params, _encode(nets, params, obs), key, prev, noise)
+    info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32)])
+    return out.action, out.sequence, info
+  return act
+
+
+def _actor_act(config, nets):
+  """The actor prior's mode, held over the horizon."""
+  def act(params, obs, key, prev, noise):
+    a = nets.actor.apply({'params': params['actor']}, _encode(nets, params, obs))
+    return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), jnp.asarray(NO_PLAN_INFO,
+                                                                              jnp.int32)
+  return act
+
+
+def _mppi_act(config, nets):
+  """MPPI on the learned model (config.mppi); `prev` is its previous Gaussian mean."""
+  from ld_mpc_jax.mppi import make_ldmpc_mppi  # pylint: disable=g-import-not-at-top
+  mppi_plan = make_ldmpc_mppi(config)
+
+  def act(params, obs, key, prev, noise):
+    out = mppi_plan(params, _encode(nets, params, obs), key, prev)
+    return out.action, out.mean, jnp.asarray(NO_PLAN_INFO, jnp.int32)
+  return act
+
+
+def _proposal_act(config, nets):
+  """One sample of the proposal alone (single-step kinds: the one action, held)."""
+  propose = make_propose(config, nets)
+
+  def act(params, obs, key, prev, noise):
+    seq = jnp.clip(propose(params, _encode(nets, params, obs), key, 1)[0], -1.0, 1.0)
+    if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
+      seq = jnp.repeat(seq, config.horizon, axis=0)
+    return seq[0], seq, jnp.asarray(NO_PLAN_INFO, jnp.int32)
+  return act
+
+
+POLICY_MODES.register('plan', PolicyMode(_plan_act,
+                                         lambda config: config.plan.warm_start_steps > 0))
+POLICY_MODES.register('actor', PolicyMode(_actor_act))
+POLICY_MODES.register('proposal', PolicyMode(_proposal_act))
+POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda config: True))
+MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the registry's names.
+
 
 def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
   """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [3]),
   not jitted. `noise`: std of Gaussian noise on the planner's executed action (acting only)."""
-  nets = build_networks(config)
-  encode = lambda params, obs: nets.encoder.apply({'params': params['encoder']}, obs)
-  no_plan = jnp.asarray(NO_PLAN_INFO, jnp.int32)
-  if mode == 'plan':
-    plan = make_plan(config)
-    def act(params, obs, key, prev, noise):
-      out = plan(params, encode(params, obs), key, prev, noise)
-      info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32)])
-      return out.action, out.sequence, info
-  elif mode == 'actor':
-    def act(params, obs, key, prev, noise):
-      a = nets.actor.apply({'params': params['actor']}, encode(params, obs))
-      return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), no_plan
-  elif mode == 'mppi':
-    from ld_mpc_jax.mppi import make_ldmpc_mppi
-    mppi_plan = make_ldmpc_mppi(config)
-    def act(params, obs, key, prev, noise):
-      out = mppi_plan(params, encode(params, obs), key, prev)
-      return out.action, out.mean, no_plan
-  elif mode == 'proposal':
-    propose = make_propose(config, nets)
-    def act(params, obs, key, prev, noise):
-      seq = jnp.clip(propose(params, encode(params, obs), key, 1)[0], -1.0, 1.0)
-      if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
-        seq = jnp.repeat(seq, config.horizon, axis=0)
-      return seq[0], seq, no_plan
-  else:
-    raise ValueError(f'mode must be one of {MODES}, got {mode!r}')
-  return act
+  entry = POLICY_MODES.get(mode)
+  return entry.make_act(config, build_networks(config))
 
 
 def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
   """Whether `mode` acts on the previous decision's sequence (warm-started planner, MPPI)."""
-  return (mode == 'plan' and config.plan.warm_start_steps > 0) or mode == 'mppi'
+  return POLICY_MODES.get(mode).uses_prev(config)
 
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
@@ -97,8 +133,8 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
                    chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise []).
 
-  -> (actions [N, A], sequences [N, H, A], infos [N, 3]): `jax.lax.map` of the single-environment act over
-  the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
+  -> (actions [N, A], sequences [N, H, A], infos [N, 3]): `jax.lax.map` of the
+  single-environment act over the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
   environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
   vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
   With a `mesh` (sharding.make_mesh), the N environments are split over its devices

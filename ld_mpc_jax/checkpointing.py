@@ -8,8 +8,7 @@ import jax
 import ml_collections
 import orbax.checkpoint as ocp
 
-from ld_mpc_jax import envs
-from ld_mpc_jax.tasks import TASK_DIM
+from ld_mpc_jax import envs, legacy
 from ld_mpc_jax.train_state import TrainState, create_train_state
 
 CONFIG_FILE = 'config.json'
@@ -26,7 +25,6 @@ _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
 # Data, training and model settings of experiments/configs/base.py for configs saved before they
 # existed, with the values those runs used (one device, no observation normalisation).
 _TRAIN_DEFAULTS = dict(data_parallel=False)
-_MODEL_DEFAULTS = dict(normalize_obs=False, task_dim=TASK_DIM)
 
 
 def _data_defaults() -> dict:
@@ -64,6 +62,7 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
 def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
   """A saved config brought up to the current fields, once, on load: fields added since it was
   saved get the values that mean what its run did; JSON lists become tuples again."""
+  legacy.fill_model_fields(config)
   for section, defaults in (('eval', _EVAL_DEFAULTS), ('plan', _PLAN_DEFAULTS)):
     for name, default in defaults.items():  # Runs saved before these fields existed.
       if name not in config[section]:
@@ -73,8 +72,7 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
                           ('exec_noise_end', 0.0), ('updates_per_call', 1), ('reward', 'dense')):
       if name not in config.online:
         config.online[name] = default
-  for section, defaults in (('data', _data_defaults()), ('train', _TRAIN_DEFAULTS),
-                            ('model', _MODEL_DEFAULTS)):
+  for section, defaults in (('data', _data_defaults()), ('train', _TRAIN_DEFAULTS)):
     for name, default in defaults.items():
       if name not in config[section]:
         config[section][name] = default

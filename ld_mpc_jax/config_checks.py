@@ -28,7 +28,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     v = _get(config, name)
     if not isinstance(v, int) or isinstance(v, bool) or v < 1:
       raise ValueError(f'config.{name} must be an integer >= 1, got {v!r}')
-  m, p = config.model, config.plan
+  m = config.model
   if m.width % m.num_heads:
     raise ValueError(f'config.model.width ({m.width}) must be divisible by '
                      f'config.model.num_heads ({m.num_heads})')
@@ -44,6 +44,23 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   if config.diffusion.prediction not in ('x0', 'eps'):
     raise ValueError(f"config.diffusion.prediction must be 'x0' or 'eps', "
                      f'got {config.diffusion.prediction!r}')
+  _validate_plan(config)
+  _validate_eval_and_data(config)
+  _validate_variant(config)
+  _validate_objective(config)
+  _validate_online(config)
+  _validate_tasks(config)
+  t = config.train
+  if not 0.0 <= t.ema_decay < 1.0:
+    raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
+  if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
+    raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
+                     f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
+
+
+def _validate_plan(config: ml_collections.ConfigDict) -> None:
+  """config.plan settings every kind shares."""
+  p = config.plan
   for name in ('action_eta', 'dynamics_eta'):
     if not 0.0 <= p[name] <= 1.0:
       raise ValueError(f'config.plan.{name} must be in [0, 1], got {p[name]}')
@@ -58,26 +75,16 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      f'got {p.warm_start_steps!r}')
   if not 0.0 < p.warm_start_t <= 1.0:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
-  _validate_eval_and_data(config)
-  _validate_variant(config)
-  _validate_objective(config)
-  _validate_online(config)
-  _validate_tasks(config)
-  t = config.train
-  if not 0.0 <= t.ema_decay < 1.0:
-    raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
-  if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
-    raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
-                     f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
 
 
 def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
   """config.eval (policies, episodes, splits, batching) and config.data's source."""
   if 'eval' in config:
-    bad = set(config.eval.baselines) - {'plan', 'actor', 'proposal', 'mppi'}
+    from ld_mpc_jax.agent import POLICY_MODES  # pylint: disable=g-import-not-at-top
+    bad = set(config.eval.baselines) - set(POLICY_MODES)
     if bad:
-      raise ValueError(f'config.eval.baselines has unknown modes {sorted(bad)}; use plan, '
-                       'actor, proposal or mppi')
+      raise ValueError(f'config.eval.baselines has unknown modes {sorted(bad)}; use '
+                       f'{", ".join(POLICY_MODES)}')
   if 'eval' in config and config.eval.episodes < 0:
     raise ValueError(f'config.eval.episodes must be >= 0 (0 skips evaluation), '
                      f'got {config.eval.episodes}')
@@ -98,57 +105,47 @@ def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
 
 
 def _validate_variant(config: ml_collections.ConfigDict) -> None:
-  """Model kinds and the planner options each one supports (see ld_mpc_jax.models)."""
+  """Model kinds (their registries) and the planner options each one supports."""
+  from ld_mpc_jax import dynamics, proposals  # pylint: disable=g-import-not-at-top
   m, p = config.model, config.plan
-  proposal = m.get('proposal_type', 'diffusion_seq')
-  dynamics = m.get('dynamics_type', 'diffusion_ar')
-  if proposal not in ('diffusion_seq', 'diffusion_step', 'mlp'):
-    raise ValueError("config.model.proposal_type must be 'diffusion_seq', 'diffusion_step' or "
-                     f"'mlp', got {proposal!r}")
-  if dynamics not in ('diffusion_ar', 'diffusion_traj', 'mlp'):
-    raise ValueError("config.model.dynamics_type must be 'diffusion_ar', 'diffusion_traj' or "
-                     f"'mlp', got {dynamics!r}")
-  if proposal != 'diffusion_seq' and dynamics == 'diffusion_traj':
-    raise ValueError(f'config.model.dynamics_type diffusion_traj needs whole action sequences '
-                     f'up front, but proposal_type {proposal!r} proposes one action per latent')
-  if dynamics == 'diffusion_traj' and p.num_prior_candidates:
+  proposal, dyn = proposals.get(config), dynamics.get(config)
+  if not proposal.sequence and not dyn.one_step:
+    raise ValueError(f'config.model.dynamics_type {m.dynamics_type} needs whole action sequences '
+                     f'up front, but proposal_type {m.proposal_type!r} proposes one action per '
+                     'latent')
+  if not dyn.one_step and p.num_prior_candidates:
     raise ValueError('config.plan.num_prior_candidates must be 0 with dynamics_type '
-                     'diffusion_traj: actor-prior candidates need a step-by-step rollout')
-  if proposal != 'diffusion_seq' and p.warm_start_steps:
-    raise ValueError('config.plan.warm_start_steps must be 0 unless proposal_type is '
-                     f'diffusion_seq (got {proposal!r}): only sequences can be shifted')
-  guidance = p.get('guidance_scale', 0.0)
-  if guidance < 0:
-    raise ValueError(f'config.plan.guidance_scale must be >= 0 (0 = off), got {guidance}')
-  if guidance and (proposal != 'diffusion_seq' or config.diffusion.prediction != 'x0'):
-    raise ValueError('config.plan.guidance_scale > 0 needs proposal_type diffusion_seq and '
-                     "diffusion.prediction 'x0'")
-  if guidance and p.get('guidance_dynamics_steps', 1) < 1:
+                     f'{m.dynamics_type}: actor-prior candidates need a step-by-step rollout')
+  if not proposal.sequence and p.warm_start_steps:
+    raise ValueError('config.plan.warm_start_steps must be 0 unless the proposal_type proposes '
+                     f'sequences (got {m.proposal_type!r}): only sequences can be shifted')
+  if p.guidance_scale < 0:
+    raise ValueError(f'config.plan.guidance_scale must be >= 0 (0 = off), got {p.guidance_scale}')
+  if p.guidance_scale and (not proposal.guidable or config.diffusion.prediction != 'x0'):
+    raise ValueError('config.plan.guidance_scale > 0 needs a guidable proposal_type '
+                     f"(diffusion_seq, got {m.proposal_type!r}) and diffusion.prediction 'x0'")
+  if p.guidance_scale and p.guidance_dynamics_steps < 1:
     raise ValueError('config.plan.guidance_dynamics_steps must be >= 1, '
                      f'got {p.guidance_dynamics_steps}')
 
 
 def _validate_objective(config: ml_collections.ConfigDict) -> None:
-  """config.objective (ld_mpc_jax.critics) and the planner's robust-selection settings."""
-  p = config.plan
+  """config.objective (its kinds' registries) and the planner's robust-selection settings."""
+  from ld_mpc_jax import actors, dynamics, objective  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.critics import TD_TARGETS  # pylint: disable=g-import-not-at-top
+  p, o = config.plan, config.objective
   # plan.pessimism < 0 is optimism (mean + |pessimism| std): online.act_pessimism while acting.
-  draws = p.get('dynamics_draws', 1)
-  if not isinstance(draws, int) or draws < 1:
-    raise ValueError(f'config.plan.dynamics_draws must be an integer >= 1, got {draws!r}')
-  if 'objective' not in config:
-    return
-  o = config.objective
-  if o.value not in ('expectile', 'behaviour'):
-    raise ValueError(f"config.objective.value must be 'expectile' or 'behaviour', got {o.value!r}")
-  from ld_mpc_jax.critics import ACTOR_KINDS, TD_TARGETS
-  if o.actor not in ACTOR_KINDS:
-    raise ValueError(f'config.objective.actor must be one of {ACTOR_KINDS}, got {o.actor!r}')
-  if o.get('td_target', 'one_step') not in TD_TARGETS:
+  if not isinstance(p.dynamics_draws, int) or p.dynamics_draws < 1:
+    raise ValueError(f'config.plan.dynamics_draws must be an integer >= 1, '
+                     f'got {p.dynamics_draws!r}')
+  objective.get(config)
+  actor = actors.get(config)
+  if o.td_target not in TD_TARGETS:
     raise ValueError(f'config.objective.td_target must be one of {TD_TARGETS}, '
                      f'got {o.td_target!r}')
-  if o.actor == 'maxq' and o.value != 'expectile':
-    raise ValueError("config.objective.actor 'maxq' needs the Q ensemble: "
-                     "config.objective.value='expectile'")
+  if actor.value and o.value != actor.value:
+    raise ValueError(f'config.objective.actor {o.actor!r} needs the Q ensemble: '
+                     f'config.objective.value={actor.value!r}')
   if not 0.0 < o.expectile < 1.0:
     raise ValueError(f'config.objective.expectile must be in (0, 1), got {o.expectile}')
   for name in ('num_values', 'num_q', 'rollout_steps'):
@@ -157,9 +154,9 @@ def _validate_objective(config: ml_collections.ConfigDict) -> None:
   if o.value_scale <= 0 or o.awr_max_weight <= 0 or o.awr_temperature < 0:
     raise ValueError('config.objective.value_scale and awr_max_weight must be > 0 and '
                      'awr_temperature >= 0')
-  if o.latent_rollout and config.model.get('dynamics_type', 'diffusion_ar') == 'diffusion_traj':
+  if o.latent_rollout and not dynamics.get(config).one_step:
     raise ValueError('config.objective.latent_rollout needs one-step dynamics; set it False '
-                     'with dynamics_type diffusion_traj')
+                     f'with dynamics_type {config.model.dynamics_type}')
 
 
 def online_enabled(config: ml_collections.ConfigDict) -> bool:

@@ -14,6 +14,7 @@ where z' are the EMA encoder's latents. An upper expectile (tau > 0.5) of Q over
 actions approaches the value of the best action the data contain, without querying Q outside
 them. The actor prior is then extracted by advantage-weighted regression (AWR, Peng et al. 2019;
 IQL eq. 7): weights min(exp(beta (Q_ema - V)), w_max) on the behaviour-cloning error.
+How the terminal value enters J: ld_mpc_jax.objective; the actor kinds: ld_mpc_jax.actors.
 
 Values are predicted in units of `config.objective.value_scale` (Meta-World rewards are up to
 10 per step, so returns reach hundreds); expectile regression is equivariant to that scale.
@@ -27,32 +28,13 @@ import jax.numpy as jnp
 import ml_collections
 
 from ld_mpc_jax.networks import MLP
+from ld_mpc_jax.ops import window_returns
 
-VALUE_KINDS = ('expectile', 'behaviour')
-# 'maxq': a stochastic policy trained to maximise Q with an entropy bonus (TD-MPC2, SAC), for
-# learning online; 'awr' and 'bc' rank only the data's own actions (offline).
-ACTOR_KINDS = ('awr', 'bc', 'maxq')
-# 'policy': Q <- r_t + gamma min_j Q_ema(z'_{t+1}, pi(z'_{t+1})) and V(z) <- min_j Q_ema(z,
-# pi(z)) (TD-MPC2): values of the current policy, which extrapolate beyond the data's actions.
+# Q's target (`config.objective.td_target`): 'one_step' r_t + gamma V_ema(z'_{t+1}) (IQL);
+# 'window' the discounted rewards to the window's end plus V_ema there; 'policy': Q <- r_t +
+# gamma min_j Q_ema(z'_{t+1}, pi(z'_{t+1})) and V(z) <- min_j Q_ema(z, pi(z)) (TD-MPC2): values
+# of the current policy, which extrapolate beyond the data's actions.
 TD_TARGETS = ('one_step', 'window', 'policy')
-# Objective settings of experiments/configs/base.py for configs saved before they existed: the
-# behaviour value of the sequence objective, a BC actor, no latent rollouts in the loss.
-LEGACY_OBJECTIVE = dict(value='behaviour', actor='bc', latent_rollout=False, num_values=1,
-                        num_q=2, hidden=(256, 256), expectile=0.7, value_scale=100.0,
-                        awr_temperature=1.0, awr_max_weight=100.0, rollout_steps=1)
-
-
-def objective_settings(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """config.objective, with the legacy settings for configs saved before it existed."""
-  if 'objective' in config:
-    return config.objective
-  return ml_collections.ConfigDict(LEGACY_OBJECTIVE)
-
-
-def uses_critics(config: ml_collections.ConfigDict) -> bool:
-  """Whether the model has Q and V ensembles (expectile values or an AWR actor)."""
-  o = objective_settings(config)
-  return o.value == 'expectile' or o.actor == 'awr'
 
 
 class Ensemble(nn.Module):
@@ -89,10 +71,9 @@ class Critics(nn.Module):
     return self.value(z), self.q_value(z, a)
 
 
-def build_critics(config: ml_collections.ConfigDict) -> Optional[Critics]:
-  if not uses_critics(config):
-    return None
-  o = objective_settings(config)
+def build_critics(config: ml_collections.ConfigDict) -> Critics:
+  """The V and Q ensembles of `config.objective` (whether a model has them: models.uses_critics)."""
+  o = config.objective
   return Critics(tuple(o.hidden), o.num_values, o.num_q)
 
 
@@ -105,40 +86,6 @@ def expectile_loss(diff: jnp.ndarray, expectile: float) -> jnp.ndarray:
 def awr_weights(advantage: jnp.ndarray, temperature: float, max_weight: float) -> jnp.ndarray:
   """min(exp(temperature * advantage), max_weight), elementwise (IQL's clip at 100)."""
   return jnp.minimum(jnp.exp(temperature * advantage), max_weight)
-
-
-def window_returns(rewards: jnp.ndarray, bootstrap: jnp.ndarray, gamma: float) -> jnp.ndarray:
-  """Targets sum_{j>=i} gamma^(j-i) r_j + gamma^(T-i) bootstrap for every i < T.
-
-  rewards [..., T], bootstrap [...] (value after the last reward) -> [..., T].
-  """
-  def step(carry, r):
-    g = r + gamma * carry
-    return g, g
-  _, out = jax.lax.scan(step, bootstrap, jnp.moveaxis(rewards, -1, 0), reverse=True)
-  return jnp.moveaxis(out, 0, -1)
-
-
-def pessimistic(values: jnp.ndarray, pessimism: float) -> jnp.ndarray:
-  """Ensemble [E, ...] -> mean - pessimism * std over members [...] (std 0 for one member)."""
-  return jnp.mean(values, axis=0) - pessimism * jnp.std(values, axis=0)
-
-
-def make_terminal_members(config: ml_collections.ConfigDict, critics: Critics) -> Callable:
-  """members(params, z [..., D]) -> [num_values, ...]: each ensemble member's V(z), in reward
-  units."""
-  scale = objective_settings(config).value_scale
-  return lambda params, z: scale * critics.apply({'params': params['critics']}, z,
-                                                 method=Critics.value)
-
-
-def make_terminal_value(config: ml_collections.ConfigDict, critics: Critics,
-                        pessimism: float = 0.0) -> Callable:
-  """value(params, z [..., D]) -> [...]: the expectile ensemble's mean - pessimism * std,
-  in reward units (of `make_terminal_members`). It sees the latent alone, never the actions
-  that led to it."""
-  members = make_terminal_members(config, critics)
-  return lambda params, z: pessimistic(members(params, z), pessimism)
 
 
 def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
@@ -154,19 +101,19 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
   V is trained as well, since that is where the planner reads it. action [B, H+1, A], reward
   [B, H+1]. -> (losses {'q', 'v'}, awr_weights [B, H+1], metrics).
   """
-  o, gamma, h = objective_settings(config), config.gamma, config.horizon
+  o, gamma, h = config.objective, config.gamma, config.horizon
   apply = lambda p, *args, method: critics.apply({'params': p['critics']}, *args, method=method)
 
   def critic_loss(params, target_params, z, z_ema, z_model, action, reward):
     sg = jax.lax.stop_gradient
     z_t, ze_t = z[:, :h + 1], z_ema[:, :h + 1]
     v_next = jnp.mean(apply(target_params, z_ema[:, 1:], method=Critics.value), axis=0)
-    on_policy = o.get('td_target', 'one_step') == 'policy'
+    on_policy = o.td_target == 'policy'
     if on_policy:  # TD-MPC2: the next action from the policy, the min over target Qs.
       q_next = jnp.min(apply(target_params, z_ema[:, 1:], sg(policy(params, z_ema[:, 1:])),
                              method=Critics.q_value), axis=0)
       q_target = sg(reward / o.value_scale + gamma * q_next)
-    elif o.get('td_target', 'one_step') == 'window':  # n-step: rewards to the window's end.
+    elif o.td_target == 'window':  # n-step: rewards to the window's end.
       q_target = sg(window_returns(reward / o.value_scale, v_next[:, -1], gamma))
     else:
       q_target = sg(reward / o.value_scale + gamma * v_next)  # [B, H+1]

@@ -29,8 +29,8 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax.losses import two_hot_decode
 from ld_mpc_jax.networks import MLP
+from ld_mpc_jax.ops import two_hot_decode
 
 ValueFn = Callable[[dict, jnp.ndarray, jnp.ndarray, jax.Array], jnp.ndarray]
 PriorFn = Callable[[dict, jnp.ndarray, jax.Array, int], jnp.ndarray]
@@ -265,10 +265,10 @@ def make_ldmpc_value_fn(config: ml_collections.ConfigDict) -> ValueFn:
   MPPI's horizon must equal config.horizon. The rollout is the planner's own (K = N candidates,
   no actor-prior mixing: MPPI supplies its prior trajectories itself).
   """
-  from ld_mpc_jax import planner  # Local import: the planner module may grow an MPPI option.
-  from ld_mpc_jax.models import build_networks
+  from ld_mpc_jax import objective, planner  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.models import build_networks  # pylint: disable=g-import-not-at-top
   nets = build_networks(config)
-  score = planner.make_objective_score(config, nets)
+  score = objective.make_score(config, nets)
 
   def value_fn(params, z, actions, key):
     c = ml_collections.ConfigDict(config.to_dict())

@@ -6,12 +6,11 @@ One call of `plan`:
   2. rolls every candidate out with the latent diffusion dynamics, autoregressively over H
      (outer lax.scan) with a full denoising loop per transition (inner lax.scan); the P
      actor-prior candidates take a_i = Actor(z_hat_i) along their own rollout;
-     (the ablation kinds of ld_mpc_jax.models swap in single-step proposals drawn inside the
-     rollout, MLP dynamics, or whole-trajectory latent diffusion);
-  3. scores each with J = sum_{i<H} gamma^i r_i + gamma^H V(z_H): rewards from the sequence
-     objective model, V(z_H) from the expectile value ensemble of z_H alone, pessimistic by
-     `plan.pessimism` standard deviations (ld_mpc_jax.critics); with `plan.dynamics_draws` > 1,
-     J is averaged over that many rollouts of the same candidates;
+     (other kinds, ld_mpc_jax.proposals and ld_mpc_jax.dynamics, swap in single-step proposals
+     drawn inside the rollout, MLP dynamics, or whole-trajectory latent diffusion);
+  3. scores each with J = sum_{i<H} gamma^i r_i + gamma^H V(z_H), pessimistic by
+     `plan.pessimism` standard deviations over the value members (ld_mpc_jax.objective); with
+     `plan.dynamics_draws` > 1, J is averaged over that many rollouts of the same candidates;
   4. returns the first action of the argmax candidate, clipped to [-1, 1], and which kind of
      candidate it was (diffusion proposal or actor prior).
 """
@@ -23,18 +22,16 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax import diffusion
+from ld_mpc_jax import diffusion, dynamics, proposals
 from ld_mpc_jax.config_checks import validate_config
-from ld_mpc_jax.critics import make_terminal_members, objective_settings
-from ld_mpc_jax.losses import discounted_return, two_hot_decode
-from ld_mpc_jax.models import (ActionProposal, Networks, TrajectoryDynamics, build_networks,
-                               dynamics_type, make_transition, normalizes_dynamics, proposal_type,
-                               rms_normalize)
-from ld_mpc_jax.search import (CANDIDATE_KINDS, Pool, as_members, combine, refine, select,
-                               validate_search)
+from ld_mpc_jax.models import Networks, build_networks
+from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_scores, make_score
+from ld_mpc_jax.search import CANDIDATE_KINDS, CANDIDATES, Pool, refine, select, validate_search
 
-# score_fn(params, latents [K, H+1, D], actions [K, H, A]) -> J [K], or J per member [M, K].
-ScoreFn = Callable[[dict, jnp.ndarray, jnp.ndarray], jnp.ndarray]
+# Kept for ld_mpc_jax.diagnostics, which scores with planner.make_objective_score.
+make_objective_score = make_score
+__all__ = ['CANDIDATE_KINDS', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
+           'make_rollout', 'make_member_scores', 'make_objective_score', 'shift_sequence']
 
 
 @flax.struct.dataclass
@@ -50,121 +47,53 @@ class PlanOutput:
   departed: jnp.ndarray  # [] bool: the executed sequence is not the actor prior's own.
 
 
-def make_member_scores(config: ml_collections.ConfigDict, nets: Networks) -> ScoreFn:
-  """J under each value-ensemble member: (params, latents [K, H+1, D], actions [K, H, A]) ->
-  [M, K], M = `objective.num_values` (expectile ensemble) or 1 (the objective's own behaviour-
-  value head). J_m = sum_i gamma^i r_i + gamma^H V_m(z_H), rewards from the sequence objective
-  (two-hot, decoded), V_m from member m of the ensemble of z_H alone."""
-  m, gamma = config.model, config.gamma
-  expectile = objective_settings(config).value == 'expectile'
-  members = make_terminal_members(config, nets.critics) if expectile else None
-
-  def score(params, latents, actions):
-    r_logits, v_logits = nets.objective.apply({'params': params['objective']}, latents, actions)
-    rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [K, H]
-    if members is None:
-      value = two_hot_decode(v_logits[..., -1, :], m.vmin, m.vmax)[None]  # [1, K]
-    else:
-      value = members(params, latents[..., -1, :])  # [M, K]
-    return discounted_return(rewards[None], value, gamma)
-
-  return score
+def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
+  """A copy of config with plan fields replaced."""
+  out = ml_collections.ConfigDict(config.to_dict())
+  for name, value in plan.items():
+    out.plan[name] = value
+  return out
 
 
-def make_objective_score(config: ml_collections.ConfigDict, nets: Networks) -> ScoreFn:
-  """J = sum_i gamma^i r_i + gamma^H V(z_H) -> [K]: the member scores of `make_member_scores`
-  combined as mean - `plan.pessimism` x std over the members (search.combine)."""
-  members = make_member_scores(config, nets)
-  pessimism = config.plan.pessimism
-  return lambda params, latents, actions: combine(members(params, latents, actions), pessimism)
+def make_guide(config: ml_collections.ConfigDict, nets: Networks) -> Optional[Callable]:
+  """Energy guidance (`plan.guidance_scale` > 0, else None): guide(params, z [D], key, model_fn)
+  -> model_fn whose prediction x0(a_t) [N, H, A] moves along the gradient of J.
 
-
-def make_step_proposal(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
-  """Single-step proposal kinds: returns step_propose(params, zs [N, D], key) -> [N, A].
-
-  'diffusion_step' denoises one action per latent in `plan.action_steps` steps; 'mlp' samples
-  the Gaussian policy. Actions are clipped to [-1, 1].
+  J is scored under a cheap deterministic rollout (`plan.guidance_dynamics_steps` DDIM steps per
+  transition); the step is x0 + scale (1 - alpha_bar(t)) g, g = dJ/da_t scaled to unit RMS per
+  candidate (so `scale` is in action units), and guidance fades with the noise.
   """
-  p, d = config.plan, config.diffusion
+  scale, clip = config.plan.guidance_scale, config.diffusion.clip_actions
+  if not scale:
+    return None
+  guide_rollout = make_rollout(_with_plan(config, dynamics_steps=config.plan.
+                                          guidance_dynamics_steps, dynamics_eta=0.0,
+                                          num_prior_candidates=0), nets)
+  score = make_score(config, nets)
 
-  def step_propose(params, zs, key):
-    variables = {'params': params['proposal']}
-    init_key, sample_key = jax.random.split(key)
-    noise = jax.random.normal(init_key, zs.shape[:-1] + (1, config.action_dim))
-    if proposal_type(config) == 'mlp':
-      mean, log_std = nets.proposal.apply(variables, zs)
-      return jnp.clip(mean + jnp.exp(log_std) * noise[..., 0, :], -1.0, 1.0)
-    cond = nets.proposal.apply(variables, zs, method=ActionProposal.embed_cond)  # [N, 1, W]
-    model_fn = lambda a_t, t: nets.proposal.apply(variables, a_t, t, cond,
-                                                  method=ActionProposal.denoise)
-    a = diffusion.sample(model_fn, noise, sample_key, p.action_steps, p.action_eta,
-                         d.prediction, clip_x0=d.clip_actions)
-    return jnp.clip(a[..., 0, :], -1.0, 1.0)
+  def guide(params, z, key, unguided):
+    def model_fn(a_t, t):
+      def total_return(a_t):
+        x0 = jnp.clip(unguided(a_t, t), -clip, clip)
+        _, latents = guide_rollout(params, z, x0, key)
+        return score(params, latents, x0).sum(), x0
+      grad, x0 = jax.grad(total_return, has_aux=True)(a_t)
+      # Unit RMS per candidate: the scale is then in action units, whatever J's scale.
+      rms = jnp.sqrt(jnp.mean(grad ** 2, axis=(-2, -1), keepdims=True))
+      return x0 + scale * (1.0 - diffusion.alpha_bar(t)) * grad / (rms + 1e-8)
+    return model_fn
 
-  return step_propose
+  return guide
 
 
 def make_propose(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
-  """Returns propose(params, z [D], key, num, init=None) -> [num, H, A] action sequences.
+  """Returns propose(params, z [D], key, num, init=None) -> [num, H, A] action sequences: the
+  proposal kind's sampler (ld_mpc_jax.proposals), energy-guided with `plan.guidance_scale` > 0.
 
-  Cold start: `plan.action_steps` denoising steps from pure noise at t = 1. Warm start (`init`
-  [H, A] given and `plan.warm_start_steps` > 0): `init` is noised to t = `plan.warm_start_t`
-  with independent noise per candidate and denoised in `warm_start_steps` steps (SDEdit-style),
-  so candidates stay near the previous plan but keep diversity, at a fraction of the cost.
-
-  Energy guidance (`plan.guidance_scale` > 0): at every denoising step the predicted clean
-  sequence x0(a_t) is scored by J under a cheap deterministic rollout (`plan.
-  guidance_dynamics_steps` DDIM steps per transition) and moved along the gradient of J with
-  respect to the noisy sequence a_t: x0 + scale (1 - alpha_bar(t)) g, with g = dJ/da_t scaled
-  to unit RMS per candidate (so `scale` is in action units), and guidance fades with the noise.
-
-  Single-step proposal kinds return [num, 1, A]: one action for z (the proposal-alone policy).
+  `init` [H, A] warm-starts sequence kinds (`plan.warm_start_steps`). Single-step proposal
+  kinds return [num, 1, A]: one action for z (the proposal-alone policy).
   """
-  p, d = config.plan, config.diffusion
-  h, a = config.horizon, config.action_dim
-  if proposal_type(config) != 'diffusion_seq':
-    step_propose = make_step_proposal(config, nets)
-    return lambda params, z, key, num, init=None: step_propose(
-        params, jnp.broadcast_to(z, (num,) + z.shape), key)[:, None]
-  guidance = p.get('guidance_scale', 0.0)
-  if guidance:
-    guide_config = ml_collections.ConfigDict(config.to_dict())
-    guide_config.plan.dynamics_steps = p.get('guidance_dynamics_steps', 1)
-    guide_config.plan.dynamics_eta = 0.0
-    guide_config.plan.num_prior_candidates = 0
-    guide_rollout = make_rollout(guide_config, nets)
-    score = make_objective_score(config, nets)
-
-  def propose(params, z, key, num, init=None):
-    variables = {'params': params['proposal']}
-    cond = nets.proposal.apply(variables, z, method=ActionProposal.embed_cond)  # [1, W]
-    cond = jnp.broadcast_to(cond, (num,) + cond.shape)
-    model_fn = lambda a_t, t: nets.proposal.apply(variables, a_t, t, cond,
-                                                  method=ActionProposal.denoise)
-    init_key, sample_key, guide_key = jax.random.split(key, 3)
-    if guidance:
-      unguided = model_fn
-
-      def model_fn(a_t, t):
-        def total_return(a_t):
-          x0 = jnp.clip(unguided(a_t, t), -d.clip_actions, d.clip_actions)
-          _, latents = guide_rollout(params, z, x0, guide_key)
-          return score(params, latents, x0).sum(), x0
-        grad, x0 = jax.grad(total_return, has_aux=True)(a_t)
-        # Unit RMS per candidate: the scale is then in action units, whatever J's scale.
-        rms = jnp.sqrt(jnp.mean(grad ** 2, axis=(-2, -1), keepdims=True))
-        return x0 + guidance * (1.0 - diffusion.alpha_bar(t)) * grad / (rms + 1e-8)
-
-    noise = jax.random.normal(init_key, (num, h, a))
-    if init is None or p.warm_start_steps == 0:
-      return diffusion.sample(model_fn, noise, sample_key, p.action_steps, p.action_eta,
-                              d.prediction, clip_x0=d.clip_actions)
-    x_init = diffusion.q_sample(jnp.broadcast_to(init, (num, h, a)),
-                                jnp.full((num,), p.warm_start_t), noise)
-    return diffusion.sample(model_fn, x_init, sample_key, p.warm_start_steps, p.action_eta,
-                            d.prediction, clip_x0=d.clip_actions, t_start=p.warm_start_t)
-
-  return propose
+  return proposals.get(config).make_propose(config, nets.proposal, make_guide(config, nets))
 
 
 def shift_sequence(sequence: jnp.ndarray) -> jnp.ndarray:
@@ -178,63 +107,144 @@ def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   `proposals` is either fixed action sequences [N, H, A], or an int N: then each of the N
   candidates draws a_i from the single-step proposal at its own z_i. The P =
   `plan.num_prior_candidates` actor-prior candidates are appended (K = N + P); they take
-  a_i = Actor(z_i) along their own rollout. latents[:, 0] = z. Autoregressive kinds roll out
-  with an outer lax.scan over H; 'diffusion_traj' denoises all H latents at once.
+  a_i = Actor(z_i) along their own rollout. latents[:, 0] = z. One-step dynamics kinds roll out
+  with a lax.scan over H (`_scan_rollout`); the others through their entry's `make_rollout`.
   """
-  p, d = config.plan, config.diffusion
-  num_prior, h = p.num_prior_candidates, config.horizon
-  transition = make_transition(config, nets)
-  step_propose = (make_step_proposal(config, nets)
-                  if proposal_type(config) != 'diffusion_seq' else None)
+  kind = dynamics.get(config)
+  if not kind.one_step:
+    roll = kind.make_rollout(config, nets.dynamics)
+    return lambda params, z, actions, key: (actions, roll(params, z, actions, key))
+  return _scan_rollout(config, nets)
 
-  def trajectory_rollout(params, z, proposals, key):
-    dyn_vars = {'params': params['dynamics']}
-    k = proposals.shape[0]
-    cond = nets.dynamics.apply(dyn_vars, jnp.broadcast_to(z, (k,) + z.shape), proposals,
-                               method=TrajectoryDynamics.embed_cond)
-    model_fn = lambda x_t, t: nets.dynamics.apply(dyn_vars, x_t, t, cond,
-                                                  method=TrajectoryDynamics.denoise)
-    x_init = jax.random.normal(jax.random.fold_in(key, 0), (k, h) + z.shape)
-    zs = diffusion.sample(model_fn, x_init, jax.random.fold_in(key, 1), p.dynamics_steps,
-                          p.dynamics_eta, d.prediction)
-    if normalizes_dynamics(config):
-      zs = rms_normalize(zs)
-    latents = jnp.concatenate([jnp.broadcast_to(z, (k, 1) + z.shape), zs], axis=1)
-    return proposals, latents
 
-  def rollout(params, z, proposals, key):
-    if dynamics_type(config) == 'diffusion_traj':
-      return trajectory_rollout(params, z, proposals, key)
-    sampled = isinstance(proposals, int)
-    num = proposals if sampled else proposals.shape[0]
-    k = num + num_prior
-    xs = jnp.arange(h) if sampled else (jnp.swapaxes(proposals, 0, 1), jnp.arange(h))
+def _scan_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+  """make_rollout for one-step dynamics kinds: an outer lax.scan over the H transitions."""
+  p, h = config.plan, config.horizon
+  num_prior = p.num_prior_candidates
+  transition = dynamics.make_transition(config, nets.dynamics)
+  proposal = proposals.get(config)
+  step_propose = None if proposal.sequence else proposal.make_step(config, nets.proposal)
+
+  def prior_actions(params, z_prior, step_key):
+    a_pi = nets.actor.apply({'params': params['actor']}, z_prior)
+    if p.prior_noise_std > 0:  # Diverse prior candidates; the first one is the actor's own.
+      noise = jax.random.normal(jax.random.fold_in(step_key, 2), a_pi.shape)
+      noise = noise.at[0].set(0.0)
+      a_pi = jnp.clip(a_pi + p.prior_noise_std * noise, -1.0, 1.0)
+    return a_pi
+
+  def rollout(params, z, proposals_, key):
+    sampled = isinstance(proposals_, int)
+    num = proposals_ if sampled else proposals_.shape[0]
+    xs = jnp.arange(h) if sampled else (jnp.swapaxes(proposals_, 0, 1), jnp.arange(h))
 
     def step(z_cur, inputs):
       i = inputs if sampled else inputs[1]
       step_key = jax.random.fold_in(key, i)
       if sampled:
-        a_prop = step_propose(params, z_cur[:num], jax.random.fold_in(step_key, 3))
+        a_cur = step_propose(params, z_cur[:num], jax.random.fold_in(step_key, 3))
       else:
-        a_prop = inputs[0]
+        a_cur = inputs[0]
       if num_prior:
-        a_pi = nets.actor.apply({'params': params['actor']}, z_cur[num:])
-        if p.prior_noise_std > 0:  # Diverse prior candidates; the first one is the actor's own.
-          noise = jax.random.normal(jax.random.fold_in(step_key, 2), a_pi.shape)
-          noise = noise.at[0].set(0.0)
-          a_pi = jnp.clip(a_pi + p.prior_noise_std * noise, -1.0, 1.0)
-        a_cur = jnp.concatenate([a_prop, a_pi], axis=0)
-      else:
-        a_cur = a_prop
+        a_cur = jnp.concatenate([a_cur, prior_actions(params, z_cur[num:], step_key)], axis=0)
       z_next = transition(params, z_cur, a_cur, step_key)
       return z_next, (a_cur, z_next)
 
-    z0 = jnp.broadcast_to(z, (k,) + z.shape)
+    z0 = jnp.broadcast_to(z, (num + num_prior,) + z.shape)
     _, (acts, zs) = jax.lax.scan(step, z0, xs)
     latents = jnp.concatenate([z0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
     return jnp.swapaxes(acts, 0, 1), latents
 
   return rollout
+
+
+def _make_first_round(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+  """first(params, z, prop_key, noise_key, init) -> the first round's proposals: sequences
+  [K - P + G, H, A] (the proposal's, then `plan.num_gaussian` broad Gaussian ones), or for
+  single-step proposal kinds the int K - P (drawn inside the rollout)."""
+  p, h, a_dim = config.plan, config.horizon, config.action_dim
+  num, num_gauss, noise_std = p.num_candidates - p.num_prior_candidates, p.num_gaussian, (
+      p.action_noise_std)
+  gaussian_std = p.gaussian_std
+  if not proposals.get(config).sequence:
+    return lambda params, z, prop_key, noise_key, init: num
+  propose = make_propose(config, nets)
+
+  def first(params, z, prop_key, noise_key, init):
+    out = propose(params, z, prop_key, num, init)
+    if noise_std > 0:
+      out = jnp.clip(out + noise_std * jax.random.normal(noise_key, out.shape), -1.0, 1.0)
+    if num_gauss:
+      centre = jnp.zeros((h, a_dim)) if init is None else init
+      eps = jax.random.normal(jax.random.fold_in(noise_key, 1), (num_gauss, h, a_dim))
+      out = jnp.concatenate([out, jnp.clip(centre + gaussian_std * eps, -1.0, 1.0)])
+    return out
+
+  return first
+
+
+def _make_score_draws(member_fn: Callable, draws: int, pessimism: float) -> Callable:
+  """score(params, z, proposals, key, roll) -> (actions [N, H, A], scores [N], members
+  [draws x M, N]): J per draw combined over the value members, averaged over `draws` rollouts
+  of the same candidates."""
+  def score_draws(params, z, proposals_, key, roll):
+    def one(i):
+      acts, lats = roll(params, z, proposals_, jax.random.fold_in(key, i))
+      return acts, member_fn(params, lats, acts)
+    actions, members = one(0)
+    if draws == 1:
+      return actions, combine(members, pessimism), members
+    more = jax.lax.map(lambda i: one(i)[1], jnp.arange(1, draws))  # [draws - 1, M, N]
+    everything = jnp.concatenate([members[None], more])
+    scores = jnp.mean(jax.vmap(lambda m: combine(m, pessimism))(everything), axis=0)
+    return actions, scores, everything.reshape((-1,) + members.shape[1:])
+
+  return score_draws
+
+
+def _first_kinds(p: ml_collections.ConfigDict) -> jnp.ndarray:
+  """[K - P + G + P] int32 candidate kinds of the first round, in the candidates' order."""
+  k, num_prior, num_gauss = p.num_candidates, p.num_prior_candidates, p.num_gaussian
+  return jnp.concatenate([
+      jnp.full(k - num_prior, CANDIDATES.index('proposal'), jnp.int32),
+      jnp.full(num_gauss, CANDIDATES.index('gaussian'), jnp.int32),
+      jnp.full(num_prior, CANDIDATES.index('actor_prior'), jnp.int32)])
+
+
+def _make_refine(config: ml_collections.ConfigDict, nets: Networks, score_draws: Callable
+                 ) -> Optional[Callable]:
+  """`plan.iterations` refinement rounds (ld_mpc_jax.search.refine), or None without:
+  refine(params, z, key, first: Pool) -> the first round's pool with the rounds' elites
+  appended, and `unique` [K'] bool (elites kept from the first round appear twice: once only in
+  the softmax over elites)."""
+  p = ml_collections.ConfigDict(config.plan.to_dict())
+  if not p.iterations:
+    return None
+  # Refined samples are fixed sequences: no actor-prior rollouts among them.
+  plain_rollout = make_rollout(_with_plan(config, num_prior_candidates=0), nets)
+
+  def refine_pool(params, z, key, first):
+    def score_samples(samples, k):  # (scores [N], members): as the first round's.
+      return score_draws(params, z, samples, k, plain_rollout)[1:]
+    pool = refine(score_samples, first, jax.random.fold_in(key, 10_000), p.iterations,
+                  p.num_refine, p.num_elites, p.temperature, p.min_std, p.gaussian_std)
+    merged = Pool(*(jnp.concatenate([x, y], axis=1 if name == 'members' else 0)
+                    for name, x, y in zip(Pool._fields, first, pool)))
+    n = first.scores.shape[0]
+    unique = jnp.concatenate([jnp.ones(n, bool), pool.iteration > 0])
+    return merged, unique
+
+  return refine_pool
+
+
+def _warm_start(prev_sequence: Optional[jnp.ndarray], h: int, a_dim: int
+                ) -> Optional[jnp.ndarray]:
+  """The previous plan [H, A] shifted one step (shift_sequence), or None without one."""
+  if prev_sequence is None:
+    return None
+  if prev_sequence.shape != (h, a_dim):
+    raise ValueError(f'prev_sequence must have shape ({h}, {a_dim}), got {prev_sequence.shape}')
+  return shift_sequence(prev_sequence)
 
 
 def make_plan(config: ml_collections.ConfigDict,
@@ -262,86 +272,38 @@ def make_plan(config: ml_collections.ConfigDict,
   validate_config(config)
   validate_search(config)
   nets = build_networks(config)
-  p = config.plan
-  k, num_prior, d = p.num_candidates, p.num_prior_candidates, config.model.latent_dim
-  num_gauss, h, a_dim = p.num_gaussian, config.horizon, config.action_dim
+  # Settings read now, not at trace time: a config changed after make_plan changes nothing.
+  p = ml_collections.ConfigDict(config.plan.to_dict())
+  d, h, a_dim = config.model.latent_dim, config.horizon, config.action_dim
   member_fn = make_member_scores(config, nets) if score_fn is None else (
       lambda *args: as_members(score_fn(*args)))
-  propose = make_propose(config, nets)
+  first_round = _make_first_round(config, nets)
   rollout = make_rollout(config, nets)
-  if p.iterations:  # Refined samples are fixed sequences: no actor-prior rollouts among them.
-    plain_config = ml_collections.ConfigDict(config.to_dict())
-    plain_config.plan.num_prior_candidates = 0
-    plain_rollout = make_rollout(plain_config, nets)
-  sequence_proposal = proposal_type(config) == 'diffusion_seq'
-  draws = p.dynamics_draws
-  anchor = k - num_prior + num_gauss if num_prior else -1  # The actor prior's own sequence.
-  # Settings read now, not at trace time: a config changed after make_plan changes nothing.
-  p = ml_collections.ConfigDict(p.to_dict())
-
-  def score_draws(params, z, proposals, key, roll):
-    """(actions [N, H, A], scores [N], members [draws x M, N]): J per draw combined over the
-    value members, averaged over `plan.dynamics_draws` rollouts of the same candidates."""
-    def one(i):
-      acts, lats = roll(params, z, proposals, jax.random.fold_in(key, i))
-      return acts, member_fn(params, lats, acts)
-    actions, members = one(0)
-    if draws == 1:
-      return actions, combine(members, p.pessimism), members
-    more = jax.lax.map(lambda i: one(i)[1], jnp.arange(1, draws))  # [draws - 1, M, N]
-    everything = jnp.concatenate([members[None], more])
-    scores = jnp.mean(jax.vmap(lambda m: combine(m, p.pessimism))(everything), axis=0)
-    return actions, scores, everything.reshape((-1,) + members.shape[1:])
+  score_draws = _make_score_draws(member_fn, p.dynamics_draws, p.pessimism)
+  refine_pool = _make_refine(config, nets, score_draws)
+  num_first = p.num_candidates - p.num_prior_candidates + p.num_gaussian
+  anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
     if z.shape != (d,):
       raise ValueError(f'plan expects one latent of shape ({d},), got {z.shape}; '
                        'use encode(params, obs) first, and jax.vmap for a batch')
     prop_key, noise_key, dyn_key = jax.random.split(key, 3)
-    init = None
-    if prev_sequence is not None:
-      if prev_sequence.shape != (h, a_dim):
-        raise ValueError(f'prev_sequence must have shape ({h}, {a_dim}), '
-                         f'got {prev_sequence.shape}')
-      init = shift_sequence(prev_sequence)
-    if sequence_proposal:
-      proposals = propose(params, z, prop_key, k - num_prior, init)
-      if p.action_noise_std > 0:
-        noise = jax.random.normal(noise_key, proposals.shape)
-        proposals = jnp.clip(proposals + p.action_noise_std * noise, -1.0, 1.0)
-      if num_gauss:
-        centre = jnp.zeros((h, a_dim)) if init is None else init
-        eps = jax.random.normal(jax.random.fold_in(noise_key, 1), (num_gauss, h, a_dim))
-        proposals = jnp.concatenate(
-            [proposals, jnp.clip(centre + p.gaussian_std * eps, -1.0, 1.0)])
-    else:  # Single-step proposals are drawn inside the rollout.
-      proposals = k - num_prior
-    actions, scores, members = score_draws(params, z, proposals, dyn_key, rollout)
-    n = actions.shape[0]
-    kind = jnp.concatenate([jnp.zeros(k - num_prior, jnp.int32),
-                            jnp.full(num_gauss, CANDIDATE_KINDS.index('gaussian'), jnp.int32),
-                            jnp.ones(num_prior, jnp.int32)])
-    iteration = jnp.zeros(n, jnp.int32)
-    if p.iterations:
-      def score_samples(samples, key):  # (scores [N], members): as the first round's.
-        return score_draws(params, z, samples, key, plain_rollout)[1:]
-      pool = refine(score_samples, Pool(actions, scores, members, kind, iteration),
-                    jax.random.fold_in(dyn_key, 10_000), p.iterations, p.num_refine,
-                    p.num_elites, p.temperature, p.min_std, p.gaussian_std)
-      actions = jnp.concatenate([actions, pool.actions])
-      scores = jnp.concatenate([scores, pool.scores])
-      members = jnp.concatenate([members, pool.members], axis=1)
-      kind = jnp.concatenate([kind, pool.kind])
-      iteration = jnp.concatenate([iteration, pool.iteration])
-    # Elites kept from the first round appear twice: once only in the softmax over elites.
-    unique = jnp.concatenate([jnp.ones(n, bool), iteration[n:] > 0]) if p.iterations else None
-    sequence, index, departed, _ = select(actions, scores, members, anchor, p.safe_selection,
-                                          p.safe_margin, p.selection, p.num_elites,
-                                          p.temperature, unique)
+    init = _warm_start(prev_sequence, h, a_dim)
+    proposals_ = first_round(params, z, prop_key, noise_key, init)
+    actions, scores, members = score_draws(params, z, proposals_, dyn_key, rollout)
+    pool = Pool(actions, scores, members, _first_kinds(p),
+                jnp.zeros(actions.shape[0], jnp.int32))
+    unique = None
+    if refine_pool is not None:
+      pool, unique = refine_pool(params, z, dyn_key, pool)
+    sequence, index, departed, _ = select(pool.actions, pool.scores, pool.members, anchor,
+                                          p.safe_selection, p.safe_margin, p.selection,
+                                          p.num_elites, p.temperature, unique)
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
     action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)
-    return PlanOutput(action=action, sequence=sequence, scores=scores, candidates=actions,
-                      index=index, kind=kind[index], iteration=iteration[index],
-                      departed=departed)
+    return PlanOutput(action=action, sequence=sequence, scores=pool.scores,
+                      candidates=pool.actions, index=index, kind=pool.kind[index],
+                      iteration=pool.iteration[index], departed=departed)
 
   return jax.jit(plan)

@@ -24,20 +24,19 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-# The candidates of one plan, in this order: the diffusion proposal's, the broad Gaussian set's,
-# the actor prior's (its first one is the actor's own sequence), then the refined samples.
-CANDIDATE_KINDS = ('proposal', 'actor_prior', 'gaussian', 'refined')
+from ld_mpc_jax.registry import Registry
+
+# Where a candidate of one plan came from: name -> description. The index of a name is the id
+# plans report (PlanOutput.kind) and online/diagnostics count by, so the order is fixed and new
+# kinds go at the end. In a plan's candidates the kinds come in the order proposal, gaussian,
+# actor_prior (its first one is the actor's own sequence), then the refined samples.
+CANDIDATES = Registry('candidate kind', 'candidate kind')
+CANDIDATES.register('proposal', "the proposal's samples")
+CANDIDATES.register('actor_prior', "actor-prior rollouts: a_i = Actor(z_i) along their own rollout")
+CANDIDATES.register('gaussian', 'broad Gaussian sequences around the previous plan (or 0)')
+CANDIDATES.register('refined', "samples of a refinement round around the elites")
+CANDIDATE_KINDS = CANDIDATES.names()  # ('proposal', 'actor_prior', 'gaussian', 'refined')
 SELECTIONS = ('argmax', 'softmax')
-
-
-def combine(members: jnp.ndarray, pessimism: float) -> jnp.ndarray:
-  """Member scores [M, K] -> [K]: mean - pessimism x std over the members (std 0 for M = 1)."""
-  return jnp.mean(members, axis=0) - pessimism * jnp.std(members, axis=0)
-
-
-def as_members(scores: jnp.ndarray) -> jnp.ndarray:
-  """A score function's output [K] or [M, K] -> [M, K]."""
-  return scores[None] if scores.ndim == 1 else scores
 
 
 def elite_moments(actions: jnp.ndarray, scores: jnp.ndarray, temperature: float,
@@ -88,7 +87,7 @@ def refine(score_fn: Callable, first: Pool, key: jax.Array, iterations: int, num
     samples = jnp.clip(mean + std * eps, -1.0, 1.0)
     scores, members = score_fn(samples, k_score)
     new = Pool(samples, scores, members,
-               jnp.full((num_samples,), CANDIDATE_KINDS.index('refined'), jnp.int32),
+               jnp.full((num_samples,), CANDIDATES.index('refined'), jnp.int32),
                jnp.full((num_samples,), i, jnp.int32))
     merged = Pool(*(jnp.concatenate([x, y], axis=1 if name == 'members' else 0)
                     for name, x, y in zip(Pool._fields, pool, new)))
@@ -158,6 +157,7 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
                      'candidate: set config.plan.num_prior_candidates >= 1')
   if p.safe_margin < 0:
     raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
-  if (p.num_gaussian or p.iterations) and config.model.proposal_type != 'diffusion_seq':
+  from ld_mpc_jax import proposals  # pylint: disable=g-import-not-at-top
+  if (p.num_gaussian or p.iterations) and not proposals.get(config).sequence:
     raise ValueError('config.plan.num_gaussian and config.plan.iterations need whole action '
-                     "sequences: config.model.proposal_type='diffusion_seq'")
+                     f'sequences, not proposal_type {config.model.proposal_type!r}')

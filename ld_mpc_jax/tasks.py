@@ -5,7 +5,10 @@ them. TD-MPC2 looks up a learned embedding e_k of task k, clips it to at most un
 (`nn.Embedding(max_norm=1)`), and concatenates it to the input of the encoder and of every
 network that reads a latent. A Dense layer of [x, e] is W_x x + W_e e + b: the same layer with the
 task-dependent bias b + W_e e. So here the networks stay exactly as a single-task agent's, and
-the task enters through that bias of each network's input layer (those of `INPUT_LAYERS`):
+the task enters through that bias of each network's input layer (`input_layers`: those of
+`INPUT_LAYERS`, and for the proposal and the dynamics those their kind's entry declares as its
+`conditioning`; a declared layer the parameters lack is an error, so no network goes silently
+unconditioned):
 
   params['task'] = {'embedding': [num_tasks, task_dim], 'proj': {net: {layer: W_e}}},
 
@@ -19,7 +22,7 @@ Single-task configs (no `config.tasks`, or one task) have no 'task' entry: the s
 tree as before, so older checkpoints load.
 """
 
-from typing import Callable, Tuple
+from typing import Callable, Dict, Tuple
 
 import flax
 import jax
@@ -27,22 +30,20 @@ import jax.numpy as jnp
 import ml_collections
 
 # The layers that read a network's input (the observation for the encoder, a latent for the
-# others), by parameter path within the network; paths a network kind does not have are skipped
-# (the diffusion proposals have 'cond_proj', the MLP proposal 'mlp/dense_0', ...).
+# others), by parameter path within the network, for the networks that have one kind; the
+# proposal's and the dynamics' come from their kind's entry (`conditioning`).
 INPUT_LAYERS = {
     'encoder': (('mlp', 'dense_0'),),
-    'proposal': (('cond_proj',), ('mlp', 'dense_0')),
-    'dynamics': (('z_proj',), ('mlp', 'dense_0')),
     'objective': (('z_proj',),),
     'actor': (('mlp', 'dense_0'),),
     'critics': (('v', 'heads', 'dense_0'), ('q', 'heads', 'dense_0')),
 }
-TASK_DIM = 96  # TD-MPC2's task_dim, for configs without model.task_dim.
+NETWORKS = ('encoder', 'proposal', 'dynamics', 'objective', 'actor', 'critics')
 
 
 def task_names(config: ml_collections.ConfigDict) -> Tuple[str, ...]:
   """The tasks of a multi-task config (config.tasks), else (config.task,)."""
-  names = tuple(config.get('tasks') or ())
+  names = tuple(config.tasks) if 'tasks' in config else ()
   return names if names else (config.task,)
 
 
@@ -79,6 +80,14 @@ def task_config(config: ml_collections.ConfigDict, task: int) -> ml_collections.
   return out
 
 
+def input_layers(config: ml_collections.ConfigDict) -> Dict[str, Tuple[Tuple[str, ...], ...]]:
+  """{network: parameter paths of its task-conditioned input layers}, in NETWORKS order."""
+  from ld_mpc_jax import dynamics, proposals  # pylint: disable=g-import-not-at-top
+  kinds = {'proposal': proposals.get(config).conditioning,
+           'dynamics': dynamics.get(config).conditioning}
+  return {net: tuple(kinds[net] if net in kinds else INPUT_LAYERS[net]) for net in NETWORKS}
+
+
 def init_task_params(config: ml_collections.ConfigDict, key: jax.Array, params: dict) -> dict:
   """`params` plus params['task'] for a multi-task config; unchanged for a single task.
 
@@ -87,14 +96,17 @@ def init_task_params(config: ml_collections.ConfigDict, key: jax.Array, params: 
   """
   if not is_multitask(config):
     return params
-  dim = config.model.get('task_dim', TASK_DIM)
+  dim = config.model.task_dim
   k_emb, k_proj = jax.random.split(key)
   proj, i = {}, 0
-  for net, paths in INPUT_LAYERS.items():
+  for net, paths in input_layers(config).items():
+    if net not in params:  # The critics, for a model without them.
+      continue
     for path in paths:
-      layer = _lookup(params.get(net, {}), path)
+      layer = _lookup(params[net], path)
       if layer is None:
-        continue
+        raise ValueError(f'task conditioning: params[{net!r}] has no input layer '
+                         f'{"/".join(path)!r} (its kind\'s `conditioning`)')
       shape = (dim,) + layer['bias'].shape
       w = jax.random.normal(jax.random.fold_in(k_proj, i), shape) * dim ** -0.5
       proj[(net,) + path] = w

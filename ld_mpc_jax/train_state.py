@@ -42,7 +42,7 @@ def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
   (`config.model.normalize_obs`); None leaves the identity normalisation (mean 0, std 1).
   """
   params = init_params(config, key)
-  if obs is not None and config.model.get('normalize_obs', False):
+  if obs is not None and config.model.normalize_obs:
     params = set_obs_normalization(params, obs)
   tx = make_optimizer(config)
 
@@ -102,7 +102,7 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
                            step=state.step + 1)
     return new_state, metrics
 
-  if mesh is None and not config.train.get('data_parallel', False):
+  if mesh is None and not config.train.data_parallel:
     jitted = jax.jit(update, donate_argnums=0)
     jitted.unjitted = update  # For make_multi_update.
     return jitted

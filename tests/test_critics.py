@@ -8,8 +8,8 @@ import optax
 import pytest
 
 from experiments.overrides import with_overrides
-from ld_mpc_jax import checkpointing, critics, models, planner
-from ld_mpc_jax.losses import discounted_return, two_hot_decode
+from ld_mpc_jax import checkpointing, critics, legacy, models, objective, ops, planner
+from ld_mpc_jax.ops import discounted_return, two_hot_decode
 
 
 def test_expectile_loss_hand_computed():
@@ -24,7 +24,7 @@ def test_awr_weights_and_pessimism_hand_computed():
   np.testing.assert_allclose(critics.awr_weights(jnp.array([0.0, 1.0, 10.0]), 2.0, 100.0),
                              [1.0, np.exp(2.0), 100.0], rtol=1e-6)
   ens = jnp.array([[1.0, 2.0], [3.0, 2.0]])  # 2 members x 2 states
-  np.testing.assert_allclose(critics.pessimistic(ens, 0.5), [2.0 - 0.5, 2.0], rtol=1e-6)
+  np.testing.assert_allclose(objective.combine(ens, 0.5), [2.0 - 0.5, 2.0], rtol=1e-6)
 
 
 def _toy_values(smoke_config, expectile: float, steps: int = 600):
@@ -73,7 +73,7 @@ def _toy_values(smoke_config, expectile: float, steps: int = 600):
     return (params, target, opt), None
 
   (params, _, _), _ = jax.lax.scan(step, (params, params, tx.init(params)), None, length=steps)
-  v = critics.make_terminal_value(config, net)(params, eye)
+  v = objective.make_terminal_value(config, net)(params, eye)
   q = 10.0 * net.apply({'params': params['critics']}, jnp.stack([s0, s0]),
                        jnp.stack([left, right]), method=critics.Critics.q_value).mean(0)
   return np.asarray(v), float(q[0]), float(q[1])
@@ -165,20 +165,20 @@ def test_observation_normalisation_is_stored_in_the_parameters(smoke_config):
 
 def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
   """A run saved before config.objective existed: no critics, no normalisation, same planner."""
-  legacy = smoke_config.to_dict()
-  del legacy['objective']
+  old = smoke_config.to_dict()
+  del old['objective']
   for name in ('normalize_obs', 'normalize_dynamics'):
-    del legacy['model'][name]
+    del old['model'][name]
   for name in ('pessimism', 'dynamics_draws'):
-    del legacy['plan'][name]
-  legacy = checkpointing.migrate_config(ml_collections.ConfigDict(legacy))  # As on load.
-  params = models.init_params(legacy, jax.random.key(0))
+    del old['plan'][name]
+  old = checkpointing.migrate_config(ml_collections.ConfigDict(old))  # As on load.
+  params = models.init_params(old, jax.random.key(0))
   assert 'critics' not in params and 'obs_mean' not in params['encoder']
-  out = planner.make_plan(legacy)(params, models.encode(params, np.ones(39)), jax.random.key(1))
-  assert out.scores.shape == (legacy.plan.num_candidates,)
-  explicit = with_overrides(legacy, {})
-  explicit.objective = ml_collections.ConfigDict(critics.LEGACY_OBJECTIVE)
-  assert not critics.uses_critics(explicit)
+  out = planner.make_plan(old)(params, models.encode(params, np.ones(39)), jax.random.key(1))
+  assert out.scores.shape == (old.plan.num_candidates,)
+  explicit = with_overrides(old, {})
+  explicit.objective = ml_collections.ConfigDict(legacy.LEGACY_OBJECTIVE)
+  assert not models.uses_critics(explicit)
 
 
 def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
@@ -206,7 +206,7 @@ def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
 
 def test_window_returns_hand_computed():
   r = jnp.array([[1.0, 2.0, 3.0]])
-  out = critics.window_returns(r, jnp.array([10.0]), 0.5)
+  out = ops.window_returns(r, jnp.array([10.0]), 0.5)
   # i = 2: 3 + 0.5 * 10 = 8; i = 1: 2 + 0.5 * 8 = 6; i = 0: 1 + 0.5 * 6 = 4.
   np.testing.assert_allclose(out, [[4.0, 6.0, 8.0]])
 

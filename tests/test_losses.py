@@ -1,51 +1,11 @@
-"""Symlog / two-hot helpers and return targets against hand-computed values."""
+"""The loss terms (ld_mpc_jax.losses, and the kinds' own) against hand-computed values."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from ld_mpc_jax import losses
-
-
-def test_symlog_symexp_values_and_round_trip():
-  np.testing.assert_allclose(losses.symlog(jnp.array([0.0, np.e - 1, -(np.e - 1)])),
-                             [0.0, 1.0, -1.0], atol=1e-6)
-  x = jnp.array([-500.0, -3.0, -0.1, 0.0, 0.2, 7.0, 1000.0])
-  np.testing.assert_allclose(losses.symexp(losses.symlog(x)), x, rtol=1e-5)
-
-
-def test_two_hot_hand_values():
-  # 5 bins on [-2, 2]: centres -2, -1, 0, 1, 2 (symlog space).
-  enc = lambda x: losses.two_hot(jnp.asarray(x, jnp.float32), 5, -2.0, 2.0)
-  np.testing.assert_allclose(enc(0.0), [0, 0, 1, 0, 0], atol=1e-6)
-  np.testing.assert_allclose(enc(np.expm1(0.25)), [0, 0, 0.75, 0.25, 0], atol=1e-6)
-  np.testing.assert_allclose(enc(-np.expm1(1.5)), [0.5, 0.5, 0, 0, 0], atol=1e-6)
-  np.testing.assert_allclose(enc(100.0), [0, 0, 0, 0, 1], atol=1e-6)  # Clipped at vmax.
-  np.testing.assert_allclose(enc(-np.expm1(2.0)), [1, 0, 0, 0, 0], atol=1e-6)
-
-
-def test_two_hot_decode_round_trip():
-  x = jnp.array([-300.0, -2.5, 0.0, 0.3, 9.0, 400.0])
-  probs = losses.two_hot(x, 101, -10.0, 10.0)
-  np.testing.assert_allclose(probs.sum(-1), 1.0, rtol=1e-6)
-  decoded = losses.two_hot_decode(jnp.log(probs), -10.0, 10.0)
-  np.testing.assert_allclose(decoded, x, rtol=1e-4, atol=1e-5)
-
-
-def test_soft_cross_entropy_hand_value():
-  logits = jnp.log(jnp.array([0.5, 0.25, 0.25]))
-  target = jnp.array([0.0, 1.0, 0.0])
-  np.testing.assert_allclose(losses.soft_cross_entropy(logits, target), np.log(4.0), rtol=1e-6)
-
-
-def test_discounted_return_and_n_step_targets():
-  r, v, g = jnp.array([1.0, 2.0, 3.0]), jnp.array(10.0), 0.5
-  # 1 + 0.5 * 2 + 0.25 * 3 + 0.125 * 10 = 4.0
-  np.testing.assert_allclose(losses.discounted_return(r, v, g), 4.0, rtol=1e-6)
-  # V2 = 3 + 5 = 8, V1 = 2 + 4 = 6, V0 = 1 + 3 = 4.
-  np.testing.assert_allclose(losses.n_step_targets(r, v, g), [4.0, 6.0, 8.0], rtol=1e-6)
-  batch = losses.n_step_targets(jnp.stack([r, 2 * r]), jnp.array([10.0, 0.0]), g)
-  np.testing.assert_allclose(batch, [[4.0, 6.0, 8.0], [5.5, 7.0, 6.0]], rtol=1e-6)
 
 
 def test_maxq_actor_climbs_a_toy_q(smoke_config):
@@ -53,7 +13,7 @@ def test_maxq_actor_climbs_a_toy_q(smoke_config):
   actor loss moves the policy's mode toward sign(w) on every action dimension."""
   import optax
   from ld_mpc_jax import models
-  from ld_mpc_jax.losses import maxq_actor_loss
+  from ld_mpc_jax.actors import maxq_actor_loss
   c = smoke_config
   c.objective.actor, c.objective.hidden = 'maxq', ()
   nets = models.build_networks(c)
@@ -78,3 +38,168 @@ def test_maxq_actor_climbs_a_toy_q(smoke_config):
   after = mode(params)
   assert float(jnp.mean(after @ w)) > before + 1.0
   assert bool(jnp.all(jnp.sign(jnp.mean(after, 0)) == w))
+
+
+# --- Each term against hand-computed values on tiny arrays. -------------------------------
+# Fakes stand in for the networks where a term calls one: a module whose `apply` predicts
+# zeros makes a denoising loss with x0-prediction the mean square of the clean data.
+
+class _Zeros:
+  """A module whose apply returns zeros shaped as its first array input (or a fixed output)."""
+
+  def __init__(self, out=None):
+    self.out = out
+
+  def apply(self, variables, x, *args, **kwargs):
+    return jnp.zeros_like(x) if self.out is None else self.out
+
+
+def _cfg():
+  import ml_collections
+  return ml_collections.ConfigDict(dict(
+      horizon=2, action_dim=2, gamma=0.5, diffusion=dict(prediction='x0'),
+      model=dict(num_bins=5, vmin=-2.0, vmax=2.0), objective=dict(entropy_coef=0.1),
+      loss=dict(w_dyn=1.0, w_act=2.0, w_rew=3.0, w_val=4.0, w_actor=5.0, w_consistency=6.0,
+                w_q=7.0, w_v=8.0)))
+
+
+Z = jnp.arange(2 * 4 * 3, dtype=jnp.float32).reshape(2, 4, 3) / 10.0  # [B=2, H+2=4, D=3]
+A = jnp.arange(2 * 3 * 2, dtype=jnp.float32).reshape(2, 3, 2) / 10.0 - 0.5  # [B, H+1=3, A=2]
+PARAMS = {'proposal': {}, 'dynamics': {}, 'actor': {}, 'critics': {}}
+
+
+def test_reward_loss_hand_computed():
+  # 5 bins on [-2, 2]; reward 0 is all on the middle bin: CE = -log p_2.
+  probs = jnp.array([0.1, 0.1, 0.6, 0.1, 0.1])
+  got = losses.reward_loss(jnp.log(probs)[None, None], jnp.zeros((1, 1)), 5, -2.0, 2.0)
+  np.testing.assert_allclose(got, -np.log(0.6), rtol=1e-5)
+
+
+def test_value_head_loss_hand_computed():
+  from ld_mpc_jax.objective import value_head_loss
+  # expm1(0.25) two-hots to 0.75 on bin 2 and 0.25 on bin 3.
+  probs = jnp.array([0.1, 0.1, 0.5, 0.2, 0.1])
+  got = value_head_loss(jnp.log(probs)[None], jnp.array([np.expm1(0.25)]), 5, -2.0, 2.0)
+  np.testing.assert_allclose(got, -(0.75 * np.log(0.5) + 0.25 * np.log(0.2)), rtol=1e-5)
+
+
+def test_behaviour_value_loss_hand_computed():
+  """Targets: window returns of the rewards bootstrapped with the EMA head's V(z_{H+1})."""
+  from ld_mpc_jax.objective import Behaviour
+  config = _cfg()
+  # The EMA objective's value logits all on the middle bin: V_ema = symexp(0) = 0.
+  v_tgt = jnp.log(jnp.array([1e-9, 1e-9, 1.0, 1e-9, 1e-9]))
+  nets = type('Nets', (), {'objective': _Zeros((None, jnp.broadcast_to(v_tgt, (1, 3, 5))))})
+  reward = jnp.array([[0.0, 0.0, np.expm1(0.25)]])  # Targets: 0.25 e, 0.5 e, e (e = expm1 .25).
+  e = np.expm1(0.25)
+  v_logits = jnp.zeros((1, 3, 5))  # Uniform: CE = log 5 whatever the target.
+  loss, target_mean = Behaviour.loss(config, nets, {'objective': {}}, jnp.zeros((1, 4, 3)),
+                                     jnp.zeros((1, 3, 2)), reward, v_logits)
+  np.testing.assert_allclose(loss, np.log(5.0), rtol=1e-5)
+  np.testing.assert_allclose(target_mean, (0.25 * e + 0.5 * e + e) / 3, rtol=1e-5)
+
+
+def test_consistency_loss_hand_computed():
+  got = losses.consistency_loss(jnp.array([[[1.0, 2.0]]]), jnp.array([[[0.0, 0.0]]]))
+  np.testing.assert_allclose(got, 2.5, rtol=1e-6)
+
+
+def test_weighted_sum_order_and_absent_terms():
+  config = _cfg()
+  terms = {name: jnp.asarray(1.0) for name, _ in losses.WEIGHTS}
+  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 36.0)
+  del terms['q'], terms['consistency']  # Absent terms count 0.
+  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 36.0 - 7.0 - 6.0)
+
+
+@pytest.mark.parametrize('kind', ['diffusion_seq', 'diffusion_step'])
+def test_diffusion_proposal_losses_hand_computed(kind):
+  """x0-prediction of zeros: the loss is the mean square of the denoised actions."""
+  from ld_mpc_jax.proposals import PROPOSALS
+  got = PROPOSALS.get(kind).loss(_cfg(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
+  want = jnp.mean(A[:, :2] ** 2) if kind == 'diffusion_seq' else jnp.mean(A ** 2)
+  np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+def test_gaussian_proposal_nll_hand_computed():
+  from ld_mpc_jax.proposals import PROPOSALS, gaussian_nll
+  np.testing.assert_allclose(gaussian_nll(jnp.zeros(2), jnp.log(jnp.array([1.0, 2.0])),
+                                          jnp.array([1.0, 2.0])),
+                             np.mean([0.5, 0.5 + np.log(2.0)]), rtol=1e-6)
+  module = _Zeros((jnp.zeros((6, 2)), jnp.zeros((6, 2))))  # mean 0, log std 0
+  got = PROPOSALS.get('mlp').loss(_cfg(), module, PARAMS, Z, A, jax.random.key(0), {})
+  np.testing.assert_allclose(got, 0.5 * jnp.mean(A ** 2), rtol=1e-6)
+
+
+@pytest.mark.parametrize('kind', ['diffusion_ar', 'diffusion_traj', 'mlp'])
+def test_dynamics_losses_hand_computed(kind):
+  """Predicting zeros: the mean square of the next latents (all H+1 of them for one-step kinds,
+  z_{1:H} for the trajectory kind)."""
+  from ld_mpc_jax.dynamics import DYNAMICS
+  got = DYNAMICS.get(kind).loss(_cfg(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
+  want = jnp.mean(Z[:, 1:3] ** 2) if kind == 'diffusion_traj' else jnp.mean(Z[:, 1:] ** 2)
+  np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+@pytest.mark.parametrize('kind', ['bc', 'awr'])
+def test_regression_actor_losses_hand_computed(kind):
+  from ld_mpc_jax.actors import ACTORS
+  nets = type('Nets', (), {'actor': _Zeros(jnp.zeros((2, 3, 2)))})
+  weights = jnp.array([[1.0, 0.0, 2.0], [0.0, 0.0, 1.0]])
+  got = ACTORS.get(kind).loss(_cfg(), nets, PARAMS, Z, A, weights, jax.random.key(0))
+  sq = jnp.sum(A ** 2, axis=-1)  # [B, H+1]
+  want = jnp.mean(sq) if kind == 'bc' else jnp.mean(weights * sq)  # BC ignores the weights.
+  np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+def test_maxq_actor_loss_hand_computed():
+  """E[alpha log pi - mean_j Q_j] with a fake actor (log pi = -1) and Q ensemble (1 and 3)."""
+  from ld_mpc_jax.actors import ACTORS
+
+  class Actor(_Zeros):
+    def sample(self):
+      pass
+
+    def apply(self, variables, z, key=None, method=None):
+      return jnp.zeros(z.shape[:-1] + (2,)), -jnp.ones(z.shape[:-1])
+
+  class Critics(_Zeros):
+    def q_value(self):
+      pass
+
+    def apply(self, variables, z, a, method=None):
+      return jnp.stack([jnp.ones(z.shape[:-1]), 3 * jnp.ones(z.shape[:-1])])
+
+  nets = type('Nets', (), {'actor': Actor(), 'critics': Critics()})
+  got = ACTORS.get('maxq').loss(_cfg(), nets, PARAMS, Z, A, None, jax.random.key(0))
+  np.testing.assert_allclose(got, 0.1 * -1.0 - 2.0, rtol=1e-6)
+
+
+def test_loss_metrics_and_total(smoke_config):
+  """The logged names stay those of the single closure this replaced, and `loss` is the
+  weighted sum of the logged terms."""
+  from experiments.overrides import with_overrides
+  from ld_mpc_jax import models
+  expected = {
+      'smoke': {'loss', 'loss_dyn', 'loss_act', 'loss_rew', 'loss_val', 'loss_actor',
+                'loss_consistency', 'loss_q', 'loss_v', 'q_mean', 'v_mean', 'advantage_std',
+                'awr_weight_mean'},
+      'behaviour': {'loss', 'loss_dyn', 'loss_act', 'loss_rew', 'loss_val', 'loss_actor',
+                    'value_target_mean'},
+  }
+  overrides = {'smoke': {}, 'behaviour': {'objective.value': 'behaviour',
+                                          'objective.actor': 'bc',
+                                          'objective.latent_rollout': False}}
+  rng = np.random.default_rng(0)
+  h = smoke_config.horizon
+  batch = {'obs': jnp.asarray(rng.normal(size=(2, h + 2, 39)), jnp.float32),
+           'action': jnp.asarray(rng.uniform(-1, 1, (2, h + 1, 4)), jnp.float32),
+           'reward': jnp.asarray(rng.uniform(0, 1, (2, h + 1)), jnp.float32)}
+  for name, names in expected.items():
+    c = with_overrides(smoke_config, overrides[name])
+    params = models.init_params(c, jax.random.key(0))
+    loss, metrics = losses.make_loss_fn(c, models.build_networks(c))(params, params, batch,
+                                                                     jax.random.key(1))
+    assert set(metrics) == names, name
+    terms = {n: metrics[f'loss_{n}'] for n, _ in losses.WEIGHTS if f'loss_{n}' in metrics}
+    np.testing.assert_allclose(loss, losses.weighted_sum(terms, c.loss), rtol=1e-6)

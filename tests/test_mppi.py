@@ -78,11 +78,31 @@ def test_config_validation():
     mppi.MPPIConfig(num_samples=8, num_elites=4, num_prior=8)
 
 
-def test_tdmpc2_model_size():
-  """The default model is TD-MPC2's 5M configuration (4,955,238 parameters)."""
-  params = jax.eval_shape(lambda k: mppi.init_tdmpc2_params(mppi.TDMPC2Config(), k),
-                          jax.random.key(0))
-  assert count_params(params) == 4_955_238
+def _mlp_size(d_in, widths):
+  """Scalars of networks.MLP: Dense kernels and biases, LayerNorm scale and bias between."""
+  dims = (d_in,) + tuple(widths)
+  dense = sum(a * b + b for a, b in zip(dims[:-1], dims[1:]))
+  return dense + sum(2 * w for w in widths[:-1])
+
+
+def _tdmpc2_size(c):
+  """TD-MPC2's world model, counted from its widths: encoder (+ LayerNorm), dynamics
+  (+ LayerNorm), reward head, policy, num_q Q heads."""
+  za, hidden = c.latent_dim + c.action_dim, (c.mlp_dim, c.mlp_dim)
+  return (_mlp_size(c.obs_dim, (c.enc_dim, c.latent_dim)) + 2 * c.latent_dim
+          + _mlp_size(za, hidden + (c.latent_dim,)) + 2 * c.latent_dim
+          + _mlp_size(za, hidden + (c.num_bins,))
+          + _mlp_size(c.latent_dim, hidden + (2 * c.action_dim,))
+          + c.num_q * _mlp_size(za, hidden + (c.num_bins,)))
+
+
+@pytest.mark.parametrize('cfg', [mppi.TDMPC2Config(), TINY_MODEL], ids=['default', 'tiny'])
+def test_tdmpc2_model_size(cfg):
+  """The parameters are the layers the widths call for; the default is TD-MPC2's "5M"."""
+  params = jax.eval_shape(lambda k: mppi.init_tdmpc2_params(cfg, k), jax.random.key(0))
+  assert count_params(params) == _tdmpc2_size(cfg)
+  if cfg == mppi.TDMPC2Config():
+    assert 4.5e6 < count_params(params) < 5.5e6
 
 
 def test_mppi_on_ldmpc_world_model(smoke_config, smoke_params):
