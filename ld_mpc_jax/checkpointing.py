@@ -69,7 +69,8 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
         config[section][name] = default
   if 'online' in config:  # Online runs saved before acting had its own settings.
     for name, default in (('act_pessimism', config.plan.pessimism), ('exec_noise_start', 0.0),
-                          ('exec_noise_end', 0.0), ('updates_per_call', 1), ('reward', 'dense')):
+                          ('exec_noise_end', 0.0), ('exec_noise_corr', 0.0),
+                          ('updates_per_call', 1), ('reward', 'dense')):
       if name not in config.online:
         config.online[name] = default
   for section, defaults in (('data', _data_defaults()), ('train', _TRAIN_DEFAULTS)):

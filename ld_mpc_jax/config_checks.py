@@ -200,6 +200,8 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
                      f'got {o.updates_per_call!r}')
   if min(o.exec_noise_start, o.exec_noise_end) < 0:
     raise ValueError('config.online.exec_noise_start and exec_noise_end must be >= 0')
+  if not 0.0 <= o.exec_noise_corr < 1.0:
+    raise ValueError(f'config.online.exec_noise_corr must be in [0, 1), got {o.exec_noise_corr}')
   # act_pessimism < 0 is optimism while acting: mean + |act_pessimism| std of the value ensemble.
 
 

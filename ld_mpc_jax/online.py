@@ -220,9 +220,17 @@ class OnlineJob:
                               seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
     policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
                   for i, s in enumerate(seeds)])
-    policy.action_noise = executed_noise(self.config, self.counters['env_steps'],
-                                         self.learn_start)
+    std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
+    # Correlated noise is added here (exploration_noise); white noise inside the jitted plan.
+    policy.action_noise = 0.0 if o.exec_noise_corr > 0 else std
     return policy
+
+  def exploration_noise(self, noise: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The next AR(1) noise [N, A] on the executed actions: corr x noise + sqrt(1 - corr^2) x
+    std x N(0, 1), whose stationary std is `executed_noise` (`online.exec_noise_corr` > 0)."""
+    corr = self.config.online.exec_noise_corr
+    std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
+    return corr * noise + np.sqrt(1.0 - corr**2) * std * rng.standard_normal(noise.shape)
 
   def _count_winners(self, policy, active) -> None:
     """Which kind of candidate won each acting decision; the last entry counts departures."""
@@ -249,6 +257,7 @@ class OnlineJob:
     obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(self.envs, seeds)])
     eps = [dict(obs=[x], action=[], reward=[], success=[]) for x in obs]
     active, t = np.ones(n, bool), 0
+    noise, noise_rng = np.zeros((n, act_dim)), np.random.default_rng([self.config.seed, first, 29])
     self.winners = np.zeros(len(CANDIDATE_KINDS) + 1, np.int64)
     self.dense_max = 0.0
     while active.any():
@@ -256,6 +265,9 @@ class OnlineJob:
                  else rng.uniform(-1.0, 1.0, (n, act_dim)).astype(np.float32))
       if planner:
         self._count_winners(policy, active)
+        if o.exec_noise_corr > 0:
+          noise = self.exploration_noise(noise, noise_rng)
+          actions = np.clip(actions + noise, -1.0, 1.0).astype(np.float32)
       for i in np.flatnonzero(active):
         obs[i], reward, terminated, truncated, info = self.envs[i].step(actions[i])
         self.dense_max = max(self.dense_max, float(reward))

@@ -73,6 +73,7 @@ def test_bad_online_config_exits_2_with_one_line(tmp_path, override, match):
     (dict(reward='shaped'), "'dense' or 'sparse'"),
     (dict(updates_per_call=0), 'updates_per_call must be an integer'),
     (dict(exec_noise_start=-0.1), 'must be >= 0'),
+    (dict(exec_noise_corr=1.0), r'exec_noise_corr must be in \[0, 1\)'),
 ])
 def test_acting_settings_are_checked(overrides, match):
   from ld_mpc_jax.config_checks import validate_config
@@ -90,3 +91,21 @@ def test_executed_noise_anneals_linearly():
   mid = (1_600 + c.online.env_steps) // 2
   assert online.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
   assert online.executed_noise(c, c.online.env_steps, 1_600) == pytest.approx(end)
+
+
+def test_correlated_noise_has_the_annealed_std_and_its_correlation():
+  """AR(1) executed-action noise (`online.exec_noise_corr`): stationary std = executed_noise,
+  lag-one autocorrelation = the configured correlation."""
+  import types
+  import numpy as np
+  c = door_open_online.get_config('cpu_correlated')
+  c.online.exec_noise_start = c.online.exec_noise_end = 0.3
+  job = types.SimpleNamespace(config=c, counters={'env_steps': 5_000}, learn_start=1_600)
+  rng, noise, draws = np.random.default_rng(0), np.zeros((4, 4)), []
+  for _ in range(5_000):
+    noise = online.OnlineJob.exploration_noise(job, noise, rng)
+    draws.append(noise)
+  x = np.stack(draws[100:])  # [T, 4, 4], past the start-up from zero.
+  assert np.std(x) == pytest.approx(0.3, rel=0.05)
+  lag1 = np.mean(x[1:] * x[:-1]) / np.mean(x * x)
+  assert lag1 == pytest.approx(0.85, abs=0.02)

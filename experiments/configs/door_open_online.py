@@ -42,6 +42,11 @@ def online_settings() -> ml_collections.ConfigDict:
   # the run (DDPG/TD3-style action noise, annealed; 0 and 0 = the planner's action as chosen).
   o.exec_noise_start = 0.0
   o.exec_noise_end = 0.0
+  # Correlation of that noise from one decision to the next (AR(1), the discrete
+  # Ornstein-Uhlenbeck process; stationary std as above): 0 = white noise. DDPG's OU noise
+  # (theta 0.15 per step) is 0.85; correlated noise keeps pushing one way for several
+  # decisions, as a door needs (Eberhard et al. 2023, colored noise for MPC and RL).
+  o.exec_noise_corr = 0.0
   o.updates_per_call = 1  # Updates per jitted call (lax.scan): fewer dispatches on a CPU.
   # 'dense': Meta-World's shaped reward; 'sparse': 1 on steps where the task is solved, else 0.
   o.reward = 'dense'
@@ -95,13 +100,21 @@ def _optimism(c: ml_collections.ConfigDict) -> None:
   c.gamma = 0.95
 
 
-PRESETS = ('', 'reference', 'cpu', 'cpu_optimistic', 'cpu_v1', 'finetune', 'smoke')
+def _correlated(c: ml_collections.ConfigDict) -> None:
+  """`:cpu_correlated`: `:cpu` with the executed-action noise correlated over decisions."""
+  _budget(c)
+  c.online.exec_noise_corr = 0.85  # DDPG's Ornstein-Uhlenbeck theta = 0.15 per decision.
+
+
+PRESETS = ('', 'reference', 'cpu', 'cpu_optimistic', 'cpu_correlated', 'cpu_v1', 'finetune',
+           'smoke')
 
 
 def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset not in (None,) + PRESETS:
     raise ValueError(f"unknown preset {preset!r}: use one of {', '.join(map(repr, PRESETS))}")
-  size = {'cpu': 'cpu', 'cpu_optimistic': 'cpu', 'finetune': 'cpu', 'smoke': 'smoke'}.get(preset)
+  size = {'cpu': 'cpu', 'cpu_optimistic': 'cpu', 'cpu_correlated': 'cpu', 'finetune': 'cpu',
+          'smoke': 'smoke'}.get(preset)
   c = door_open.get_config(size)
   c.online = o = online_settings()
   # Observation statistics of random-action seed episodes do not cover the states the agent
@@ -111,6 +124,8 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     _budget(c)
   elif preset == 'cpu_optimistic':
     _optimism(c)
+  elif preset == 'cpu_correlated':
+    _correlated(c)
   elif preset == 'cpu_v1':  # The first :cpu preset (0.1 updates per step; docs/log.md).
     c = door_open.get_config('cpu')
     c.online = o = online_settings()
