@@ -37,6 +37,7 @@ from ld_mpc_jax import checkpointing, data, envs, run_files, runs, sharding
 from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.envs import goals
+from ld_mpc_jax.exploration import acting_config, ar1_noise, executed_noise
 from ld_mpc_jax.models import count_params, set_obs_normalization
 from ld_mpc_jax.search import CANDIDATE_KINDS
 from ld_mpc_jax.train_state import create_train_state, make_multi_update, make_update
@@ -44,26 +45,6 @@ from ld_mpc_jax.train_state import create_train_state, make_multi_update, make_u
 from ld_mpc_jax.run_files import LOSSES_CSV, ONLINE_CSV
 
 BUFFER_DIR = 'online'
-
-
-def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """A copy of config for the planner while acting: `config.online`'s exploration noise on its
-  candidates and its acting pessimism (`online.act_pessimism`; evaluation keeps
-  `plan.pessimism`): unfamiliar states are model error offline, opportunity online."""
-  c = ml_collections.ConfigDict(config.to_dict())
-  c.plan.action_noise_std = config.online.action_noise_std
-  c.plan.prior_noise_std = config.online.prior_noise_std
-  c.plan.pessimism = config.online.act_pessimism
-  return c
-
-
-def executed_noise(config: ml_collections.ConfigDict, env_steps: int, learn_start: int) -> float:
-  """Std of the noise on the executed action at `env_steps`: linear from
-  `online.exec_noise_start` when the planner starts acting to `online.exec_noise_end` at
-  `online.env_steps`."""
-  o = config.online
-  frac = np.clip((env_steps - learn_start) / max(o.env_steps - learn_start, 1), 0.0, 1.0)
-  return float(o.exec_noise_start + frac * (o.exec_noise_end - o.exec_noise_start))
 
 
 def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collections.ConfigDict]:
@@ -226,11 +207,9 @@ class OnlineJob:
     return policy
 
   def exploration_noise(self, noise: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """The next AR(1) noise [N, A] on the executed actions: corr x noise + sqrt(1 - corr^2) x
-    std x N(0, 1), whose stationary std is `executed_noise` (`online.exec_noise_corr` > 0)."""
-    corr = self.config.online.exec_noise_corr
+    """The next correlated noise [N, A] on the executed actions (exploration.ar1_noise)."""
     std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
-    return corr * noise + np.sqrt(1.0 - corr**2) * std * rng.standard_normal(noise.shape)
+    return ar1_noise(noise, std, self.config.online.exec_noise_corr, rng)
 
   def _count_winners(self, policy, active) -> None:
     """Which kind of candidate won each acting decision; the last entry counts departures."""

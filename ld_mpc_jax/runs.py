@@ -86,6 +86,9 @@ class Run:
   """A run directory: its config.json, checkpoint manager, TensorBoard writer and report files."""
 
   def __init__(self, config: ml_collections.ConfigDict, workdir: str):
+    from ld_mpc_jax.agent import POLICY_MODES  # pylint: disable=g-import-not-at-top
+    for mode in config.eval.baselines:  # Before any training: one line naming the modes.
+      POLICY_MODES.check(mode)
     self.config, self.workdir = config, workdir
     self.commit = run_files.git_commit()  # The code this process runs: HEAD may move later.
     os.makedirs(workdir, exist_ok=True)

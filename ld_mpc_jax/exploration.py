@@ -1,0 +1,33 @@
+"""Acting settings of online training: the planner's exploration noise and pessimism while
+acting, and the noise on the executed action (white inside the jitted plan, or correlated
+here). Evaluation never uses them."""
+
+import ml_collections
+import numpy as np
+
+
+def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """A copy of config for the planner while acting: `config.online`'s exploration noise on its
+  candidates and its acting pessimism (`online.act_pessimism`; evaluation keeps
+  `plan.pessimism`): unfamiliar states are model error offline, opportunity online."""
+  c = ml_collections.ConfigDict(config.to_dict())
+  c.plan.action_noise_std = config.online.action_noise_std
+  c.plan.prior_noise_std = config.online.prior_noise_std
+  c.plan.pessimism = config.online.act_pessimism
+  return c
+
+
+def executed_noise(config: ml_collections.ConfigDict, env_steps: int, learn_start: int) -> float:
+  """Std of the noise on the executed action at `env_steps`: linear from
+  `online.exec_noise_start` when the planner starts acting to `online.exec_noise_end` at
+  `online.env_steps`."""
+  o = config.online
+  frac = np.clip((env_steps - learn_start) / max(o.env_steps - learn_start, 1), 0.0, 1.0)
+  return float(o.exec_noise_start + frac * (o.exec_noise_end - o.exec_noise_start))
+
+
+def ar1_noise(noise: np.ndarray, std: float, corr: float,
+              rng: np.random.Generator) -> np.ndarray:
+  """The next AR(1) (discrete Ornstein-Uhlenbeck) noise: corr x noise + sqrt(1 - corr^2) x std x
+  N(0, 1), same shape as `noise`; its stationary std is `std`."""
+  return corr * noise + np.sqrt(1.0 - corr**2) * std * rng.standard_normal(noise.shape)
