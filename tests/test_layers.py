@@ -1,7 +1,9 @@
-"""The package's import graph has no cycle (function-level imports included)."""
+"""The package's import graph: no cycle, every import points down the layers (function-level
+imports included); module and function sizes."""
 
 import ast
 import os
+import sys
 
 import pytest
 
@@ -113,3 +115,45 @@ def test_modules_at_most_400_lines_and_functions_at_most_60():
             and node.end_lineno - node.lineno >= 60):
           too_long.append(f'{rel}:{node.name}: {node.end_lineno - node.lineno + 1} lines')
   assert not too_long, too_long
+
+
+# The package's layers, lowest first: a module imports only modules of its own layer or below
+# (BUILD.md, Layout). A new module must be placed here.
+LAYERS = (
+    ('ops', ('diffusion', 'ops', 'registry', 'stats', 'sharding', 'legacy')),
+    ('nets', ('networks', 'networks.mlp', 'networks.transformer')),
+    ('envs', ('envs', 'envs.suite', 'envs.goals', 'envs.metaworld_env')),
+    ('model parts', ('actors', 'critics', 'proposals', 'dynamics', 'objective', 'search',
+                     'tasks')),
+    ('data', ('data', 'data.dataset', 'data.collection', 'data.replay', 'data.tdmpc2',
+              'data.multitask', 'data.sources')),
+    ('config checks', ('config_checks',)),
+    ('model', ('models',)),
+    ('learn', ('losses', 'train_state', 'checkpointing')),
+    ('plan', ('planner', 'mppi', 'agent')),
+    ('eval', ('evaluation', 'evaluation_suite', 'diagnostics', 'multitask_eval', 'run_files')),
+    ('runs', ('exploration', 'runs', 'online', 'train', '')),
+)
+
+
+def _layer_of() -> dict:
+  return {(f'{PACKAGE}.{m}' if m else PACKAGE): (i, name)
+          for i, (name, modules) in enumerate(LAYERS) for m in modules}
+
+
+def test_every_import_points_down_the_layers():
+  layer, graph = _layer_of(), import_graph()
+  assert set(graph) == set(layer), ('modules not placed in LAYERS: '
+                                    f'{sorted(set(graph) - set(layer))}')
+  upward = [f'{m} ({layer[m][1]}) imports {n} ({layer[n][1]})'
+            for m, deps in graph.items() for n in deps
+            if not m.startswith(n + '.') and layer[n][0] > layer[m][0]]
+  assert not upward, upward
+
+
+def test_the_layer_check_sees_an_upward_import(monkeypatch):
+  graph = import_graph()
+  graph[f'{PACKAGE}.ops'] = {f'{PACKAGE}.planner'}
+  monkeypatch.setattr(sys.modules[__name__], 'import_graph', lambda: graph)
+  with pytest.raises(AssertionError, match='ops \\(ops\\) imports ld_mpc_jax.planner'):
+    test_every_import_points_down_the_layers()
