@@ -13,7 +13,7 @@ import ml_collections
 import numpy as np
 from scipy import stats as sps
 
-from ld_mpc_jax import data, evaluation_suite, models, planner, stats
+from ld_mpc_jax import data, evaluation_suite, models, objective, planner, stats
 
 
 def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
@@ -49,7 +49,7 @@ def held_out_windows(config, data_episodes: int, stride: int):
 def objective_correlation(config, params, obs, actions, returns) -> dict:
   """Spearman of J (dynamics rollout and encoder latents) against Monte Carlo returns."""
   nets = models.build_networks(config)
-  score = planner.make_objective_score(config, nets)
+  score = objective.make_score(config, nets)
   rollout = planner.make_rollout(_with_plan(config, num_prior_candidates=0), nets)
 
   @jax.jit

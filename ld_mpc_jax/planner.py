@@ -28,10 +28,8 @@ from ld_mpc_jax.models import Networks, build_networks
 from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_scores, make_score
 from ld_mpc_jax.search import CANDIDATE_KINDS, CANDIDATES, Pool, refine, select, validate_search
 
-# Kept for ld_mpc_jax.diagnostics, which scores with planner.make_objective_score.
-make_objective_score = make_score
 __all__ = ['CANDIDATE_KINDS', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
-           'make_rollout', 'make_member_scores', 'make_objective_score', 'shift_sequence']
+           'make_rollout', 'make_member_scores', 'shift_sequence']
 
 
 @flax.struct.dataclass

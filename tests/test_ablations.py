@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from experiments import ablations
-from ld_mpc_jax import agent, models, planner
+from ld_mpc_jax import agent, models, objective, planner
 from ld_mpc_jax.train_state import create_train_state, make_update
 
 
@@ -89,7 +89,7 @@ def test_energy_guidance_raises_the_guided_return(smoke_config):
   score_cfg = ablations.with_overrides(plain_cfg, {'plan.dynamics_steps': 1,
                                                    'plan.dynamics_eta': 0.0})
   rollout = planner.make_rollout(score_cfg, nets)
-  score = planner.make_objective_score(score_cfg, nets)
+  score = objective.make_score(score_cfg, nets)
   j = lambda acts: float(score(params, rollout(params, z, acts, jax.random.key(5))[1],
                                acts).mean())
   assert j(guided) > j(plain)

@@ -93,7 +93,7 @@ def test_expectile_value_ranks_what_the_behaviour_value_misranks(smoke_config):
 def _objective_terminal_part(config, params, latents, actions):
   """J minus its discounted rewards: gamma^H times the terminal value the planner uses."""
   nets = models.build_networks(config)
-  score = planner.make_objective_score(config, nets)
+  score = objective.make_score(config, nets)
   r_logits, _ = nets.objective.apply({'params': params['objective']}, latents, actions)
   rewards = two_hot_decode(r_logits, config.model.vmin, config.model.vmax)
   return score(params, latents, actions) - discounted_return(rewards, 0.0, config.gamma)
