@@ -14,7 +14,7 @@ from ld_mpc_jax.train_state import TrainState, create_train_state
 CONFIG_FILE = 'config.json'
 # Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
 _EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
-                      baselines=('actor', 'proposal'))
+                      baselines=('actor', 'proposal'), data_parallel=False)
 # Planner settings of experiments/configs/base.py for configs saved before they existed; the
 # values mean what those runs did (no pessimism before `plan.pessimism` existed, no search).
 _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
@@ -63,22 +63,13 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
   """A saved config brought up to the current fields, once, on load: fields added since it was
   saved get the values that mean what its run did; JSON lists become tuples again."""
   legacy.fill_model_fields(config)
-  for section, defaults in (('eval', _EVAL_DEFAULTS), ('plan', _PLAN_DEFAULTS)):
-    for name, default in defaults.items():  # Runs saved before these fields existed.
-      if name not in config[section]:
-        config[section][name] = default
+  for section, defaults in (('eval', _EVAL_DEFAULTS), ('plan', _PLAN_DEFAULTS),
+                            ('data', _data_defaults()), ('train', _TRAIN_DEFAULTS)):
+    legacy.fill(config, section, defaults)  # Runs saved before these fields existed.
   if 'online' in config:  # Online runs saved before acting had its own settings.
-    for name, default in (('act_pessimism', config.plan.pessimism), ('exec_noise_start', 0.0),
-                          ('exec_noise_end', 0.0), ('exec_noise_corr', 0.0),
-                          ('updates_per_call', 1), ('reward', 'dense')):
-      if name not in config.online:
-        config.online[name] = default
-  for section, defaults in (('data', _data_defaults()), ('train', _TRAIN_DEFAULTS)):
-    for name, default in defaults.items():
-      if name not in config[section]:
-        config[section][name] = default
-  if 'data_parallel' not in config.eval:
-    config.eval.data_parallel = False
+    legacy.fill(config, 'online', dict(
+        act_pessimism=config.plan.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
+        exec_noise_corr=0.0, updates_per_call=1, reward='dense'))
   config.model.actor_hidden = tuple(config.model.actor_hidden)
   for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
     config.eval[name] = tuple(config.eval[name])

@@ -16,11 +16,18 @@ LEGACY_OBJECTIVE = dict(value='behaviour', actor='bc', latent_rollout=False, num
 # section -> {field: value for runs saved before it existed}.
 MODEL_FIELDS = {
     'model': dict(proposal_type='diffusion_seq', dynamics_type='diffusion_ar',
-                  normalize_obs=False, normalize_dynamics=False),
+                  normalize_obs=False, normalize_dynamics=False, task_dim=96),
     'objective': dict(td_target='one_step', entropy_coef=1e-4),
     'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0),
 }
-TASK_DIM = 96  # model.task_dim of multi-task runs saved before it was a field (TD-MPC2's).
+TASK_DIM = MODEL_FIELDS['model']['task_dim']  # Before it was a field (TD-MPC2's width).
+
+
+def fill(config: ml_collections.ConfigDict, section: str, fields: dict) -> None:
+  """Adds to config[section] the `fields` it lacks (in place)."""
+  for name, value in fields.items():
+    if name not in config[section]:
+      config[section][name] = value
 
 
 def fill_model_fields(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -28,9 +35,5 @@ def fill_model_fields(config: ml_collections.ConfigDict) -> ml_collections.Confi
   if 'objective' not in config:
     config.objective = ml_collections.ConfigDict(LEGACY_OBJECTIVE)
   for section, fields in MODEL_FIELDS.items():
-    for name, value in fields.items():
-      if name not in config[section]:
-        config[section][name] = value
-  if 'task_dim' not in config.model:  # base.py has it for every config since multi-task.
-    config.model.task_dim = TASK_DIM
+    fill(config, section, fields)
   return config

@@ -149,7 +149,7 @@ class OnlineJob:
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,
                                max_episode_steps=o.episode_steps) for _ in range(o.num_envs)]
-    self.metrics, self.last = {}, None
+    self.metrics, self.last, self.noise_std = {}, None, 0.0
     self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
                          unit='env step', dynamic_ncols=True)
 
@@ -201,15 +201,9 @@ class OnlineJob:
                               seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
     policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
                   for i, s in enumerate(seeds)])
-    std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
-    # Correlated noise is added here (exploration_noise); white noise inside the jitted plan.
-    policy.action_noise = 0.0 if o.exec_noise_corr > 0 else std
+    # Correlated noise is added by `wave` (ar1_noise); white noise inside the jitted plan.
+    policy.action_noise = 0.0 if o.exec_noise_corr > 0 else self.noise_std
     return policy
-
-  def exploration_noise(self, noise: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """The next correlated noise [N, A] on the executed actions (exploration.ar1_noise)."""
-    std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
-    return ar1_noise(noise, std, self.config.online.exec_noise_corr, rng)
 
   def _count_winners(self, policy, active) -> None:
     """Which kind of candidate won each acting decision; the last entry counts departures."""
@@ -229,6 +223,7 @@ class OnlineJob:
     first, act_dim = self.counters['episodes'], self.config.action_dim
     seeds = envs.episode_seeds(self.config.seed, first + n, 'online')[first:]
     planner = self.learning()
+    self.noise_std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
     policy, rng = None, np.random.default_rng([self.config.seed, first, 17])
     if planner:
       self.catch_up()
@@ -245,7 +240,7 @@ class OnlineJob:
       if planner:
         self._count_winners(policy, active)
         if o.exec_noise_corr > 0:
-          noise = self.exploration_noise(noise, noise_rng)
+          noise = ar1_noise(noise, self.noise_std, o.exec_noise_corr, noise_rng)
           actions = np.clip(actions + noise, -1.0, 1.0).astype(np.float32)
       for i in np.flatnonzero(active):
         obs[i], reward, terminated, truncated, info = self.envs[i].step(actions[i])

@@ -96,14 +96,13 @@ def test_executed_noise_anneals_linearly():
 def test_correlated_noise_has_the_annealed_std_and_its_correlation():
   """AR(1) executed-action noise (`online.exec_noise_corr`): stationary std = executed_noise,
   lag-one autocorrelation = the configured correlation."""
-  import types
   import numpy as np
   c = door_open_online.get_config('cpu_correlated')
   c.online.exec_noise_start = c.online.exec_noise_end = 0.3
-  job = types.SimpleNamespace(config=c, counters={'env_steps': 5_000}, learn_start=1_600)
+  std = online.executed_noise(c, 5_000, 1_600)
   rng, noise, draws = np.random.default_rng(0), np.zeros((4, 4)), []
   for _ in range(5_000):
-    noise = online.OnlineJob.exploration_noise(job, noise, rng)
+    noise = online.ar1_noise(noise, std, c.online.exec_noise_corr, rng)
     draws.append(noise)
   x = np.stack(draws[100:])  # [T, 4, 4], past the start-up from zero.
   assert np.std(x) == pytest.approx(0.3, rel=0.05)
