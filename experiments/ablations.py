@@ -48,7 +48,7 @@ VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant 
                     {'model.dynamics_type': 'mlp'}, None),
     'diffseq_traj': ('4 diffusion proposal + trajectory latent diffusion',
                      {'model.dynamics_type': 'diffusion_traj',
-                      'objective.latent_rollout': False}, None),
+                      'critic.latent_rollout': False}, None),
     'ldmpc': ('5 LD-MPC (autoregressive latent diffusion)', {}, None),
     'ldmpc_guided': ('6 LD-MPC + energy guidance', {'plan.guidance_scale': 0.2}, 'ldmpc'),
 }

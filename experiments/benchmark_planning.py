@@ -100,10 +100,10 @@ def time_calls(fn, params, z, keys, carry_fn=None, carry=None, warmup: int = 2):
 def variant_config(base: ml_collections.ConfigDict, sizes: ml_collections.ConfigDict,
                    overrides: dict):
   """base with the network sizes of `sizes` (a preset's config: its `model` and its value and Q
-  heads' `objective.hidden`) and overrides applied -> (config, resolved overrides)."""
+  heads' `critic.hidden`) and overrides applied -> (config, resolved overrides)."""
   c = ml_collections.ConfigDict(base.to_dict())
   c.model = ml_collections.ConfigDict(sizes.model.to_dict())
-  c.objective.hidden = sizes.objective.hidden
+  c.critic.hidden = sizes.critic.hidden
   resolved = {dotted: value(c) if callable(value) else value
               for dotted, value in overrides.items()}
   return with_overrides(c, resolved), resolved

@@ -57,11 +57,12 @@ def parse_flags(argv):
 
 def _unknown_field(argv, err) -> str:
   """One line for a `--config.a.b=v` override that names a field the config does not have."""
+  from ld_mpc_jax.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
   name = str(err).strip('"\'')
   for arg in argv:
     flag = arg.split('=', 1)[0]
     parts = flag[2:].split('.')
     if flag.startswith('--') and name in parts[1:]:
       missing = '.'.join(parts[:parts.index(name, 1) + 1])
-      return f'{flag}: the config has no field {missing!r}'
+      return f'{flag}: the config has no field {missing!r}{renamed_hint(missing)}'
   return f'a config override names a field the config does not have ({name!r})'

@@ -34,6 +34,12 @@ def parse_value(config: ml_collections.ConfigDict, dotted: str, text: str) -> An
                      f'{err}') from None
 
 
+def _unknown(dotted: str) -> ValueError:
+  """The error for an override of no such field (naming a renamed section's new name)."""
+  from ld_mpc_jax.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
+  return ValueError(f'unknown config field {dotted!r}{renamed_hint(dotted)}')
+
+
 def with_overrides(config: ml_collections.ConfigDict,
                    overrides: Dict[str, Any]) -> ml_collections.ConfigDict:
   """A copy of config with dotted fields set, e.g. {'model.dynamics_type': 'mlp'}.
@@ -47,10 +53,10 @@ def with_overrides(config: ml_collections.ConfigDict,
     node = c
     for part in path:
       if part not in node or not isinstance(node[part], ml_collections.ConfigDict):
-        raise ValueError(f'unknown config field {dotted!r}')
+        raise _unknown(dotted)
       node = node[part]
     if leaf not in node:
-      raise ValueError(f'unknown config field {dotted!r}')
+      raise _unknown(dotted)
     if isinstance(value, str) and not isinstance(node[leaf], str):
       value = parse_value(c, dotted, value)
     node[leaf] = value

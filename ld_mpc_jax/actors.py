@@ -1,4 +1,4 @@
-"""The actor prior and how it is trained, one registry entry per kind (`config.objective.actor`).
+"""The actor prior and how it is trained, one registry entry per kind (`config.critic.actor`).
 
   'awr'   advantage-weighted regression onto the data's actions (IQL eq. 7), on detached latents;
   'bc'    behaviour cloning of the data's actions (the encoder learns from it);
@@ -20,7 +20,7 @@ import ml_collections
 from ld_mpc_jax.networks import MLP
 from ld_mpc_jax.registry import Registry
 
-ACTORS = Registry('actor', 'config.objective.actor')
+ACTORS = Registry('actor', 'config.critic.actor')
 
 
 class Actor(nn.Module):
@@ -103,7 +103,7 @@ class MaxQ:
 
   def loss(self, config, nets, params, z, action, weights, key):
     return maxq_actor_loss(nets, params, jax.lax.stop_gradient(z[:, :-1]), key,
-                           config.objective.entropy_coef)
+                           config.critic.entropy_coef)
 
 
 ACTORS.register('awr', AWR())
@@ -112,5 +112,5 @@ ACTORS.register('maxq', MaxQ())
 
 
 def get(config: ml_collections.ConfigDict):
-  """The entry of config.objective.actor (ValueError naming the kinds if unknown)."""
-  return ACTORS.get(config.objective.actor)
+  """The entry of config.critic.actor (ValueError naming the kinds if unknown)."""
+  return ACTORS.get(config.critic.actor)

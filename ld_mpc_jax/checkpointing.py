@@ -61,7 +61,9 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
 
 def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
   """A saved config brought up to the current fields, once, on load: fields added since it was
-  saved get the values that mean what its run did; JSON lists become tuples again."""
+  saved get the values that mean what its run did; renamed sections get their new name
+  (`objective` -> `critic`); JSON lists become tuples again."""
+  legacy.rename_sections(config)  # Before the fills, which use the new names.
   legacy.fill_model_fields(config)
   for section, defaults in (('eval', _EVAL_DEFAULTS), ('plan', _PLAN_DEFAULTS),
                             ('data', _data_defaults()), ('train', _TRAIN_DEFAULTS)):

@@ -2,7 +2,7 @@
 
 import ml_collections
 
-from ld_mpc_jax import tasks
+from ld_mpc_jax import legacy, tasks
 
 _POSITIVE_INTS = (
     'obs_dim', 'action_dim', 'horizon',
@@ -24,6 +24,10 @@ def _get(config, dotted: str):
 
 def validate_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work."""
+  for old_name in legacy.RENAMED_SECTIONS:  # Only a saved config is migrated (on load).
+    if old_name in config:
+      raise ValueError(f'the config has a section {old_name!r}'
+                       f'{legacy.renamed_hint(old_name)}; rename it')
   for name in _POSITIVE_INTS:
     v = _get(config, name)
     if not isinstance(v, int) or isinstance(v, bool) or v < 1:
@@ -47,7 +51,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   _validate_plan(config)
   _validate_eval_and_data(config)
   _validate_variant(config)
-  _validate_objective(config)
+  _validate_critic(config)
   _validate_online(config)
   _validate_tasks(config)
   t = config.train
@@ -127,11 +131,11 @@ def _validate_variant(config: ml_collections.ConfigDict) -> None:
                      f'got {p.guidance_dynamics_steps}')
 
 
-def _validate_objective(config: ml_collections.ConfigDict) -> None:
-  """config.objective (its kinds' registries) and the planner's robust-selection settings."""
+def _validate_critic(config: ml_collections.ConfigDict) -> None:
+  """config.critic (its kinds' registries) and the planner's robust-selection settings."""
   from ld_mpc_jax import actors, dynamics, objective  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.critics import TD_TARGETS  # pylint: disable=g-import-not-at-top
-  p, o = config.plan, config.objective
+  p, o = config.plan, config.critic
   # plan.pessimism < 0 is optimism (mean + |pessimism| std): online.act_pessimism while acting.
   if not isinstance(p.dynamics_draws, int) or p.dynamics_draws < 1:
     raise ValueError(f'config.plan.dynamics_draws must be an integer >= 1, '
@@ -139,21 +143,21 @@ def _validate_objective(config: ml_collections.ConfigDict) -> None:
   objective.get(config)
   actor = actors.get(config)
   if o.td_target not in TD_TARGETS:
-    raise ValueError(f'config.objective.td_target must be one of {TD_TARGETS}, '
+    raise ValueError(f'config.critic.td_target must be one of {TD_TARGETS}, '
                      f'got {o.td_target!r}')
   if actor.value and o.value != actor.value:
-    raise ValueError(f'config.objective.actor {o.actor!r} needs the Q ensemble: '
-                     f'config.objective.value={actor.value!r}')
+    raise ValueError(f'config.critic.actor {o.actor!r} needs the Q ensemble: '
+                     f'config.critic.value={actor.value!r}')
   if not 0.0 < o.expectile < 1.0:
-    raise ValueError(f'config.objective.expectile must be in (0, 1), got {o.expectile}')
+    raise ValueError(f'config.critic.expectile must be in (0, 1), got {o.expectile}')
   for name in ('num_values', 'num_q', 'rollout_steps'):
     if not isinstance(o[name], int) or o[name] < 1:
-      raise ValueError(f'config.objective.{name} must be an integer >= 1, got {o[name]!r}')
+      raise ValueError(f'config.critic.{name} must be an integer >= 1, got {o[name]!r}')
   if o.value_scale <= 0 or o.awr_max_weight <= 0 or o.awr_temperature < 0:
-    raise ValueError('config.objective.value_scale and awr_max_weight must be > 0 and '
+    raise ValueError('config.critic.value_scale and awr_max_weight must be > 0 and '
                      'awr_temperature >= 0')
   if o.latent_rollout and not dynamics.get(config).one_step:
-    raise ValueError('config.objective.latent_rollout needs one-step dynamics; set it False '
+    raise ValueError('config.critic.latent_rollout needs one-step dynamics; set it False '
                      f'with dynamics_type {config.model.dynamics_type}')
 
 

@@ -1,12 +1,12 @@
 """Values of the best policy in the data's support, on latents: IQL-style expectile regression.
 
-The sequence objective's own value head (`config.objective.value = 'behaviour'`) regresses
+The sequence objective's own value head (`config.critic.value = 'behaviour'`) regresses
 n-step returns of the data, so it values the behaviour policy, and it reads V(z_H) through a
 causal transformer that also sees the action prefix. With `value = 'expectile'` (the default)
 the terminal value comes from an ensemble of MLPs of z_H alone, trained as in IQL (Kostrikov et
 al. 2022, "Offline RL with Implicit Q-Learning"):
   L_Q = E (r_t + gamma V_ema(z'_{t+1}) - Q(z_t, a_t))^2                    (TD, EMA target)
-(`objective.td_target = 'one_step'`; the default 'window' regresses Q onto the discounted rewards
+(`critic.td_target = 'one_step'`; the default 'window' regresses Q onto the discounted rewards
 to the end of the training window plus V_ema there: n-step propagation, with the data's actions
 after the first, which short trainings need),
   L_V = E L_tau(min_j Q_ema(z'_t, a_t) - V(z_t)),  L_tau(u) = |tau - 1(u < 0)| u^2
@@ -16,7 +16,7 @@ them. The actor prior is then extracted by advantage-weighted regression (AWR, P
 IQL eq. 7): weights min(exp(beta (Q_ema - V)), w_max) on the behaviour-cloning error.
 How the terminal value enters J: ld_mpc_jax.objective; the actor kinds: ld_mpc_jax.actors.
 
-Values are predicted in units of `config.objective.value_scale` (Meta-World rewards are up to
+Values are predicted in units of `config.critic.value_scale` (Meta-World rewards are up to
 10 per step, so returns reach hundreds); expectile regression is equivariant to that scale.
 """
 
@@ -30,7 +30,7 @@ import ml_collections
 from ld_mpc_jax.networks import MLP
 from ld_mpc_jax.ops import window_returns
 
-# Q's target (`config.objective.td_target`): 'one_step' r_t + gamma V_ema(z'_{t+1}) (IQL);
+# Q's target (`config.critic.td_target`): 'one_step' r_t + gamma V_ema(z'_{t+1}) (IQL);
 # 'window' the discounted rewards to the window's end plus V_ema there; 'policy': Q <- r_t +
 # gamma min_j Q_ema(z'_{t+1}, pi(z'_{t+1})) and V(z) <- min_j Q_ema(z, pi(z)) (TD-MPC2): values
 # of the current policy, which extrapolate beyond the data's actions.
@@ -72,8 +72,8 @@ class Critics(nn.Module):
 
 
 def build_critics(config: ml_collections.ConfigDict) -> Critics:
-  """The V and Q ensembles of `config.objective` (whether a model has them: models.uses_critics)."""
-  o = config.objective
+  """The V and Q ensembles of `config.critic` (whether a model has them: models.uses_critics)."""
+  o = config.critic
   return Critics(tuple(o.hidden), o.num_values, o.num_q)
 
 
@@ -93,7 +93,7 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
   """Returns critic_loss(params, target_params, z, z_ema, z_model, action, reward).
 
   policy(params, z [..., D]) -> a [..., A]: the actor prior's action, needed by
-  `objective.td_target = 'policy'` (TD-MPC2's targets: Q onto r + gamma min Q_ema(z', pi(z')),
+  `critic.td_target = 'policy'` (TD-MPC2's targets: Q onto r + gamma min Q_ema(z', pi(z')),
   V onto min Q_ema(z, pi(z)) by squared error instead of the expectile).
 
   z, z_ema [B, H+2, D]: online and EMA encoder latents of the window; z_model [B, H+1, D] or
@@ -101,7 +101,7 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
   V is trained as well, since that is where the planner reads it. action [B, H+1, A], reward
   [B, H+1]. -> (losses {'q', 'v'}, awr_weights [B, H+1], metrics).
   """
-  o, gamma, h = config.objective, config.gamma, config.horizon
+  o, gamma, h = config.critic, config.gamma, config.horizon
   apply = lambda p, *args, method: critics.apply({'params': p['critics']}, *args, method=method)
 
   def critic_loss(params, target_params, z, z_ema, z_model, action, reward):

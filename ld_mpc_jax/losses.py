@@ -14,7 +14,7 @@ like every other position.
   L_val    the value kind's loss on the objective's value head ('behaviour', ld_mpc_jax.objective;
            0 for 'expectile', whose values are the critics');
   L_actor  the actor kind's loss (ld_mpc_jax.actors);
-  L_cons   latent consistency of the model's rollout (`objective.latent_rollout`, TD-MPC2);
+  L_cons   latent consistency of the model's rollout (`critic.latent_rollout`, TD-MPC2);
   L_q, L_v the critics' TD and expectile losses (ld_mpc_jax.critics), when the model has them.
 Metrics: 'loss' and 'loss_<term>' for each term the config uses, plus the critics' and the
 value kind's own metrics.
@@ -59,9 +59,9 @@ def weighted_sum(terms: Dict[str, jnp.ndarray], weights: ml_collections.ConfigDi
 
 def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   """rollout(params, z0 [B, D], actions [B, H, A], key) -> latents [B, H+1, D] of the dynamics
-  model, `objective.rollout_steps` deterministic DDIM steps per transition."""
+  model, `critic.rollout_steps` deterministic DDIM steps per transition."""
   transition = dynamics.make_transition(config, nets.dynamics,
-                                        steps=config.objective.rollout_steps, eta=0.0)
+                                        steps=config.critic.rollout_steps, eta=0.0)
 
   def rollout(params, z0, actions, key):
     def step(z_cur, inputs):
@@ -113,7 +113,7 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   policy = lambda params, z: nets.actor.apply({'params': params['actor']}, z)
   critic_loss = (make_critic_loss(config, nets.critics, policy)
                  if nets.critics is not None else None)
-  model_rollout = (make_model_rollout(config, nets) if config.objective.latent_rollout
+  model_rollout = (make_model_rollout(config, nets) if config.critic.latent_rollout
                    else None)
   objective_terms = make_objective_terms(config, nets)
 

@@ -4,9 +4,9 @@
   J   = mean_m J_m - pessimism x std_m J_m        (`combine`, `plan.pessimism`; < 0 is optimism).
 
 Rewards r_i come from the sequence objective network (two-hot, decoded); the terminal value
-V_m(z_H) from the value kind (`config.objective.value`, one registry entry per kind):
+V_m(z_H) from the value kind (`config.critic.value`, one registry entry per kind):
   'expectile'  member m of the expectile V ensemble of z_H alone (ld_mpc_jax.critics), in
-               reward units; M = `objective.num_values`;
+               reward units; M = `critic.num_values`;
   'behaviour'  the sequence objective's own value head read at z_H (n-step returns of the data,
                the behaviour policy's value); M = 1. Its loss term is `Behaviour.loss`.
 The planner, MPPI on the learned model and the diagnostics all score with `make_score` or
@@ -27,7 +27,7 @@ from ld_mpc_jax.registry import Registry
 # score_fn(params, latents [K, H+1, D], actions [K, H, A]) -> J [K], or J per member [M, K].
 ScoreFn = Callable[[dict, jnp.ndarray, jnp.ndarray], jnp.ndarray]
 
-VALUES = Registry('value', 'config.objective.value')
+VALUES = Registry('value', 'config.critic.value')
 
 
 def combine(members: jnp.ndarray, pessimism: float) -> jnp.ndarray:
@@ -38,7 +38,7 @@ def combine(members: jnp.ndarray, pessimism: float) -> jnp.ndarray:
 def make_terminal_members(config: ml_collections.ConfigDict, critics: Critics) -> Callable:
   """members(params, z [..., D]) -> [num_values, ...]: each expectile member's V(z), in reward
   units."""
-  scale = config.objective.value_scale
+  scale = config.critic.value_scale
   return lambda params, z: scale * critics.apply({'params': params['critics']}, z,
                                                  method=Critics.value)
 
@@ -96,8 +96,8 @@ VALUES.register('behaviour', Behaviour())
 
 
 def get(config: ml_collections.ConfigDict):
-  """The entry of config.objective.value (ValueError naming the kinds if unknown)."""
-  return VALUES.get(config.objective.value)
+  """The entry of config.critic.value (ValueError naming the kinds if unknown)."""
+  return VALUES.get(config.critic.value)
 
 
 def make_member_scores(config: ml_collections.ConfigDict, nets) -> ScoreFn:

@@ -68,7 +68,7 @@ def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collection
               json.dumps(source.model[k] if k in source.model else None)
               != json.dumps(config.model[k])]
     raise ValueError(f'config.online.init_from={path!r} has other networks than this config '
-                     f'(differs in {", ".join(fields) or "objective/horizon"})')
+                     f'(differs in {", ".join(fields) or "critic/horizon"})')
   return source
 
 

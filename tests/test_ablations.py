@@ -68,7 +68,7 @@ def test_single_step_proposal_draws_a_fresh_action_at_every_latent(smoke_config)
 
 def test_trajectory_dynamics_rejects_actor_prior_candidates(smoke_config):
   config = ablations.with_overrides(smoke_config, {'model.dynamics_type': 'diffusion_traj',
-                                                   'objective.latent_rollout': False,
+                                                   'critic.latent_rollout': False,
                                                    'plan.num_prior_candidates': 1})
   with pytest.raises(ValueError, match='num_prior_candidates'):
     planner.make_plan(config)

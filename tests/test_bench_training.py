@@ -78,7 +78,7 @@ def test_benchmark_training_writes_json(tmp_path):
   out = str(tmp_path / 'bench.json')
   cmd = [sys.executable, '-m', 'experiments.benchmark_training', '--configs=door_open.py:smoke',
          '--repeats=2', '--warmup=1', f'--out={out}', '--peak_size=256', '--peak_repeats=2',
-         '--set=objective.latent_rollout=False']  # Less to compile; value targets still scan.
+         '--set=critic.latent_rollout=False']  # Less to compile; value targets still scan.
   done = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)
   assert done.returncode == 0, done.stderr[-3000:]
   with open(out) as f:

@@ -6,7 +6,9 @@ import json
 import pytest
 
 from experiments.configs import door_open
+from experiments.overrides import with_overrides
 from ld_mpc_jax import checkpointing, envs
+from ld_mpc_jax.config_checks import validate_config
 
 # Fields whose fallbacks moved into migrate_config, with what a run saved before them did.
 OLD_RUN_VALUES = {
@@ -36,3 +38,27 @@ def test_saved_config_round_trips(tmp_path):
 def test_old_runs_scripted_source_is_the_suites():
   assert OLD_RUN_VALUES['data', 'source'] == envs.SUITE.name
   assert OLD_RUN_VALUES['data', 'max_episode_steps'] == envs.MAX_EPISODE_STEPS
+
+
+def test_old_objective_section_is_migrated_to_critic(tmp_path):
+  """Runs saved before the rename kept the critic settings under `objective`: on load they move,
+  values kept, to `critic`, and no `objective` section is left."""
+  raw = json.loads(door_open.get_config('smoke').to_json_best_effort())
+  raw['objective'] = dict(raw.pop('critic'), td_target='policy', num_values=4, hidden=[8])
+  (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
+  config = checkpointing.load_config(str(tmp_path))
+  assert 'objective' not in config
+  assert config.critic.to_dict() == raw['objective']
+  validate_config(config)
+
+
+def test_a_config_with_an_objective_section_is_refused_naming_critic():
+  """Only a saved config is migrated (on load); one built with the old name is an error."""
+  config = door_open.get_config('smoke')
+  config.unlock()
+  config.objective = config.critic
+  del config['critic']
+  with pytest.raises(ValueError, match='config.objective is now config.critic'):
+    validate_config(config)
+  with pytest.raises(ValueError, match="'objective.hidden'.*now config.critic"):
+    with_overrides(door_open.get_config('smoke'), {'objective.hidden': (8,)})

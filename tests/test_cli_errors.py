@@ -38,6 +38,8 @@ def _train(tmp_path, *args):
     (['--config=door_open.py:smoke', '--config.plan.nosuch=1'],
      ['--config.plan.nosuch', "'config.plan.nosuch'", 'no field']),
     (['--config=door_open.py:smoke', '--config.nosect.x=1'], ["'config.nosect'", 'no field']),
+    (['--config=door_open.py:smoke', '--config.objective.hidden=8'],  # The section's old name.
+     ['--config.objective.hidden', "'config.objective'", 'now config.critic']),
 ])
 def test_bad_preset_or_batch_is_one_line_and_exit_code_2(tmp_path, args, words):
   code, lines = _train(tmp_path, *args)

@@ -39,11 +39,11 @@ def _toy_values(smoke_config, expectile: float, steps: int = 600):
   Q(s0, left), Q(s0, right)).
   """
   config = with_overrides(smoke_config, {'horizon': 1, 'gamma': 0.9,
-                                         'objective.td_target': 'one_step',
-                                         'objective.expectile': expectile,
-                                         'objective.value_scale': 10.0,
-                                         'objective.num_values': 2,
-                                         'objective.hidden': (32,)})
+                                         'critic.td_target': 'one_step',
+                                         'critic.expectile': expectile,
+                                         'critic.value_scale': 10.0,
+                                         'critic.num_values': 2,
+                                         'critic.hidden': (32,)})
   eye = jnp.eye(4)
   s0, good, bad, term = eye
   left, right = jnp.array([1.0, 0, 0, 0]), jnp.array([-1.0, 0, 0, 0])
@@ -101,7 +101,7 @@ def _objective_terminal_part(config, params, latents, actions):
 
 @pytest.mark.parametrize('value', ['expectile', 'behaviour'])
 def test_terminal_value_cannot_see_the_action_prefix(smoke_config, value):
-  config = with_overrides(smoke_config, {'objective.value': value})
+  config = with_overrides(smoke_config, {'critic.value': value})
   params = models.init_params(config, jax.random.key(0))
   k, h, d, a = 3, config.horizon, config.model.latent_dim, config.action_dim
   latents = jax.random.normal(jax.random.key(1), (k, h + 1, d))
@@ -164,9 +164,9 @@ def test_observation_normalisation_is_stored_in_the_parameters(smoke_config):
 
 
 def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
-  """A run saved before config.objective existed: no critics, no normalisation, same planner."""
+  """A run saved before the critic settings existed: no critics, no normalisation, same planner."""
   old = smoke_config.to_dict()
-  del old['objective']
+  del old['critic']
   for name in ('normalize_obs', 'normalize_dynamics'):
     del old['model'][name]
   for name in ('pessimism', 'dynamics_draws'):
@@ -177,7 +177,7 @@ def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
   out = planner.make_plan(old)(params, models.encode(params, np.ones(39)), jax.random.key(1))
   assert out.scores.shape == (old.plan.num_candidates,)
   explicit = with_overrides(old, {})
-  explicit.objective = ml_collections.ConfigDict(legacy.LEGACY_OBJECTIVE)
+  explicit.critic = ml_collections.ConfigDict(legacy.LEGACY_CRITIC)
   assert not models.uses_critics(explicit)
 
 
@@ -212,11 +212,11 @@ def test_window_returns_hand_computed():
 
 
 def test_policy_td_targets_against_hand_computed_values(smoke_config):
-  """objective.td_target 'policy' (TD-MPC2): Q <- r + gamma min_j Q_ema(z', pi(z')), V <- min_j
+  """critic.td_target 'policy' (TD-MPC2): Q <- r + gamma min_j Q_ema(z', pi(z')), V <- min_j
   Q_ema(z, pi(z)); linear heads, so the targets are computed here by hand."""
   c = smoke_config
   c.horizon, c.gamma = 1, 0.9
-  o = c.objective
+  o = c.critic
   o.hidden, o.num_values, o.num_q, o.value_scale, o.td_target = (), 2, 2, 1.0, 'policy'
   d, a_dim = 3, 2
   net = critics.Critics((), 2, 2)

@@ -15,7 +15,7 @@ def test_maxq_actor_climbs_a_toy_q(smoke_config):
   from ld_mpc_jax import models
   from ld_mpc_jax.actors import maxq_actor_loss
   c = smoke_config
-  c.objective.actor, c.objective.hidden = 'maxq', ()
+  c.critic.actor, c.critic.hidden = 'maxq', ()
   nets = models.build_networks(c)
   params = models.init_params(c, jax.random.key(0))
   d = c.model.latent_dim
@@ -58,7 +58,7 @@ def _cfg():
   import ml_collections
   return ml_collections.ConfigDict(dict(
       horizon=2, action_dim=2, gamma=0.5, diffusion=dict(prediction='x0'),
-      model=dict(num_bins=5, vmin=-2.0, vmax=2.0), objective=dict(entropy_coef=0.1),
+      model=dict(num_bins=5, vmin=-2.0, vmax=2.0), critic=dict(entropy_coef=0.1),
       loss=dict(w_dyn=1.0, w_act=2.0, w_rew=3.0, w_val=4.0, w_actor=5.0, w_consistency=6.0,
                 w_q=7.0, w_v=8.0)))
 
@@ -187,9 +187,9 @@ def test_loss_metrics_and_total(smoke_config):
       'behaviour': {'loss', 'loss_dyn', 'loss_act', 'loss_rew', 'loss_val', 'loss_actor',
                     'value_target_mean'},
   }
-  overrides = {'smoke': {}, 'behaviour': {'objective.value': 'behaviour',
-                                          'objective.actor': 'bc',
-                                          'objective.latent_rollout': False}}
+  overrides = {'smoke': {}, 'behaviour': {'critic.value': 'behaviour',
+                                          'critic.actor': 'bc',
+                                          'critic.latent_rollout': False}}
   rng = np.random.default_rng(0)
   h = smoke_config.horizon
   batch = {'obs': jnp.asarray(rng.normal(size=(2, h + 2, 39)), jnp.float32),

@@ -27,7 +27,7 @@ from ld_mpc_jax import sharding
 from ld_mpc_jax.train_state import create_train_state, make_update
 
 c = door_open.get_config('smoke')
-c.objective.latent_rollout = False  # A third less to compile; the sharding does not depend on it.
+c.critic.latent_rollout = False  # A third less to compile; the sharding does not depend on it.
 h, b = c.horizon, c.train.batch_size
 rng = np.random.default_rng(0)
 batch = dict(obs=rng.normal(size=(b, h + 2, 39)).astype(np.float32),

@@ -102,8 +102,8 @@ def get_config() -> ml_collections.ConfigDict:
   mp.min_std = 0.05
   mp.max_std = 2.0
 
-  # What the objective values and how the actor prior is extracted (ld_mpc_jax.critics).
-  c.objective = o = ml_collections.ConfigDict()
+  # Critics: J's terminal value and how the actor prior is extracted (ld_mpc_jax.critics).
+  c.critic = o = ml_collections.ConfigDict()
   # IQL (Kostrikov et al. 2022): V(z) an upper expectile of Q(z, a) over the data's actions, Q by
   # one-step TD against the EMA target: the value of the best in-support policy, not of the
   # behaviour policy. 'behaviour': n-step returns read from the sequence objective (ablation).
@@ -139,10 +139,10 @@ def get_config() -> ml_collections.ConfigDict:
   l.w_rew = 0.5
   l.w_val = 0.5
   l.w_actor = 1.0  # Behaviour-cloning (or advantage-weighted) loss of the actor prior.
-  l.w_q = 1.0  # Critics (objective.value 'expectile'): TD loss of Q and expectile loss of V,
+  l.w_q = 1.0  # Critics (critic.value 'expectile'): TD loss of Q and expectile loss of V,
   l.w_v = 1.0  # both MSE-scale in value_scale units.
-  l.w_consistency = 1.0  # Latent consistency of the dynamics rollout (objective.latent_rollout).
-  # Behaviour value target for V(z_i) (objective.value 'behaviour', ld_mpc_jax.losses):
+  l.w_consistency = 1.0  # Latent consistency of the dynamics rollout (critic.latent_rollout).
+  # Behaviour value target for V(z_i) (critic.value 'behaviour', ld_mpc_jax.losses):
   # discounted rewards to the end of the window plus gamma^(H-i) times the EMA target network's
   # V(z_H) (TD-MPC2, DQN).
 

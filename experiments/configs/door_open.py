@@ -28,7 +28,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset == 'cpu':
     resize(c, width=128, heads=4, blocks=2)
     c.model.actor_hidden = (128, 128)
-    c.objective.hidden = (128, 128)
+    c.critic.hidden = (128, 128)
     c.model.dropout = 0.0  # Short training on plentiful data: dropout only slows fitting.
     # The fast planner: 4 deterministic DDIM steps for the proposal, 1 per transition, 16 of the
     # 64 candidates from the actor prior, and after the first step of an episode the proposal
@@ -52,7 +52,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     # evaluations) fits in about two hours on a 2-core CPU.
     resize(c, width=64, heads=4, blocks=1)
     c.model.actor_hidden = (64, 64)
-    c.objective.hidden = (64, 64)
+    c.critic.hidden = (64, 64)
     c.model.dropout = 0.0
     c.plan.num_candidates = 32
     c.plan.action_steps = 4
@@ -73,7 +73,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     # checkpoints, held-out evaluation of the planner and its baselines, report and plots. Too
     # short to learn the task: its success rates say nothing about the method.
     resize(c, width=32, heads=2, blocks=1)
-    c.model.actor_hidden = c.objective.hidden = (32, 32)
+    c.model.actor_hidden = c.critic.hidden = (32, 32)
     c.model.dropout = 0.0
     c.plan.num_candidates, c.plan.num_prior_candidates = 16, 4
     c.plan.action_steps = c.plan.dynamics_steps = 2
@@ -92,8 +92,8 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset == 'smoke':
     resize(c, width=16, heads=2, blocks=1)
     c.model.actor_hidden = (16,)
-    c.objective.hidden = (16,)
-    c.objective.num_values = 3
+    c.critic.hidden = (16,)
+    c.critic.num_values = 3
     c.model.num_bins = 11
     c.plan.num_candidates = 4
     c.plan.action_steps = 2

@@ -62,7 +62,7 @@ def _budget(c: ml_collections.ConfigDict) -> None:
   """The `:cpu` online preset: 100k environment steps at 0.5 updates per step in about an hour
   on a 2-core CPU (README), with a planner that searches and values that extrapolate."""
   door_open.resize(c, width=64, heads=4, blocks=1)  # 50k updates must fit (docs/online.md).
-  c.model.actor_hidden = c.objective.hidden = (64, 64)
+  c.model.actor_hidden = c.critic.hidden = (64, 64)
   c.model.dropout = 0.0
   c.train.warmup_steps = 100
   p = c.plan
@@ -73,8 +73,8 @@ def _budget(c: ml_collections.ConfigDict) -> None:
   p.num_gaussian = 32
   p.iterations, p.num_refine, p.num_elites = 3, 32, 8
   # TD-MPC2's targets and policy: values of the current policy, not of the buffer's actions.
-  c.objective.td_target = 'policy'
-  c.objective.actor = 'maxq'
+  c.critic.td_target = 'policy'
+  c.critic.actor = 'maxq'
   o = c.online
   # TD-MPC2's training episodes: 100 decisions at action repeat 2 (evaluation keeps
   # Meta-World's 500 steps), so 500 resets in 100k steps instead of 200.
