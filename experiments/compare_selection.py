@@ -27,7 +27,10 @@ _WORKDIRS = flags.DEFINE_list('workdirs', None, 'Training run directories (one p
 _VARIANTS = flags.DEFINE_multi_string('variant', ['argmax:'],
                                       'NAME:field=value,field=value planner settings.')
 _BASELINES = flags.DEFINE_list('baselines', ['actor', 'proposal'], 'Other policies.')
-_EPISODES = flags.DEFINE_integer('episodes', 50, 'Held-out episodes per seed (and task).')
+# allow_override: the test session imports this module beside experiments.ablations, which
+# defines --episodes too (a launcher process loads only one of them).
+_EPISODES = flags.DEFINE_integer('episodes', 50, 'Held-out episodes per seed (and task).',
+                                 allow_override=True)
 _SEED = flags.DEFINE_integer('seed', 0, 'Evaluation seed.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output; the table goes beside it (.md).')
 _OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out file.')
