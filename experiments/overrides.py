@@ -72,3 +72,17 @@ def parse_items(items: Iterable[str]) -> Dict[str, str]:
       raise ValueError(f'override {item!r} is not of the form field.name=value')
     out[name] = value
   return out
+
+
+def parse_variant(text: str):
+  """'safe1:plan.safe_selection=True,plan.safe_margin=1.0' -> ('safe1', {field: value})."""
+  name, sep, rest = text.partition(':')
+  if not sep or not name:
+    raise ValueError(f'--variant must be NAME:field=value,..., got {text!r}')
+  items = {}
+  for item in filter(None, rest.split(',')):
+    field, eq, value = item.partition('=')
+    if not eq:
+      raise ValueError(f'--variant {name!r}: {item!r} is not field=value')
+    items[field.strip()] = value.strip()
+  return name, items

@@ -203,3 +203,47 @@ def markdown(summary: Dict[str, Any]) -> str:
       lines.append(f"| {split} | {POLICY_NAMES.get(a, a)} vs {POLICY_NAMES.get(b, b)} | {t['n']} "
                    f"| {t['a_only']} | {t['b_only']} | {t['p_value']:.3g} |")
   return '\n'.join(lines) + '\n'
+
+
+def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]:
+  """Per policy: pooled and per-run success, departures, and the paired test against `anchor`."""
+  policies = list(dict.fromkeys(r['policy'] for r in records))
+  runs = list(dict.fromkeys(r['run'] for r in records))
+  base = stats.select(records, policy=anchor)
+  rows = []
+  for policy in policies:
+    mine = stats.select(records, policy=policy)
+    row = dict(policy=policy, **stats.summarize(mine),
+               per_run=[float(sum(r['success'] for r in stats.select(mine, run=run))
+                              / max(len(stats.select(mine, run=run)), 1)) for run in runs])
+    if all('departures' in r for r in mine):
+      row['departure_share'] = (sum(r['departures'] for r in mine)
+                                / max(sum(r['length'] for r in mine), 1))
+    if base and policy != anchor:
+      row['vs_anchor'] = stats.paired(mine, base)
+      per_run = [stats.paired(stats.select(mine, run=run), stats.select(base, run=run))
+                 for run in runs]
+      row['vs_anchor_per_run'] = per_run
+      row['most_behind'] = max(m['b_only'] - m['a_only'] for m in per_run)
+    rows.append(row)
+  return rows
+
+
+def anchor_markdown(rows: Sequence[dict], anchor: str = 'actor') -> str:
+  """The rows of `against_anchor` as a markdown table."""
+  lines = [f'| policy | held-out success, pooled | per training seed | decisions departing '
+           f'from the actor prior | vs {anchor}: only this / only {anchor}, p | per seed | '
+           f'most episodes behind {anchor} on one seed |', '| --- ' * 7 + '|']
+  for r in rows:
+    dep = f"{r['departure_share']:.2f}" if 'departure_share' in r else ''
+    seeds = ', '.join(f'{x:.2f}' for x in r['per_run'])
+    if 'vs_anchor' in r:
+      v = r['vs_anchor']
+      vs = f"{v['a_only']} / {v['b_only']}, {v['p_value']:.2g}"
+      per = ', '.join(f"{m['a_only']} / {m['b_only']}" for m in r['vs_anchor_per_run'])
+      behind = str(r['most_behind'])
+    else:
+      vs = per = behind = ''
+    lines.append(f"| {r['policy']} | {r['successes']}/{r['episodes']} = {r['success_rate']:.2f} "
+                 f"| {seeds} | {dep} | {vs} | {per} | {behind} |")
+  return '\n'.join(lines) + '\n'

@@ -1,4 +1,5 @@
-"""The ablation variants (ld_mpc_jax.models kinds, energy guidance, MPPI) and the sweep's helpers."""
+"""The ablation variants (energy guidance, MPPI, kinds that cannot plan together) and the sweep's
+helpers. Each variant training a step and planning: tests/e2e/test_ablation_variants.py."""
 
 import json
 
@@ -10,60 +11,6 @@ import pytest
 
 from experiments import ablations
 from ld_mpc_jax import agent, models, objective, planner
-from ld_mpc_jax.train_state import create_train_state, make_update
-
-
-def _batch(config):
-  """The preset's batch shape: the default variant's update is then the one other tests compile."""
-  b, h, rng = config.train.batch_size, config.horizon, np.random.default_rng(0)
-  return {'obs': jnp.asarray(rng.normal(size=(b, h + 2, config.obs_dim)), jnp.float32),
-          'action': jnp.asarray(rng.uniform(-1, 1, size=(b, h + 2 - 1, config.action_dim)),
-                                jnp.float32),
-          'reward': jnp.asarray(rng.uniform(0, 1, size=(b, h + 1)), jnp.float32)}
-
-
-@pytest.mark.long
-@pytest.mark.parametrize('name', list(ablations.VARIANTS))
-def test_variant_builds_trains_one_step_and_plans(smoke_config, name):
-  config = ablations.with_overrides(smoke_config, ablations.VARIANTS[name][1])
-  state = create_train_state(config, jax.random.key(0))
-  before = jax.tree_util.tree_map(np.array, state.params)  # Host copies: the update donates.
-  state, metrics = make_update(config)(state, _batch(config), jax.random.key(1))
-  assert np.isfinite(float(metrics['loss']))
-  after = jax.device_get(state.params)
-  for net in ('proposal', 'dynamics'):  # Both kinds of network receive gradients.
-    moved = jax.tree_util.tree_map(lambda a, b: float(np.abs(a - b).max()), before[net],
-                                   after[net])
-    assert max(jax.tree_util.tree_leaves(moved)) > 0, net
-  z = models.encode(state.params, jnp.linspace(-1, 1, config.obs_dim))
-  out = planner.make_plan(config)(state.params, z, jax.random.key(2))
-  k, h, a = config.plan.num_candidates, config.horizon, config.action_dim
-  chex.assert_shape(out.candidates, (k, h, a))
-  chex.assert_shape(out.action, (a,))
-  assert np.all(np.abs(np.asarray(out.candidates)) <= 1.0)
-  assert np.all(np.isfinite(np.asarray(out.scores)))
-  np.testing.assert_allclose(out.action, out.candidates[int(out.index), 0])
-
-
-def test_mlp_dynamics_stays_on_the_encoder_sphere(smoke_config):
-  config = ablations.with_overrides(smoke_config, {'model.dynamics_type': 'mlp'})
-  params = models.init_params(config, jax.random.key(0))
-  nets = models.build_networks(config)
-  d = config.model.latent_dim
-  z_next = nets.dynamics.apply({'params': params['dynamics']}, jnp.ones((3, d)),
-                               jnp.zeros((3, config.action_dim)))
-  np.testing.assert_allclose(jnp.sqrt(jnp.mean(z_next ** 2, -1)), 1.0, rtol=1e-4)
-
-
-def test_single_step_proposal_draws_a_fresh_action_at_every_latent(smoke_config):
-  """With a single-step proposal, a_i depends on z_i: different rollouts differ after step 0."""
-  config = ablations.with_overrides(smoke_config, ablations.VARIANTS['diffstep_mlp'][1])
-  params = models.init_params(config, jax.random.key(0))
-  rollout = planner.make_rollout(config, models.build_networks(config))
-  actions, latents = rollout(params, jnp.ones(config.model.latent_dim), 3, jax.random.key(1))
-  chex.assert_shape(actions, (3, config.horizon, config.action_dim))
-  chex.assert_shape(latents, (3, config.horizon + 1, config.model.latent_dim))
-  assert float(jnp.abs(actions[0] - actions[1]).max()) > 0
 
 
 def test_trajectory_dynamics_rejects_actor_prior_candidates(smoke_config):
@@ -142,4 +89,3 @@ def test_finished_runs_are_reused_not_retrained(tmp_path, smoke_config):
   cached.write_text(json.dumps({'success_rate': 0.25}))
   assert ablations.evaluate_on(str(tmp_path), 'ldmpc', 'mixed', 0, 'eval_mppi', {}, 'mppi',
                                1)['success_rate'] == 0.25
-

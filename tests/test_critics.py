@@ -1,4 +1,5 @@
-"""Expectile values, AWR weights, the pessimistic terminal value and which candidate kind wins."""
+"""ld_mpc_jax.critics: expectile values, AWR weights, TD targets; the terminal value the planner
+reads from them, and runs saved before the critics existed."""
 
 import jax
 import ml_collections
@@ -8,7 +9,7 @@ import optax
 import pytest
 
 from experiments.overrides import with_overrides
-from ld_mpc_jax import checkpointing, critics, legacy, models, objective, ops, planner
+from ld_mpc_jax import checkpointing, critics, legacy, models, objective, planner
 from ld_mpc_jax.ops import discounted_return, two_hot_decode
 
 
@@ -20,11 +21,9 @@ def test_expectile_loss_hand_computed():
   np.testing.assert_allclose(critics.expectile_loss(diff, 0.5), 0.5 * diff ** 2, rtol=1e-6)
 
 
-def test_awr_weights_and_pessimism_hand_computed():
+def test_awr_weights_hand_computed():
   np.testing.assert_allclose(critics.awr_weights(jnp.array([0.0, 1.0, 10.0]), 2.0, 100.0),
                              [1.0, np.exp(2.0), 100.0], rtol=1e-6)
-  ens = jnp.array([[1.0, 2.0], [3.0, 2.0]])  # 2 members x 2 states
-  np.testing.assert_allclose(objective.combine(ens, 0.5), [2.0 - 0.5, 2.0], rtol=1e-6)
 
 
 def _toy_values(smoke_config, expectile: float, steps: int = 600):
@@ -115,54 +114,6 @@ def test_terminal_value_cannot_see_the_action_prefix(smoke_config, value):
     assert float(jnp.max(jnp.abs(before - after))) > 1e-4
 
 
-def test_plan_reports_which_kind_of_candidate_won(smoke_config, smoke_params):
-  config = with_overrides(smoke_config, {'plan.num_candidates': 4,
-                                         'plan.num_prior_candidates': 2})
-  z = models.encode(smoke_params, np.zeros(config.obs_dim))
-  last = planner.make_plan(config, lambda p, lat, act: jnp.arange(act.shape[0], dtype=float))
-  first = planner.make_plan(config, lambda p, lat, act: -jnp.arange(act.shape[0], dtype=float))
-  key = jax.random.key(0)
-  assert planner.CANDIDATE_KINDS[int(last(smoke_params, z, key).kind)] == 'actor_prior'
-  assert planner.CANDIDATE_KINDS[int(first(smoke_params, z, key).kind)] == 'proposal'
-
-
-def test_actor_prior_candidates_are_diverse_and_keep_the_actor(smoke_config, smoke_params):
-  config = with_overrides(smoke_config, {'plan.num_candidates': 4, 'plan.num_prior_candidates': 3,
-                                         'plan.prior_noise_std': 0.3})
-  nets = models.build_networks(config)
-  z = models.encode(smoke_params, np.ones(config.obs_dim))
-  out = planner.make_plan(config)(smoke_params, z, jax.random.key(0))
-  prior = out.candidates[1:]  # [3, H, A]
-  actor = nets.actor.apply({'params': smoke_params['actor']}, z)
-  np.testing.assert_allclose(prior[0, 0], actor, rtol=1e-5, atol=1e-6)  # The actor's own.
-  assert float(jnp.abs(prior[1, 0] - prior[2, 0]).max()) > 1e-3  # The others differ.
-
-
-def test_dynamics_draws_average_the_scores(smoke_config, smoke_params):
-  """With 2 draws and the proposal fixed by the key, J is the mean over two rollouts."""
-  one = planner.make_plan(smoke_config)
-  two = planner.make_plan(with_overrides(smoke_config, {'plan.dynamics_draws': 2}))
-  z = models.encode(smoke_params, np.ones(smoke_config.obs_dim))
-  a, b = one(smoke_params, z, jax.random.key(0)), two(smoke_params, z, jax.random.key(0))
-  np.testing.assert_allclose(a.candidates, b.candidates)
-  assert float(jnp.abs(a.scores - b.scores).max()) > 1e-6
-
-
-def test_observation_normalisation_is_stored_in_the_parameters(smoke_config):
-  obs = np.random.default_rng(0).normal(3.0, 2.0, size=(500, smoke_config.obs_dim))
-  obs[:, 5] = 0.25  # A constant feature is only centred.
-  params = models.set_obs_normalization(models.init_params(smoke_config, jax.random.key(0)),
-                                        obs)
-  np.testing.assert_allclose(params['encoder']['obs_mean'], obs.mean(0), rtol=1e-4)
-  assert float(params['encoder']['obs_std'][5]) == pytest.approx(models.OBS_STD_FLOOR)
-  plain = dict(params['encoder'])
-  mean, std = plain.pop('obs_mean'), plain.pop('obs_std')
-  enc = models.Encoder(smoke_config.model.encoder_hidden, smoke_config.model.latent_dim)
-  np.testing.assert_allclose(models.encode(params, obs[:4]),
-                             enc.apply({'params': plain}, (obs[:4] - mean) / std),
-                             rtol=1e-4, atol=1e-5)
-
-
 def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
   """A run saved before the critic settings existed: no critics, no normalisation, same planner."""
   old = smoke_config.to_dict()
@@ -179,36 +130,6 @@ def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
   explicit = with_overrides(old, {})
   explicit.critic = ml_collections.ConfigDict(legacy.LEGACY_CRITIC)
   assert not models.uses_critics(explicit)
-
-
-def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
-  from ld_mpc_jax import diagnostics as diagnose_objective
-  from ld_mpc_jax import data
-  length, gamma = 110, smoke_config.gamma
-
-  class OneEpisode:
-    num_episodes = 1
-
-    def episode(self, e):
-      rng = np.random.default_rng(e)
-      return dict(obs=rng.normal(size=(length + 1, 39)), action=rng.uniform(-1, 1, (length, 4)),
-                  reward=np.ones(length), success=np.zeros(length, bool))
-
-  monkeypatch.setattr(data, 'get_or_collect', lambda *a, **k: OneEpisode())
-  obs, actions, returns = diagnose_objective.held_out_windows(smoke_config, 1, stride=5)
-  h = smoke_config.horizon
-  assert obs.shape == (2, h + 1, 39) and actions.shape == (2, h, 4)  # starts 0 and 5 (< 110-100)
-  np.testing.assert_allclose(returns, [(1 - gamma ** (length - t)) / (1 - gamma) for t in (0, 5)])
-  corr = diagnose_objective.objective_correlation(smoke_config, smoke_params, obs, actions,
-                                                  returns)
-  assert corr['windows'] == 2 and abs(corr['spearman_model']) <= 1.0
-
-
-def test_window_returns_hand_computed():
-  r = jnp.array([[1.0, 2.0, 3.0]])
-  out = ops.window_returns(r, jnp.array([10.0]), 0.5)
-  # i = 2: 3 + 0.5 * 10 = 8; i = 1: 2 + 0.5 * 8 = 6; i = 0: 1 + 0.5 * 6 = 4.
-  np.testing.assert_allclose(out, [[4.0, 6.0, 8.0]])
 
 
 def test_policy_td_targets_against_hand_computed_values(smoke_config):

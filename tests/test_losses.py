@@ -75,14 +75,6 @@ def test_reward_loss_hand_computed():
   np.testing.assert_allclose(got, -np.log(0.6), rtol=1e-5)
 
 
-def test_value_head_loss_hand_computed():
-  from ld_mpc_jax.objective import value_head_loss
-  # expm1(0.25) two-hots to 0.75 on bin 2 and 0.25 on bin 3.
-  probs = jnp.array([0.1, 0.1, 0.5, 0.2, 0.1])
-  got = value_head_loss(jnp.log(probs)[None], jnp.array([np.expm1(0.25)]), 5, -2.0, 2.0)
-  np.testing.assert_allclose(got, -(0.75 * np.log(0.5) + 0.25 * np.log(0.2)), rtol=1e-5)
-
-
 def test_behaviour_value_loss_hand_computed():
   """Targets: window returns of the rewards bootstrapped with the EMA head's V(z_{H+1})."""
   from ld_mpc_jax.objective import Behaviour

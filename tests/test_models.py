@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax import count_params, encode, init_params
+from ld_mpc_jax import count_params, encode, init_params, models
 from ld_mpc_jax.models import build_networks
 from ld_mpc_jax.networks import fourier_features
 
@@ -78,3 +78,18 @@ def test_reference_config_builds_with_expected_sizes():
   blocks = lambda tree: sum(k.startswith('block_') for k in tree['backbone'])
   assert blocks(params['dynamics']) == 5 and blocks(params['objective']) == 10
   assert 5_000_000 < count_params(params) < 30_000_000
+
+
+def test_observation_normalisation_is_stored_in_the_parameters(smoke_config):
+  obs = np.random.default_rng(0).normal(3.0, 2.0, size=(500, smoke_config.obs_dim))
+  obs[:, 5] = 0.25  # A constant feature is only centred.
+  params = models.set_obs_normalization(models.init_params(smoke_config, jax.random.key(0)),
+                                        obs)
+  np.testing.assert_allclose(params['encoder']['obs_mean'], obs.mean(0), rtol=1e-4)
+  assert float(params['encoder']['obs_std'][5]) == pytest.approx(models.OBS_STD_FLOOR)
+  plain = dict(params['encoder'])
+  mean, std = plain.pop('obs_mean'), plain.pop('obs_std')
+  enc = models.Encoder(smoke_config.model.encoder_hidden, smoke_config.model.latent_dim)
+  np.testing.assert_allclose(models.encode(params, obs[:4]),
+                             enc.apply({'params': plain}, (obs[:4] - mean) / std),
+                             rtol=1e-4, atol=1e-5)

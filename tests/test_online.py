@@ -1,4 +1,5 @@
-"""ld_mpc_jax.online at smoke size: exploration noise, acting settings, bad configs.
+"""ld_mpc_jax.online at smoke size: exploration noise only when acting; bad configs through the
+launcher. (The acting settings: tests/test_exploration.py and tests/test_config_checks.py.)
 
 The launched smoke runs (buffer, checkpoints, SIGKILL and resume) are tests/e2e/test_online_runs.py.
 """
@@ -66,45 +67,3 @@ def test_bad_online_config_exits_2_with_one_line(tmp_path, override, match):
   assert done.returncode == 2
   lines = done.stderr.strip().splitlines()
   assert len(lines) == 1 and lines[0].startswith('error:') and match in lines[0]
-
-
-@pytest.mark.parametrize('overrides, match', [
-    (dict(reward='sparse', init_from='runs/x'), 'mix the offline'),
-    (dict(reward='shaped'), "'dense' or 'sparse'"),
-    (dict(updates_per_call=0), 'updates_per_call must be an integer'),
-    (dict(exec_noise_start=-0.1), 'must be >= 0'),
-    (dict(exec_noise_corr=1.0), r'exec_noise_corr must be in \[0, 1\)'),
-])
-def test_acting_settings_are_checked(overrides, match):
-  from ld_mpc_jax.config_checks import validate_config
-  c = door_open_online.get_config('smoke')
-  c.online.update(overrides)
-  with pytest.raises(ValueError, match=match):
-    validate_config(c)
-
-
-def test_executed_noise_anneals_linearly():
-  c = door_open_online.get_config('cpu')
-  start, end = c.online.exec_noise_start, c.online.exec_noise_end
-  assert online.executed_noise(c, 0, 1_600) == pytest.approx(start)  # Before learning starts.
-  assert online.executed_noise(c, 1_600, 1_600) == pytest.approx(start)
-  mid = (1_600 + c.online.env_steps) // 2
-  assert online.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
-  assert online.executed_noise(c, c.online.env_steps, 1_600) == pytest.approx(end)
-
-
-def test_correlated_noise_has_the_annealed_std_and_its_correlation():
-  """AR(1) executed-action noise (`online.exec_noise_corr`): stationary std = executed_noise,
-  lag-one autocorrelation = the configured correlation."""
-  import numpy as np
-  c = door_open_online.get_config('cpu_correlated')
-  c.online.exec_noise_start = c.online.exec_noise_end = 0.3
-  std = online.executed_noise(c, 5_000, 1_600)
-  rng, noise, draws = np.random.default_rng(0), np.zeros((4, 4)), []
-  for _ in range(5_000):
-    noise = online.ar1_noise(noise, std, c.online.exec_noise_corr, rng)
-    draws.append(noise)
-  x = np.stack(draws[100:])  # [T, 4, 4], past the start-up from zero.
-  assert np.std(x) == pytest.approx(0.3, rel=0.05)
-  lag1 = np.mean(x[1:] * x[:-1]) / np.mean(x * x)
-  assert lag1 == pytest.approx(0.85, abs=0.02)

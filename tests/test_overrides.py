@@ -2,6 +2,7 @@
 
 import pytest
 
+from experiments import overrides
 from experiments.overrides import parse_items, with_overrides
 
 
@@ -40,3 +41,14 @@ def test_bad_values_and_items_are_named(smoke_config):
     with_overrides(smoke_config, {'plan.action_steps': 'many'})
   with pytest.raises(ValueError, match='field.name=value'):
     parse_items(['plan.action_steps'])
+
+
+def test_parse_variant():
+  name, items = overrides.parse_variant(
+      'safe1:plan.safe_selection=True, plan.safe_margin=1.0')
+  assert name == 'safe1'
+  assert items == {'plan.safe_selection': 'True', 'plan.safe_margin': '1.0'}
+  assert overrides.parse_variant('argmax:') == ('argmax', {})
+  for bad in ('noname', ':plan.x=1', 'a:plan.x'):
+    with pytest.raises(ValueError):
+      overrides.parse_variant(bad)

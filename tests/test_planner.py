@@ -1,11 +1,13 @@
-"""plan(): shapes, bounds, determinism, no recompilation, argmax selection, prior mixing."""
+"""plan(): shapes, bounds, determinism, no recompilation, argmax selection, prior mixing, which
+kind of candidate won, J over several dynamics draws."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax import encode, init_params, make_plan, validate_config
+from experiments.overrides import with_overrides
+from ld_mpc_jax import encode, init_params, make_plan, models, planner, validate_config
 from ld_mpc_jax.models import build_networks
 
 
@@ -149,3 +151,36 @@ def test_fast_variants_return_valid_deterministic_actions(smoke_config, smoke_pa
   assert bool(jnp.all(jnp.abs(out.candidates) <= 1.0))
   assert bool(jnp.all(jnp.isfinite(out.scores)))
   np.testing.assert_array_equal(out.action, out.candidates[int(jnp.argmax(out.scores)), 0])
+
+
+def test_plan_reports_which_kind_of_candidate_won(smoke_config, smoke_params):
+  config = with_overrides(smoke_config, {'plan.num_candidates': 4,
+                                         'plan.num_prior_candidates': 2})
+  z = models.encode(smoke_params, np.zeros(config.obs_dim))
+  last = planner.make_plan(config, lambda p, lat, act: jnp.arange(act.shape[0], dtype=float))
+  first = planner.make_plan(config, lambda p, lat, act: -jnp.arange(act.shape[0], dtype=float))
+  key = jax.random.key(0)
+  assert planner.CANDIDATE_KINDS[int(last(smoke_params, z, key).kind)] == 'actor_prior'
+  assert planner.CANDIDATE_KINDS[int(first(smoke_params, z, key).kind)] == 'proposal'
+
+
+def test_actor_prior_candidates_are_diverse_and_keep_the_actor(smoke_config, smoke_params):
+  config = with_overrides(smoke_config, {'plan.num_candidates': 4, 'plan.num_prior_candidates': 3,
+                                         'plan.prior_noise_std': 0.3})
+  nets = models.build_networks(config)
+  z = models.encode(smoke_params, np.ones(config.obs_dim))
+  out = planner.make_plan(config)(smoke_params, z, jax.random.key(0))
+  prior = out.candidates[1:]  # [3, H, A]
+  actor = nets.actor.apply({'params': smoke_params['actor']}, z)
+  np.testing.assert_allclose(prior[0, 0], actor, rtol=1e-5, atol=1e-6)  # The actor's own.
+  assert float(jnp.abs(prior[1, 0] - prior[2, 0]).max()) > 1e-3  # The others differ.
+
+
+def test_dynamics_draws_average_the_scores(smoke_config, smoke_params):
+  """With 2 draws and the proposal fixed by the key, J is the mean over two rollouts."""
+  one = planner.make_plan(smoke_config)
+  two = planner.make_plan(with_overrides(smoke_config, {'plan.dynamics_draws': 2}))
+  z = models.encode(smoke_params, np.ones(smoke_config.obs_dim))
+  a, b = one(smoke_params, z, jax.random.key(0)), two(smoke_params, z, jax.random.key(0))
+  np.testing.assert_allclose(a.candidates, b.candidates)
+  assert float(jnp.abs(a.scores - b.scores).max()) > 1e-6

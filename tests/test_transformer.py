@@ -1,4 +1,5 @@
-"""The transformer layers: attention equals flax's, `outputs` equals the sliced full output."""
+"""ld_mpc_jax.networks.transformer: attention equals flax's, `outputs` equals the sliced full
+output, gelu is flax's."""
 
 import flax.linen as nn
 import jax
@@ -7,7 +8,6 @@ import numpy as np
 import pytest
 
 from ld_mpc_jax.networks import SelfAttention, Transformer
-from ld_mpc_jax.networks.mlp import mish
 from ld_mpc_jax.networks.transformer import SHORT_SEQUENCE, gelu
 
 
@@ -60,11 +60,3 @@ def test_gelu_is_flax_gelu():
   x = jnp.linspace(-6.0, 6.0, 1001)
   np.testing.assert_allclose(gelu(x), nn.gelu(x), atol=1e-6)
   assert float(gelu(jnp.array(1.0))) == pytest.approx(0.841192, abs=1e-5)
-
-
-def test_mish_is_jax_mish_with_its_gradient():
-  x = jnp.concatenate([jnp.linspace(-60.0, 60.0, 12001), jnp.array([-1e4, 0.0, 1e4])])
-  np.testing.assert_allclose(mish(x), jax.nn.mish(x), rtol=1e-6, atol=1e-6)
-  grad = lambda f: jax.vmap(jax.grad(f))(x)
-  np.testing.assert_allclose(grad(mish), grad(jax.nn.mish), rtol=1e-4, atol=1e-5)
-  assert float(mish(jnp.array(1.0))) == pytest.approx(0.865098, abs=1e-5)

@@ -1,4 +1,4 @@
-"""Tests for ld_mpc_jax.envs: factory, action repeat, limits, success, noise."""
+"""ld_mpc_jax.envs.metaworld_env: factory, action repeat, limits, success, noise."""
 
 import gymnasium as gym
 import metaworld
@@ -144,19 +144,3 @@ def test_make_env_matches_metaworlds_own_factory():
   assert again.reset(seed=3)[0].tolist() == ours.reset(seed=3)[0].tolist()
   assert metaworld_env.mt1_tasks('reach-v3', 5)[0].data == (
       metaworld.MT1('reach-v3', seed=5).train_tasks[0].data)
-
-
-def test_meta_world_is_the_registered_suite():
-  from ld_mpc_jax import envs
-  from ld_mpc_jax.envs import goals
-  assert envs.SUITES.names() == ('metaworld',) and envs.SUITES.get('metaworld') is envs.SUITE
-  suite = envs.SUITE
-  assert (suite.obs_dim, suite.act_dim, suite.max_episode_steps) == (39, 4, 500)
-  assert 'door-open-v3' in suite.task_names() and suite.goal_splits == goals.SPLITS
-  env = suite.make_env('door-open-v3', seed=0, max_episode_steps=4)
-  obs, _ = env.reset(seed=1)
-  assert obs.shape == (suite.obs_dim,)
-  assert suite.scripted_policy('door-open-v3')(obs).shape == (suite.act_dim,)
-  with pytest.raises(ValueError, match=r"^environment suite must be one of 'metaworld', got "
-                                       r"'nosuch'$"):
-    envs.SUITES.get('nosuch')

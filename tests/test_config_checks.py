@@ -1,0 +1,68 @@
+"""ld_mpc_jax.config_checks: bad values fail with one line naming the field; the online batch
+against the windows of the seed data; acting settings; the multi-task batch."""
+
+import numpy as np
+import pytest
+
+from experiments.configs import door_open_online, mt10
+from ld_mpc_jax import config_checks, data
+
+
+def _seed_windows(config) -> int:
+  """Windows of the real sampler over the seed waves' episodes (random data of their lengths)."""
+  o = config.online
+  waves = -(-o.seed_steps // (o.num_envs * o.episode_steps))
+  decisions = -(-o.episode_steps // config.eval.action_repeat)
+  rng = np.random.default_rng(0)
+  episodes = [dict(obs=rng.normal(size=(decisions + 1, config.obs_dim)).astype(np.float32),
+                   action=rng.uniform(-1, 1, (decisions, config.action_dim)).astype(np.float32),
+                   reward=np.zeros(decisions, np.float32), success=np.zeros(decisions, bool))
+              for _ in range(waves * o.num_envs)]
+  return data.ReplayBuffer(data.Dataset.from_episodes(episodes), config.horizon + 2).num_windows
+
+
+@pytest.mark.parametrize('seed_steps', [40, 41, 80])  # 1, 2 and 2 seed waves of 40 steps.
+def test_online_batch_may_be_at_most_the_seed_windows(seed_steps):
+  config = door_open_online.get_config('smoke')
+  config.online.seed_steps = seed_steps
+  windows = _seed_windows(config)
+  assert windows == 12 * -(-seed_steps // 40)
+  config.train.batch_size = windows
+  config_checks.validate_config(config)
+  config.train.batch_size = windows + 1
+  with pytest.raises(ValueError, match=f'batch_size \\({windows + 1}\\).*{windows} windows'):
+    config_checks.validate_config(config)
+
+
+def test_online_batch_is_not_checked_without_seed_updates():
+  config = door_open_online.get_config('smoke')
+  config.train.batch_size = 1000
+  with pytest.raises(ValueError, match='batch_size'):
+    config_checks.check_online_budget(config)
+  config.online.env_steps = config.online.seed_steps  # The run ends before its first update.
+  config_checks.check_online_budget(config)
+  config.online.env_steps, config.online.update_ratio = 120, 0.0  # No update at all.
+  config_checks.check_online_budget(config)
+  config.online.update_ratio, config.online.init_from = 0.1, '/runs/offline'  # Its dataset:
+  config_checks.check_online_budget(config)  # checked at start (runs.check_config_for_data).
+
+
+@pytest.mark.parametrize('overrides, match', [
+    (dict(reward='sparse', init_from='runs/x'), 'mix the offline'),
+    (dict(reward='shaped'), "'dense' or 'sparse'"),
+    (dict(updates_per_call=0), 'updates_per_call must be an integer'),
+    (dict(exec_noise_start=-0.1), 'must be >= 0'),
+    (dict(exec_noise_corr=1.0), r'exec_noise_corr must be in \[0, 1\)'),
+])
+def test_acting_settings_are_checked(overrides, match):
+  c = door_open_online.get_config('smoke')
+  c.online.update(overrides)
+  with pytest.raises(ValueError, match=match):
+    config_checks.validate_config(c)
+
+
+def test_batch_size_must_split_over_the_tasks():
+  c = mt10.get_config('smoke')
+  c.train.batch_size = 12
+  with pytest.raises(ValueError, match='multiple of the number of tasks'):
+    config_checks.validate_config(c)

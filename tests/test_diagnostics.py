@@ -1,0 +1,112 @@
+"""ld_mpc_jax.diagnostics: held-out windows and their returns, departures from the actor prior,
+success per K paired with the largest K, and the report's table."""
+
+import jax
+import numpy as np
+import pytest
+from scipy import stats as sps
+
+from ld_mpc_jax import diagnostics, evaluation_suite
+
+
+def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
+  from ld_mpc_jax import data, models, objective
+  length, gamma = 120, smoke_config.gamma
+
+  class OneEpisode:
+    num_episodes = 1
+
+    def episode(self, e):
+      rng = np.random.default_rng(e)
+      return dict(obs=rng.normal(size=(length + 1, 39)), action=rng.uniform(-1, 1, (length, 4)),
+                  reward=np.ones(length), success=np.zeros(length, bool))
+
+  monkeypatch.setattr(data, 'get_or_collect', lambda *a, **k: OneEpisode())
+  obs, actions, returns = diagnostics.held_out_windows(smoke_config, 1, stride=5)
+  h, starts = smoke_config.horizon, (0, 5, 10, 15)  # Those < 120 - 100.
+  assert obs.shape == (4, h + 1, 39) and actions.shape == (4, h, 4)
+  ep = OneEpisode().episode(0)
+  np.testing.assert_array_equal(obs[2], ep['obs'][10:10 + h + 1])
+  np.testing.assert_array_equal(actions[3], ep['action'][15:15 + h])
+  np.testing.assert_allclose(returns, [(1 - gamma ** (length - t)) / (1 - gamma) for t in starts])
+  corr = diagnostics.objective_correlation(smoke_config, smoke_params, obs, actions, returns)
+  # J of the encoder's latents of the windows, ranked against the returns here.
+  nets = models.build_networks(smoke_config)
+  j = objective.make_score(smoke_config, nets)(smoke_params, models.encode(smoke_params, obs),
+                                               actions)
+  assert corr['windows'] == 4
+  assert corr['spearman_encoder'] == pytest.approx(sps.spearmanr(j, returns).statistic, abs=1e-6)
+  assert np.isfinite(corr['spearman_model'])
+
+
+def test_departures_from_hand_built_records():
+  records = [dict(length=10, success=1, departures=0), dict(length=20, success=0, departures=5),
+             dict(length=30, success=1, departures=1), dict(length=40, success=0)]  # None: 0.
+  out = diagnostics.departures(records)
+  assert out['departure_share'] == pytest.approx(6 / 100)
+  assert out['success_with_departures'] == [1, 2]
+  assert out['success_without_departures'] == [1, 2]
+  assert diagnostics.departures([])['departure_share'] == 0.0
+
+
+def test_success_by_k_pairs_each_k_with_the_largest(monkeypatch, smoke_config):
+  """evaluate_policy stubbed: episode i succeeds when i < K; the planner departed from the actor
+  prior once in every episode with K > 1."""
+  smoke_config.plan.num_candidates, smoke_config.plan.num_prior_candidates = 8, 2
+  seen = []
+
+  def fake(config, params, mode, episodes, seed, split):
+    k = config.plan.num_candidates
+    seen.append((k, config.plan.num_prior_candidates, mode, split))
+    records = [dict(episode=i, success=int(i < k), length=10, departures=int(k > 1))
+               for i in reversed(range(episodes))]  # Out of order: paired by episode.
+    wins = sum(r['success'] for r in records)
+    return dict(records=records, successes=wins, success_rate=wins / episodes,
+                success_ci95=[0.0, 1.0])
+
+  monkeypatch.setattr(evaluation_suite, 'evaluate_policy', fake)
+  rows = diagnostics.success_by_k(smoke_config, None, [1, 4, 16], episodes=10, seed=0)
+  # The actor-prior share of the config (2 of 8) kept; none for K = 1.
+  assert seen == [(1, 0, 'plan', 'held_out'), (4, 1, 'plan', 'held_out'),
+                  (16, 4, 'plan', 'held_out')]
+  assert [(r['k'], r['prior'], r['successes']) for r in rows] == [(1, 0, 1), (4, 1, 4),
+                                                                   (16, 4, 10)]
+  m = rows[0]['vs_largest_k']
+  assert (m['n'], m['a_only'], m['b_only']) == (10, 0, 9)
+  assert m['p_value'] == pytest.approx(2 / 2 ** 9)
+  assert rows[2]['vs_largest_k']['p_value'] == 1.0  # Itself.
+  assert rows[0]['departure_share'] == 0.0 and rows[1]['departure_share'] == pytest.approx(0.1)
+  assert rows[1]['success_with_departures'] == [4, 10]
+  assert smoke_config.plan.num_candidates == 8  # The caller's config is left as it was.
+
+
+def test_markdown_table_rows():
+  row = dict(k=4, prior=1, successes=3, episodes=10, success_rate=0.3, success_ci95=[0.1, 0.6],
+             vs_largest_k=dict(n=10, a_only=1, b_only=5, p_value=0.21875), departure_share=0.25,
+             success_with_departures=[2, 6], success_without_departures=[1, 4])
+  report = dict(workdir='runs/x', step=100, k=4,
+                correlation=dict(windows=12, spearman_model=0.5, spearman_encoder=0.75),
+                success_by_k=[row], candidate_wins={'proposal': 0.75, 'actor_prior': 0.25})
+  lines = diagnostics.markdown(report).splitlines()
+  assert lines[0] == '# Objective diagnostics: runs/x (step 100)'
+  assert 'dynamics-model rollout 0.500, encoder latents 0.750.' in lines[2]
+  assert ('| 4 | 1 | 3/10 = 0.30 | [0.10, 0.60] | 1 / 5 | 0.22 | 0.25 | 2/6 / 1/4 |'
+          in lines)
+  assert lines[-1].endswith(': proposal 0.75, actor_prior 0.25.')
+
+
+def test_candidate_kinds_counted_over_start_states(monkeypatch, smoke_config):
+  """planner.make_plan stubbed: the winning kind of each plan is its key's index mod 2."""
+  from ld_mpc_jax import planner
+
+  class Out:
+    def __init__(self, kind):
+      self.kind = kind
+
+  monkeypatch.setattr(planner, 'make_plan', lambda config: lambda params, z, key: Out(
+      int(jax.random.key_data(key)[-1]) % 2))
+  monkeypatch.setattr(diagnostics.models, 'encode', lambda params, obs: obs)
+  wins = diagnostics.candidate_wins(smoke_config, None, np.zeros((4, 3)))
+  assert list(wins) == list(planner.CANDIDATE_KINDS)
+  assert wins[planner.CANDIDATE_KINDS[0]] == 0.5 and wins[planner.CANDIDATE_KINDS[1]] == 0.5
+  assert sum(wins.values()) == 1.0

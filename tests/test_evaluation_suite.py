@@ -1,0 +1,167 @@
+"""ld_mpc_jax.evaluation_suite: pooled summaries, paired tests and tables of hand-built records;
+the per-cell cache of `evaluate_checkpoint` (evaluations stubbed, no environment runs)."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+from experiments.configs import door_open
+from ld_mpc_jax import evaluation_suite
+
+Z95 = 1.959963984540054  # The 0.975 quantile of the standard normal.
+
+# Two training runs x 5 held-out episodes, planner and actor prior on the same episodes.
+PLAN = {0: [1, 1, 1, 0, 1], 1: [1, 0, 1, 1, 0]}  # 7/10; runs 0.8 and 0.6.
+ACTOR = {0: [1, 0, 0, 0, 1], 1: [0, 1, 1, 1, 0]}  # 5/10.
+DEPARTURES = {0: [0, 2, 0, 0, 1], 1: [0, 0, 0, 0, 0]}  # The planner's, 3 of 100 decisions.
+
+
+def _records():
+  out = []
+  for policy, outcomes in (('plan', PLAN), ('actor', ACTOR)):
+    for run, successes in outcomes.items():
+      for episode, success in enumerate(successes):
+        r = dict(run=run, split='held_out', eval_seed=run % 2, episode=episode, policy=policy,
+                 success=success, length=10, env_steps=20, **{'return': 10.0 * success})
+        if policy == 'plan':
+          r.update(departures=DEPARTURES[run][episode], decisions_per_s=100.0 + 200.0 * run)
+        out.append(r)
+  # A second split seen later, the planner alone.
+  out += [dict(run=0, split='train', eval_seed=0, episode=e, policy='plan', success=1, length=5,
+               env_steps=10, **{'return': 1.0}) for e in range(2)]
+  return out
+
+
+def _wilson(k, n):
+  """The Wilson score interval by its formula."""
+  p, z2 = k / n, Z95 ** 2
+  centre, half = p + z2 / (2 * n), Z95 * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
+  return [(centre - half) / (1 + z2 / n), (centre + half) / (1 + z2 / n)]
+
+
+def test_summarize_pools_counts_and_pairs_on_the_same_episodes():
+  out = evaluation_suite.summarize(_records())
+  assert list(out) == ['held_out', 'train']  # Splits, then policies, in the order first seen.
+  held = out['held_out']
+  assert list(held['policies']) == ['plan', 'actor']
+  plan, actor = held['policies']['plan'], held['policies']['actor']
+  assert (plan['successes'], plan['episodes'], plan['success_rate']) == (7, 10, 0.7)
+  assert (actor['successes'], actor['episodes']) == (5, 10)
+  np.testing.assert_allclose(plan['success_ci95'], _wilson(7, 10), rtol=1e-9)
+  np.testing.assert_allclose(actor['success_ci95'], _wilson(5, 10), rtol=1e-9)
+  assert plan['mean_return'] == pytest.approx(7.0) and plan['mean_length'] == 10
+  assert plan['per_run']['rates'] == pytest.approx({'0': 0.8, '1': 0.6})
+  assert plan['per_run']['mean'] == pytest.approx(0.7)
+  assert plan['per_run']['std'] == pytest.approx(math.sqrt(0.02))  # ddof 1 of 0.8, 0.6.
+  assert plan['per_eval_seed'] == pytest.approx({'0': 0.8, '1': 0.6})
+  assert plan['departure_share'] == pytest.approx(3 / 100)
+  assert 'departure_share' not in actor  # Its records carry no departures.
+  assert plan['decisions_per_s'] == 200.0  # Median of five 100s and five 300s.
+  assert np.isnan(actor['decisions_per_s'])
+  # Planner alone: episodes 1, 2 of run 0 and 0 of run 1; actor alone: episode 1 of run 1.
+  t = held['paired']['plan vs actor']
+  assert (t['n'], t['a_only'], t['b_only']) == (10, 3, 1)
+  assert t['p_value'] == pytest.approx(2 * (1 + 4) / 2 ** 4)  # Two-sided, 1 of 4 discordant.
+  assert list(out['train']['policies']) == ['plan'] and out['train']['paired'] == {}
+  assert out['train']['policies']['plan']['successes'] == 2
+
+
+def test_markdown_rows_of_the_summary():
+  md = evaluation_suite.markdown(evaluation_suite.summarize(_records()))
+  lo, hi = _wilson(7, 10)
+  assert (f'| held_out | planner | 7/10 = 0.70 | [{lo:.2f}, {hi:.2f}] | 0.80, 0.60 | 7.0 | '
+          '200.0 |') in md.splitlines()
+  lo, hi = _wilson(5, 10)
+  assert (f'| held_out | actor prior | 5/10 = 0.50 | [{lo:.2f}, {hi:.2f}] | 0.40, 0.60 | 5.0 | '
+          'not recorded |') in md.splitlines()
+  assert '| held_out | planner vs actor prior | 10 | 3 | 1 | 0.625 |' in md.splitlines()
+  assert md.count('| train |') == 1  # One policy: a row, no comparison.
+
+
+def _stub_evaluations(monkeypatch):
+  """evaluate_policy stubbed: 3 episodes whose successes depend on the mode and seed."""
+  calls = []
+
+  def fake(config, params, mode, num_episodes, seed, split, obs_noise_std, progress):
+    calls.append((mode, split, seed))
+    records = [dict(split=split, eval_seed=seed, episode=i, policy=mode,
+                    success=int(mode == 'plan' or i < seed), length=4) for i in range(num_episodes)]
+    k = sum(r['success'] for r in records)
+    return dict(successes=k, success_rate=k / num_episodes, success_ci95=[0.0, 1.0],
+                decisions_per_s=50.0, records=records, outcomes=[])
+
+  monkeypatch.setattr(evaluation_suite, 'evaluate_policy', fake)
+  return calls
+
+
+def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
+  calls = _stub_evaluations(monkeypatch)
+  config, workdir, lines = door_open.get_config('smoke'), str(tmp_path), []
+  grid = dict(step=4, modes=('plan', 'actor'), splits=('held_out',), seeds=(0, 2),
+              num_episodes=3)
+  records = evaluation_suite.evaluate_checkpoint(config, None, workdir, run=7, log=lines.append,
+                                                 progress=False, **grid)
+  assert calls == [('plan', 'held_out', 0), ('actor', 'held_out', 0), ('plan', 'held_out', 2),
+                   ('actor', 'held_out', 2)]
+  assert len(records) == 12 and all(r['run'] == 7 and r['decisions_per_s'] == 50.0
+                                    for r in records)
+  assert lines[0] == 'planner, held_out goals, seed 0: success 1.00 [0.00, 1.00] (50 decisions/s)'
+  assert len(os.listdir(os.path.join(workdir, 'evals'))) == 4
+  # The same grid again: every cell from its file, the records as before, tagged with this run.
+  again = evaluation_suite.evaluate_checkpoint(config, None, workdir, run=8, log=lines.append,
+                                               progress=False, **grid)
+  assert len(calls) == 4 and len(lines) == 4
+  assert [r['success'] for r in again] == [r['success'] for r in records]
+  assert all(r['run'] == 8 for r in again)
+  # A changed input that changes the episodes (here the planner's K) is a new cell.
+  config.plan.num_candidates += 1
+  evaluation_suite.evaluate_checkpoint(config, None, workdir, log=lines.append, progress=False,
+                                       **grid)
+  assert len(calls) == 8 and len(os.listdir(os.path.join(workdir, 'evals'))) == 8
+  # Without a workdir nothing is cached.
+  evaluation_suite.evaluate_checkpoint(config, None, None, log=lines.append, progress=False,
+                                       **grid)
+  assert len(calls) == 12
+
+
+def test_train_split_needs_data_collected_on_mt1_goals(monkeypatch):
+  config = door_open.get_config('smoke')
+  monkeypatch.setattr(evaluation_suite, 'dataset_goals', lambda c: (np.zeros((2, 6)), 3))
+  assert evaluation_suite.available_splits(config, ('held_out', 'train')) == ('held_out', 'train')
+  monkeypatch.setattr(evaluation_suite, 'dataset_goals', lambda c: (np.zeros((2, 6)), None))
+  assert evaluation_suite.available_splits(config, ('held_out', 'train')) == ('held_out',)
+  assert evaluation_suite.available_splits(config, ('held_out',)) == ('held_out',)
+  with pytest.raises(ValueError, match='train goal split needs data collected on MT1 goals'):
+    evaluation_suite.available_splits(config, ('train',))
+
+
+def _policy_records(policy, run, successes, departures=None):
+  out = []
+  for i, s in enumerate(successes):
+    r = dict(policy=policy, run=run, task=None, split='held_out', eval_seed=0, episode=i,
+             success=s, length=10)
+    if departures is not None:
+      r['departures'] = departures[i]
+    out.append(r)
+  return out
+
+
+def test_table_pairs_per_run_and_counts_departures():
+  # Run a: planner wins episodes 0, 1 and loses 2; run b: planner loses 0, 1, 2 (3 behind).
+  records = (_policy_records('plan[x]', 'a', [1, 1, 0, 1], departures=[2, 0, 5, 0])
+             + _policy_records('actor', 'a', [0, 0, 1, 1])
+             + _policy_records('plan[x]', 'b', [0, 0, 0, 1], departures=[0, 0, 0, 1])
+             + _policy_records('actor', 'b', [1, 1, 1, 1]))
+  rows = {r['policy']: r for r in evaluation_suite.against_anchor(records)}
+  plan = rows['plan[x]']
+  assert (plan['successes'], plan['episodes']) == (4, 8)
+  assert plan['per_run'] == [0.75, 0.25]
+  assert plan['departure_share'] == pytest.approx(8 / 80)
+  assert (plan['vs_anchor']['a_only'], plan['vs_anchor']['b_only']) == (2, 4)
+  assert [(m['a_only'], m['b_only']) for m in plan['vs_anchor_per_run']] == [(2, 1), (0, 3)]
+  assert plan['most_behind'] == 3
+  assert 'vs_anchor' not in rows['actor'] and 'departure_share' not in rows['actor']
+  md = evaluation_suite.anchor_markdown(list(rows.values()))
+  assert '| plan[x] | 4/8 = 0.50 | 0.75, 0.25 | 0.10 | 2 / 4, 0.69 | 2 / 1, 0 / 3 | 3 |' in md

@@ -1,0 +1,48 @@
+"""ld_mpc_jax.exploration: the acting planner's settings, the annealed std of the executed-action
+noise and its correlated (AR(1)) draws."""
+
+import numpy as np
+import pytest
+
+from experiments.configs import door_open_online
+from ld_mpc_jax import exploration
+
+
+def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():
+  c = door_open_online.get_config('smoke')
+  c.online.action_noise_std, c.online.prior_noise_std, c.online.act_pessimism = 0.3, 0.4, -0.5
+  plan = c.plan.to_dict()
+  acting = exploration.acting_config(c)
+  assert (acting.plan.action_noise_std, acting.plan.prior_noise_std,
+          acting.plan.pessimism) == (0.3, 0.4, -0.5)
+  assert c.plan.to_dict() == plan  # The evaluation's config is left as it was.
+  others = lambda p: {k: v for k, v in p.items()
+                      if k not in ('action_noise_std', 'prior_noise_std', 'pessimism')}
+  assert others(acting.plan.to_dict()) == others(plan)
+  assert acting.online.to_dict() == c.online.to_dict()
+
+
+def test_executed_noise_anneals_linearly():
+  c = door_open_online.get_config('cpu')
+  start, end = c.online.exec_noise_start, c.online.exec_noise_end
+  assert exploration.executed_noise(c, 0, 1_600) == pytest.approx(start)  # Before learning starts.
+  assert exploration.executed_noise(c, 1_600, 1_600) == pytest.approx(start)
+  mid = (1_600 + c.online.env_steps) // 2
+  assert exploration.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
+  assert exploration.executed_noise(c, c.online.env_steps, 1_600) == pytest.approx(end)
+
+
+def test_correlated_noise_has_the_annealed_std_and_its_correlation():
+  """AR(1) executed-action noise (`online.exec_noise_corr`): stationary std = executed_noise,
+  lag-one autocorrelation = the configured correlation."""
+  c = door_open_online.get_config('cpu_correlated')
+  c.online.exec_noise_start = c.online.exec_noise_end = 0.3
+  std = exploration.executed_noise(c, 5_000, 1_600)
+  rng, noise, draws = np.random.default_rng(0), np.zeros((4, 4)), []
+  for _ in range(5_000):
+    noise = exploration.ar1_noise(noise, std, c.online.exec_noise_corr, rng)
+    draws.append(noise)
+  x = np.stack(draws[100:])  # [T, 4, 4], past the start-up from zero.
+  assert np.std(x) == pytest.approx(0.3, rel=0.05)
+  lag1 = np.mean(x[1:] * x[:-1]) / np.mean(x * x)
+  assert lag1 == pytest.approx(0.85, abs=0.02)
