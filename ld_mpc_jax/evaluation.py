@@ -185,7 +185,7 @@ def _run_wave(policy: BatchPolicy, wave: Sequence[goals_lib.Episode], slots: Lis
     actions = np.asarray(policy(obs, t, active))
     infos = getattr(policy, 'last_info', None)  # Planners: [N, 3] (agent.NO_PLAN_INFO).
     for i in np.flatnonzero(active):
-      if infos is not None:  # Decisions that left the actor prior's own sequence.
+      if infos is not None and infos[i][0] >= 0:  # A planner left the actor prior's sequence.
         rec[i]['departures'] = rec[i].get('departures', 0) + int(infos[i][2])
       obs[i], reward, terminated, truncated, info = slots[i].step(actions[i])
       _record_step(rec[i], t, reward, info, action_repeat)

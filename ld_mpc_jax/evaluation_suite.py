@@ -206,7 +206,9 @@ def markdown(summary: Dict[str, Any]) -> str:
 
 
 def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]:
-  """Per policy: pooled and per-run success, departures, and the paired test against `anchor`."""
+  """Per policy: pooled and per-run success, the paired test against `anchor` pooled and per run
+  (`most_behind`: the most episodes one run's policy lost to its anchor, net), and for planners
+  ('plan...') the share of decisions that departed from the actor prior's own sequence."""
   policies = list(dict.fromkeys(r['policy'] for r in records))
   runs = list(dict.fromkeys(r['run'] for r in records))
   base = stats.select(records, policy=anchor)
@@ -216,7 +218,7 @@ def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]
     row = dict(policy=policy, **stats.summarize(mine),
                per_run=[float(sum(r['success'] for r in stats.select(mine, run=run))
                               / max(len(stats.select(mine, run=run)), 1)) for run in runs])
-    if all('departures' in r for r in mine):
+    if policy.startswith('plan') and all('departures' in r for r in mine):
       row['departure_share'] = (sum(r['departures'] for r in mine)
                                 / max(sum(r['length'] for r in mine), 1))
     if base and policy != anchor:

@@ -98,6 +98,29 @@ def test_lockstep_waves_give_the_same_records_as_one_at_a_time():
                             env_factory=_FakeEnv, progress=False)
 
 
+
+class _InfoPolicy(evaluation.CallablePolicy):
+  """Reports `info` [3] per environment after each decision, as agent.BatchAgentPolicy does."""
+
+  def __init__(self, info):
+    super().__init__(lambda obs: np.zeros(1))
+    self.info = info
+
+  def __call__(self, obs, t, active):
+    self.last_info = np.tile(np.asarray(self.info), (len(obs), 1))
+    return np.zeros((len(obs), 1))
+
+
+def test_departures_are_counted_for_planners_only():
+  episodes = evaluation.seeded_episodes(5, 4)
+  run = lambda info: evaluation.run_episodes(_InfoPolicy(info), episodes, 'door-open-v3',
+                                             batch_size=2, max_episode_steps=20,
+                                             env_factory=_FakeEnv, progress=False)[0]
+  planner = run((2, 0, 1))  # Every decision departed from the actor prior's sequence.
+  assert [r['departures'] for r in planner] == [r['length'] for r in planner]
+  assert all(r['departures'] == 0 for r in run((2, 0, 0)))
+  assert all('departures' not in r for r in run((-1, 0, 0)))  # A policy that does not plan.
+
 def test_noise_sweep_and_fake_video(tmp_path):
   path = str(tmp_path / 'v.gif')
   results = evaluation.noise_sweep(
