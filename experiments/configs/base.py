@@ -89,8 +89,12 @@ def get_config() -> ml_collections.ConfigDict:
   # Safe selection: keep the actor prior's own sequence unless the winner beats it by more than
   # safe_margin x the std over value members (and dynamics draws) of their score difference
   # (SPIBB-style safe improvement; ld_mpc_jax.search.select). Needs num_prior_candidates >= 1.
+  # Off by default: measured on door-open `weak` only (docs/results.md), not on push, reach or
+  # MT10. The margin 8 was chosen there on training seed 0 (departures from the actor prior:
+  # 98% with the argmax, 91% at margin 2, 34% at 8) and held on seeds 1 and 2; the members'
+  # disagreement is far smaller than the error the argmax over K candidates selects for.
   p.safe_selection = False
-  p.safe_margin = 1.0
+  p.safe_margin = 8.0
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
