@@ -151,6 +151,11 @@ def evaluate_checkpoint(config: ml_collections.ConfigDict, params, workdir: Opti
   return records
 
 
+def departure_share(records: Sequence[dict]) -> float:
+  """Decisions that departed from the actor prior's own sequence, over all decisions."""
+  return sum(r['departures'] for r in records) / max(sum(r['length'] for r in records), 1)
+
+
 def summarize(records: Sequence[dict]) -> Dict[str, Any]:
   """Pooled per (split, policy) summaries, spread over runs, and paired tests vs. the planner.
 
@@ -169,8 +174,7 @@ def summarize(records: Sequence[dict]) -> Dict[str, Any]:
       s['per_run'] = stats.spread(mine, 'run')
       s['per_eval_seed'] = stats.spread(mine, 'eval_seed')['rates']
       if all('departures' in r for r in mine):  # Decisions that left the actor prior's plan.
-        s['departure_share'] = (sum(r['departures'] for r in mine)
-                                / max(sum(r['length'] for r in mine), 1))
+        s['departure_share'] = departure_share(mine)
       s['decisions_per_s'] = float(np.median([r['decisions_per_s'] for r in mine
                                               if 'decisions_per_s' in r] or [np.nan]))
       policies[mode] = s
@@ -215,12 +219,10 @@ def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]
   rows = []
   for policy in policies:
     mine = stats.select(records, policy=policy)
-    row = dict(policy=policy, **stats.summarize(mine),
-               per_run=[float(sum(r['success'] for r in stats.select(mine, run=run))
-                              / max(len(stats.select(mine, run=run)), 1)) for run in runs])
+    rates = stats.spread(mine, 'run')['rates']
+    row = dict(policy=policy, **stats.summarize(mine), per_run=[rates[str(run)] for run in runs])
     if policy.startswith('plan') and all('departures' in r for r in mine):
-      row['departure_share'] = (sum(r['departures'] for r in mine)
-                                / max(sum(r['length'] for r in mine), 1))
+      row['departure_share'] = departure_share(mine)
     if base and policy != anchor:
       row['vs_anchor'] = stats.paired(mine, base)
       per_run = [stats.paired(stats.select(mine, run=run), stats.select(base, run=run))
