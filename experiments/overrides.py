@@ -79,10 +79,4 @@ def parse_variant(text: str):
   name, sep, rest = text.partition(':')
   if not sep or not name:
     raise ValueError(f'--variant must be NAME:field=value,..., got {text!r}')
-  items = {}
-  for item in filter(None, rest.split(',')):
-    field, eq, value = item.partition('=')
-    if not eq:
-      raise ValueError(f'--variant {name!r}: {item!r} is not field=value')
-    items[field.strip()] = value.strip()
-  return name, items
+  return name, parse_items(item.strip() for item in rest.split(',') if item.strip())
