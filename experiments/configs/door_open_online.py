@@ -101,8 +101,10 @@ def _optimism(c: ml_collections.ConfigDict) -> None:
 
 
 def _correlated(c: ml_collections.ConfigDict) -> None:
-  """`:cpu_correlated`: `:cpu` with the executed-action noise correlated over decisions."""
-  _budget(c)
+  """`:cpu_correlated`: `:cpu_optimistic` with the executed-action noise correlated over
+  decisions, its one change (seed 1 of `:cpu_optimistic` parked with the door ajar; noise that
+  keeps pushing one way for several decisions can swing it open)."""
+  _optimism(c)
   c.online.exec_noise_corr = 0.85  # DDPG's Ornstein-Uhlenbeck theta = 0.15 per decision.
 
 
