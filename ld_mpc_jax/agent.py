@@ -57,9 +57,12 @@ def _plan_act(config, nets):
 
 
 def _actor_act(config, nets):
-  """The actor prior's mode, held over the horizon."""
+  """The actor prior's mode, held over the horizon; `noise` (acting online with
+  `online.act_mode = 'actor'`) is the std of Gaussian noise on its action, 0 in evaluation."""
   def act(params, obs, key, prev, noise):
     a = nets.actor.apply({'params': params['actor']}, _encode(nets, params, obs))
+    noisy = jnp.clip(a + noise * jax.random.normal(key, a.shape), -1.0, 1.0)
+    a = jnp.where(noise > 0, noisy, a)  # Evaluation: exactly the actor's action.
     return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), jnp.asarray(NO_PLAN_INFO,
                                                                               jnp.int32)
   return act
@@ -98,7 +101,8 @@ MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the regis
 
 def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
   """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [3]),
-  not jitted. `noise`: std of Gaussian noise on the planner's executed action (acting only)."""
+  not jitted. `noise`: std of Gaussian noise on the executed action of the planner or the actor
+  prior (acting only)."""
   entry = POLICY_MODES.get(mode)
   return entry.make_act(config, build_networks(config))
 

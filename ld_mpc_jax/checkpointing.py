@@ -71,7 +71,7 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
   if 'online' in config:  # Online runs saved before acting had its own settings.
     legacy.fill(config, 'online', dict(
         act_pessimism=config.plan.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
-        exec_noise_corr=0.0, updates_per_call=1, reward='dense'))
+        exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan'))
   config.model.actor_hidden = tuple(config.model.actor_hidden)
   for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
     config.eval[name] = tuple(config.eval[name])

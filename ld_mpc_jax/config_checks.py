@@ -11,6 +11,9 @@ _POSITIVE_INTS = (
     'plan.num_candidates', 'plan.action_steps', 'plan.dynamics_steps',
     'train.batch_size', 'train.num_steps',
 )
+# Policy modes (ld_mpc_jax.agent.POLICY_MODES) that can act online: the planner, or the actor
+# prior alone (with the executed-action noise).
+ACT_MODES = ('plan', 'actor')
 
 
 def _get(config, dotted: str):
@@ -202,6 +205,9 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
                      f'got {o.updates_per_call!r}')
   if min(o.exec_noise_start, o.exec_noise_end) < 0:
     raise ValueError('config.online.exec_noise_start and exec_noise_end must be >= 0')
+  if o.act_mode not in ACT_MODES:
+    raise ValueError(f'config.online.act_mode must be one of {", ".join(map(repr, ACT_MODES))}, '
+                     f'got {o.act_mode!r}')
   if not 0.0 <= o.exec_noise_corr < 1.0:
     raise ValueError(f'config.online.exec_noise_corr must be in [0, 1), got {o.exec_noise_corr}')
   # act_pessimism < 0 is optimism while acting: mean + |act_pessimism| std of the value ensemble.

@@ -193,11 +193,12 @@ class OnlineJob:
     self.last = (planner, episodes, seconds)
 
   def _policy(self, first: int, seeds):
-    """The planner acting for the wave's episodes (EMA parameters, exploration noise)."""
+    """The policy acting for the wave's episodes (`online.act_mode`: the planner or the actor
+    prior alone; EMA parameters, exploration noise)."""
     o = self.config.online
     mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
             if self.act_config.eval.data_parallel else None)
-    policy = BatchAgentPolicy(self.act_config, self.state.ema_params, 'plan',
+    policy = BatchAgentPolicy(self.act_config, self.state.ema_params, o.act_mode,
                               seed=self.config.seed, chunk=o.plan_chunk, mesh=mesh)
     policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
                   for i, s in enumerate(seeds)])

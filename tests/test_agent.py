@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from ld_mpc_jax.agent import make_policy
+import jax
+
+from ld_mpc_jax.agent import make_act, make_policy
 from ld_mpc_jax.models import build_networks, encode
 
 
@@ -23,6 +25,21 @@ def test_actor_policy_is_the_actor_prior(smoke_config, smoke_params):
   nets = build_networks(smoke_config)
   expected = nets.actor.apply({'params': smoke_params['actor']}, encode(smoke_params, obs))
   np.testing.assert_allclose(policy(obs), expected, rtol=1e-5, atol=1e-6)
+
+
+def test_actor_acting_noise_only_when_asked(smoke_config, smoke_params):
+  """The actor prior acting online (`online.act_mode='actor'`) gets the executed-action noise;
+  at noise 0 it is exactly the actor prior."""
+  act = make_act(smoke_config, 'actor')
+  obs = np.linspace(-1, 1, 39).astype(np.float32)
+  key = jax.random.key(0)
+  plain = np.asarray(act(smoke_params, obs, key, 0, None, 0.0)[0])
+  policy, _ = make_policy(smoke_config, smoke_params, 'actor')
+  np.testing.assert_allclose(plain, policy(obs), rtol=1e-5, atol=1e-6)
+  noisy = np.stack([np.asarray(act(smoke_params, obs, key, t, None, 0.3)[0]) for t in range(64)])
+  assert np.all(np.abs(noisy) <= 1.0)
+  inside = np.abs(plain) < 0.9  # Away from the clip, the spread is the asked std.
+  assert 0.2 < np.std(noisy[:, inside] - plain[inside]) < 0.4
 
 
 def test_warm_started_policy_is_reproducible(smoke_config, smoke_params):

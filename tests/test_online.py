@@ -20,13 +20,14 @@ from ld_mpc_jax.planner import make_plan
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-def test_exploration_noise_only_when_acting(tmp_path, monkeypatch):
-  config = door_open_online.get_config('smoke')
-  config.online.env_steps = 80  # The seed wave and one planner wave.
+def _record_policies(config, workdir, monkeypatch):
+  """Runs the seed wave and one acting wave; returns (acting or evaluating, mode, candidate
+  noise stds) of every policy built."""
+  config.online.env_steps = 80  # The seed wave and one acting wave.
   config.online.eval_every = 40
   config.eval.splits = ('held_out',)
   config.eval.baselines = ()
-  used = []  # (acting or evaluating, plan noise stds) of every planner policy built.
+  used = []
 
   def recording(where, original):
     def make(cfg, params, mode='plan', **kwargs):
@@ -39,7 +40,13 @@ def test_exploration_noise_only_when_acting(tmp_path, monkeypatch):
   # No learning needed here: an update that only counts (and compiles in no time).
   monkeypatch.setattr(online, 'make_update', lambda cfg: lambda state, batch, key: (
       state.replace(step=state.step + 1), {'loss': jnp.float32(1.0)}))
-  online.train_online(config, str(tmp_path / 'run'))
+  online.train_online(config, workdir)
+  return used
+
+
+def test_exploration_noise_only_when_acting(tmp_path, monkeypatch):
+  config = door_open_online.get_config('smoke')
+  used = _record_policies(config, str(tmp_path / 'run'), monkeypatch)
   assert ('act', 'plan', 0.2, 0.2) in used
   evaluations = [u for u in used if u[0] == 'eval']
   assert evaluations and all(u[2:] == (0.0, 0.0) for u in evaluations)
@@ -55,10 +62,19 @@ def test_exploration_noise_only_when_acting(tmp_path, monkeypatch):
   assert float(jnp.abs(noisy).max()) <= 1.0
 
 
+def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkeypatch):
+  config = door_open_online.get_config('smoke')
+  config.online.act_mode = 'actor'
+  used = _record_policies(config, str(tmp_path / 'run'), monkeypatch)
+  assert {u[1] for u in used if u[0] == 'act'} == {'actor'}
+  assert 'plan' in {u[1] for u in used if u[0] == 'eval'}
+
+
 @pytest.mark.parametrize('override,match', [
     ('--config.online.init_from=/nonexistent/run', 'init_from'),
     ('--config.online.update_ratio=-1', 'update_ratio'),
     ('--config.online.seed_steps=0', 'seed_steps'),
+    ('--config.online.act_mode=proposal', 'act_mode'),
 ])
 def test_bad_online_config_exits_2_with_one_line(tmp_path, override, match):
   done = subprocess.run([sys.executable, '-m', 'experiments.train',

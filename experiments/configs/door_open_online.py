@@ -47,6 +47,9 @@ def online_settings() -> ml_collections.ConfigDict:
   # (theta 0.15 per step) is 0.85; correlated noise keeps pushing one way for several
   # decisions, as a door needs (Eberhard et al. 2023, colored noise for MPC and RL).
   o.exec_noise_corr = 0.0
+  # Who acts after the seed waves: 'plan' (the planner) or 'actor' (the actor prior alone, with
+  # the executed-action noise below): does planning while acting make better data?
+  o.act_mode = 'plan'
   o.updates_per_call = 1  # Updates per jitted call (lax.scan): fewer dispatches on a CPU.
   # 'dense': Meta-World's shaped reward; 'sparse': 1 on steps where the task is solved, else 0.
   o.reward = 'dense'
