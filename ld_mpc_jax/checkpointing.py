@@ -20,7 +20,8 @@ _EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, p
 _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
                       guidance_dynamics_steps=1, num_gaussian=0, gaussian_std=2.0, iterations=0,
                       num_refine=64, num_elites=8, temperature=0.5, min_std=0.05,
-                      selection='argmax', safe_selection=False, safe_margin=1.0)
+                      selection='argmax', safe_selection=False, safe_margin=1.0,
+                      first_round=('proposal', 'gaussian'))
 
 # Data, training and model settings of experiments/configs/base.py for configs saved before they
 # existed, with the values those runs used (one device, no observation normalisation).
@@ -73,6 +74,7 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
         act_pessimism=config.plan.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
         exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan'))
   config.model.actor_hidden = tuple(config.model.actor_hidden)
+  config.plan.first_round = tuple(config.plan.first_round)
   for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
     config.eval[name] = tuple(config.eval[name])
   return config

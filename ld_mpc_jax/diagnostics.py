@@ -75,8 +75,9 @@ def candidate_wins(config, params, obs) -> dict:
   plan = planner.make_plan(config)
   z = models.encode(params, obs)
   kinds = [int(plan(params, z[i], jax.random.key(i)).kind) for i in range(len(obs))]
-  counts = np.bincount(kinds, minlength=len(planner.CANDIDATE_KINDS))
-  return {kind: float(c / len(kinds)) for kind, c in zip(planner.CANDIDATE_KINDS, counts)}
+  names = planner.CANDIDATES.names()
+  counts = np.bincount(kinds, minlength=len(names))
+  return {kind: float(c / len(kinds)) for kind, c in zip(names, counts)}
 
 
 def departures(records) -> dict:

@@ -39,7 +39,7 @@ from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.exploration import acting_config, ar1_noise, executed_noise
 from ld_mpc_jax.models import count_params, set_obs_normalization
-from ld_mpc_jax.search import CANDIDATE_KINDS
+from ld_mpc_jax.search import CANDIDATES
 from ld_mpc_jax.train_state import create_train_state, make_multi_update, make_update
 
 from ld_mpc_jax.run_files import LOSSES_CSV, ONLINE_CSV
@@ -233,7 +233,7 @@ class OnlineJob:
     eps = [dict(obs=[x], action=[], reward=[], success=[]) for x in obs]
     active, t = np.ones(n, bool), 0
     noise, noise_rng = np.zeros((n, act_dim)), np.random.default_rng([self.config.seed, first, 29])
-    self.winners = np.zeros(len(CANDIDATE_KINDS) + 1, np.int64)
+    self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
     self.dense_max = 0.0
     while active.any():
       actions = (policy(obs, t, active) if planner
@@ -291,7 +291,7 @@ class OnlineJob:
                episode_success=float(np.mean([e['success'].any() for e in episodes])),
                max_step_reward=self.dense_max,  # Dense reward, also under a sparse one.
                **{f'won_{k}': float(self.winners[j] / decisions)
-                  for j, k in enumerate(CANDIDATE_KINDS)},
+                  for j, k in enumerate(CANDIDATES.names())},
                departed=float(self.winners[-1] / decisions),
                exec_noise=executed_noise(self.config, before, self.learn_start)
                if planner else float('nan'),

@@ -26,7 +26,8 @@ from ld_mpc_jax import diffusion, dynamics, proposals
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.models import Networks, build_networks
 from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_scores, make_score
-from ld_mpc_jax.search import CANDIDATE_KINDS, CANDIDATES, Pool, refine, select, validate_search
+from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, first_round_counts, refine, select,
+                               validate_search)
 
 __all__ = ['CANDIDATE_KINDS', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
            'make_rollout', 'make_member_scores', 'shift_sequence']
@@ -157,26 +158,20 @@ def _scan_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable
 
 
 def _make_first_round(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
-  """first(params, z, prop_key, noise_key, init) -> the first round's proposals: sequences
-  [K - P + G, H, A] (the proposal's, then `plan.num_gaussian` broad Gaussian ones), or for
-  single-step proposal kinds the int K - P (drawn inside the rollout)."""
-  p, h, a_dim = config.plan, config.horizon, config.action_dim
-  num, num_gauss, noise_std = p.num_candidates - p.num_prior_candidates, p.num_gaussian, (
-      p.action_noise_std)
-  gaussian_std = p.gaussian_std
+  """first(params, z, prop_key, noise_key, init) -> the first round's proposals: the sequences
+  [N, H, A] of the kinds in `plan.first_round` (ld_mpc_jax.search.CANDIDATES; by default the
+  proposal's K - P, then `plan.num_gaussian` broad Gaussian ones), or for single-step proposal
+  kinds the int K - P (drawn inside the rollout)."""
+  p = config.plan
   if not proposals.get(config).sequence:
+    num = p.num_candidates - p.num_prior_candidates
     return lambda params, z, prop_key, noise_key, init: num
   propose = make_propose(config, nets)
+  draws = [CANDIDATES.get(name).make(config, nets, propose)
+           for name, num in first_round_counts(config) if num]
 
   def first(params, z, prop_key, noise_key, init):
-    out = propose(params, z, prop_key, num, init)
-    if noise_std > 0:
-      out = jnp.clip(out + noise_std * jax.random.normal(noise_key, out.shape), -1.0, 1.0)
-    if num_gauss:
-      centre = jnp.zeros((h, a_dim)) if init is None else init
-      eps = jax.random.normal(jax.random.fold_in(noise_key, 1), (num_gauss, h, a_dim))
-      out = jnp.concatenate([out, jnp.clip(centre + gaussian_std * eps, -1.0, 1.0)])
-    return out
+    return jnp.concatenate([draw(params, z, prop_key, noise_key, init) for draw in draws])
 
   return first
 
@@ -200,13 +195,12 @@ def _make_score_draws(member_fn: Callable, draws: int, pessimism: float) -> Call
   return score_draws
 
 
-def _first_kinds(p: ml_collections.ConfigDict) -> jnp.ndarray:
-  """[K - P + G + P] int32 candidate kinds of the first round, in the candidates' order."""
-  k, num_prior, num_gauss = p.num_candidates, p.num_prior_candidates, p.num_gaussian
-  return jnp.concatenate([
-      jnp.full(k - num_prior, CANDIDATES.index('proposal'), jnp.int32),
-      jnp.full(num_gauss, CANDIDATES.index('gaussian'), jnp.int32),
-      jnp.full(num_prior, CANDIDATES.index('actor_prior'), jnp.int32)])
+def _first_kinds(config: ml_collections.ConfigDict) -> jnp.ndarray:
+  """[N + P] int32 candidate kinds of the first round, in the candidates' order."""
+  return jnp.concatenate(
+      [jnp.full(num, CANDIDATES.index(name), jnp.int32)
+       for name, num in first_round_counts(config)]
+      + [jnp.full(config.plan.num_prior_candidates, CANDIDATES.index('actor_prior'), jnp.int32)])
 
 
 def _make_refine(config: ml_collections.ConfigDict, nets: Networks, score_draws: Callable
@@ -261,9 +255,9 @@ def make_plan(config: ml_collections.ConfigDict,
     shifted by one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
     the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
 
-  The first round's candidates are the proposal's K - P, then `plan.num_gaussian` broad Gaussian
-  sequences N(previous plan or 0, `plan.gaussian_std`^2) clipped to [-1, 1] (TD-MPC2's first
-  MPPI samples), then the P actor-prior ones (the first is the actor's own sequence);
+  The first round holds the kinds of `plan.first_round` (search.CANDIDATES: by default the
+  proposal's K - P, then `plan.num_gaussian` broad Gaussian sequences, TD-MPC2's first MPPI
+  samples), then the P actor-prior ones (the first is the actor's own sequence);
   `plan.iterations` refinement rounds follow (ld_mpc_jax.search.refine), whose elites are
   appended to `candidates` and `scores`. Selection: ld_mpc_jax.search.select.
   """
@@ -279,7 +273,7 @@ def make_plan(config: ml_collections.ConfigDict,
   rollout = make_rollout(config, nets)
   score_draws = _make_score_draws(member_fn, p.dynamics_draws, p.pessimism)
   refine_pool = _make_refine(config, nets, score_draws)
-  num_first = p.num_candidates - p.num_prior_candidates + p.num_gaussian
+  kinds, num_first = _first_kinds(config), sum(n for _, n in first_round_counts(config))
   anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
@@ -290,7 +284,7 @@ def make_plan(config: ml_collections.ConfigDict,
     init = _warm_start(prev_sequence, h, a_dim)
     proposals_ = first_round(params, z, prop_key, noise_key, init)
     actions, scores, members = score_draws(params, z, proposals_, dyn_key, rollout)
-    pool = Pool(actions, scores, members, _first_kinds(p),
+    pool = Pool(actions, scores, members, kinds,
                 jnp.zeros(actions.shape[0], jnp.int32))
     unique = None
     if refine_pool is not None:

@@ -18,6 +18,7 @@ improvement (SPIBB, Laroche et al. 2019: keep the baseline's action where the da
 support a change) and of uncertainty-penalised planning (MOPO, FOWM).
 """
 
+import dataclasses
 from typing import Callable, NamedTuple, Optional, Tuple
 
 import jax
@@ -26,16 +27,74 @@ import ml_collections
 
 from ld_mpc_jax.registry import Registry
 
-# Where a candidate of one plan came from: name -> description. The index of a name is the id
-# plans report (PlanOutput.kind) and online/diagnostics count by, so the order is fixed and new
-# kinds go at the end. In a plan's candidates the kinds come in the order proposal, gaussian,
-# actor_prior (its first one is the actor's own sequence), then the refined samples.
-CANDIDATES = Registry('candidate kind', 'candidate kind')
-CANDIDATES.register('proposal', "the proposal's samples")
-CANDIDATES.register('actor_prior', "actor-prior rollouts: a_i = Actor(z_i) along their own rollout")
-CANDIDATES.register('gaussian', 'broad Gaussian sequences around the previous plan (or 0)')
-CANDIDATES.register('refined', "samples of a refinement round around the elites")
-CANDIDATE_KINDS = CANDIDATES.names()  # ('proposal', 'actor_prior', 'gaussian', 'refined')
+
+
+@dataclasses.dataclass(frozen=True)
+class CandidateKind:
+  """One kind of candidate of `plan`.
+
+  First-round kinds (named in `plan.first_round`) carry `count(config)` (how many sequences) and
+  `make(config, nets, propose)` -> draw(params, z [D], prop_key, noise_key, init) -> [n, H, A]
+  sequences in [-1, 1] (`propose` is the planner's proposal sampler, `init` the previous plan
+  shifted, or None; derive your own keys with jax.random.fold_in). The actor prior's rollouts
+  and the refinement rounds are built by the planner itself (count and make None).
+  """
+  description: str
+  count: Optional[Callable[[ml_collections.ConfigDict], int]] = None
+  make: Optional[Callable] = None
+
+
+def _proposal_count(config: ml_collections.ConfigDict) -> int:
+  return config.plan.num_candidates - config.plan.num_prior_candidates
+
+
+def _proposal_draws(config: ml_collections.ConfigDict, nets, propose: Callable) -> Callable:
+  """The proposal's K - P sequences, with `plan.action_noise_std` Gaussian noise (clipped)."""
+  num, noise_std = _proposal_count(config), config.plan.action_noise_std
+
+  def draw(params, z, prop_key, noise_key, init):
+    out = propose(params, z, prop_key, num, init)
+    if noise_std > 0:
+      out = jnp.clip(out + noise_std * jax.random.normal(noise_key, out.shape), -1.0, 1.0)
+    return out
+  return draw
+
+
+def _gaussian_draws(config: ml_collections.ConfigDict, nets, propose: Callable) -> Callable:
+  """`plan.num_gaussian` sequences N(previous plan or 0, `plan.gaussian_std`^2), clipped."""
+  num, std = config.plan.num_gaussian, config.plan.gaussian_std
+  shape = (num, config.horizon, config.action_dim)
+
+  def draw(params, z, prop_key, noise_key, init):
+    centre = jnp.zeros(shape[1:]) if init is None else init
+    eps = jax.random.normal(jax.random.fold_in(noise_key, 1), shape)
+    return jnp.clip(centre + std * eps, -1.0, 1.0)
+  return draw
+
+
+# Where a candidate of one plan came from. The index of a name is the id plans report
+# (PlanOutput.kind) and online/diagnostics count by, so the order is fixed and new kinds go at
+# the end. A plan's first round holds the kinds of `plan.first_round` in that order, then the
+# actor prior's (its first one is the actor's own sequence), then the refined samples.
+CANDIDATES = Registry('candidate kind', 'config.plan.first_round')
+CANDIDATES.register('proposal', CandidateKind("the proposal's samples", _proposal_count,
+                                              _proposal_draws))
+CANDIDATES.register('actor_prior', CandidateKind(
+    'actor-prior rollouts: a_i = Actor(z_i) along their own rollout'))
+CANDIDATES.register('gaussian', CandidateKind(
+    'broad Gaussian sequences around the previous plan (or 0)',
+    lambda config: config.plan.num_gaussian, _gaussian_draws))
+CANDIDATES.register('refined', CandidateKind('samples of a refinement round around the elites'))
+CANDIDATE_KINDS = CANDIDATES.names()  # The built-in kinds; CANDIDATES.names() has any added.
+
+
+def first_round_counts(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, int], ...]:
+  """(kind, how many) of the first round's drawn kinds, in `plan.first_round` order (the P
+  actor-prior candidates follow them)."""
+  return tuple((name, int(CANDIDATES.get(name).count(config)))
+               for name in config.plan.first_round)
+
+
 SELECTIONS = ('argmax', 'softmax')
 
 
@@ -147,9 +206,11 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
   if p.iterations and (p.num_refine < 1 or p.num_elites < 1):
     raise ValueError('config.plan.num_refine and config.plan.num_elites must be >= 1 when '
                      f'config.plan.iterations > 0, got {p.num_refine} and {p.num_elites}')
-  if p.iterations and p.num_elites > p.num_candidates + p.num_gaussian:
+  counts = _check_first_round(config)
+  num_first = sum(n for _, n in counts) + p.num_prior_candidates
+  if p.iterations and p.num_elites > num_first:
     raise ValueError(f'config.plan.num_elites ({p.num_elites}) exceeds the first round\'s '
-                     f'candidates ({p.num_candidates + p.num_gaussian})')
+                     f'candidates ({num_first})')
   if p.min_std <= 0 or p.gaussian_std <= 0:
     raise ValueError('config.plan.min_std and config.plan.gaussian_std must be > 0')
   if p.safe_selection and p.num_prior_candidates < 1:
@@ -158,6 +219,23 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
   if p.safe_margin < 0:
     raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
   from ld_mpc_jax import proposals  # pylint: disable=g-import-not-at-top
-  if (p.num_gaussian or p.iterations) and not proposals.get(config).sequence:
-    raise ValueError('config.plan.num_gaussian and config.plan.iterations need whole action '
-                     f'sequences, not proposal_type {config.model.proposal_type!r}')
+  others = any(n for name, n in counts if name != 'proposal')
+  if (others or p.iterations) and not proposals.get(config).sequence:
+    raise ValueError('config.plan.num_gaussian (any first-round kind but the proposal) and '
+                     'config.plan.iterations need whole action sequences, not proposal_type '
+                     f'{config.model.proposal_type!r}')
+
+
+def _check_first_round(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, int], ...]:
+  """`plan.first_round`: registered kinds that draw sequences, each once, the proposal among
+  them; -> first_round_counts(config)."""
+  names = tuple(config.plan.first_round)
+  drawn = tuple(n for n in CANDIDATES.names() if CANDIDATES.get(n).make is not None)
+  for name in names:
+    if CANDIDATES.check(name) not in drawn:
+      raise ValueError(f'config.plan.first_round: {name!r} is not drawn in the first round; use '
+                       f'{", ".join(map(repr, drawn))}')
+  if len(set(names)) != len(names) or 'proposal' not in names:
+    raise ValueError(f"config.plan.first_round must name each kind once, 'proposal' among them, "
+                     f'got {names}')
+  return first_round_counts(config)

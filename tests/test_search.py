@@ -151,3 +151,35 @@ def test_bad_search_settings_fail_in_one_line(smoke_config):
   c.plan.safe_selection, c.plan.selection = False, 'best'
   with pytest.raises(ValueError, match='selection must be one of'):
     make_plan(c)
+
+
+def _target_draws(config, nets, propose):
+  """A toy first-round kind: `num` copies of TARGET, jittered by 0.01."""
+  shape = (3, config.horizon, config.action_dim)
+
+  def draw(params, z, prop_key, noise_key, init):
+    eps = jax.random.normal(jax.random.fold_in(noise_key, 99), shape)
+    return jnp.clip(TARGET + 0.01 * eps, -1.0, 1.0)
+  return draw
+
+
+def test_a_candidate_kind_registered_here_joins_the_first_round(smoke_config, smoke_params, z):
+  """A new first-round kind is one registry entry and its name in `plan.first_round`."""
+  search.CANDIDATES.register('toy_target', search.CandidateKind(
+      'three sequences near TARGET', lambda config: 3, _target_draws))
+  try:
+    c = search_config(smoke_config, 0)
+    c.plan.first_round = ('proposal', 'gaussian', 'toy_target')
+    out = make_plan(c, toy_score)(smoke_params, z, jax.random.key(0))
+    assert out.candidates.shape[0] == 4 + 8 + 3 + 2  # Proposal, Gaussian, toy, actor prior.
+    toy = out.candidates[12:15]
+    assert float(jnp.max(jnp.abs(toy - TARGET))) < 0.05
+    assert search.CANDIDATES.names()[int(out.kind)] == 'toy_target'  # It wins on toy_score.
+    c.plan.first_round = ('proposal', 'nosuch')
+    with pytest.raises(ValueError, match="first_round must be one of .*'toy_target'"):
+      make_plan(c, toy_score)
+    c.plan.first_round = ('proposal', 'refined')
+    with pytest.raises(ValueError, match="'refined' is not drawn in the first round"):
+      make_plan(c, toy_score)
+  finally:
+    search.CANDIDATES.unregister('toy_target')

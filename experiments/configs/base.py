@@ -77,6 +77,9 @@ def get_config() -> ml_collections.ConfigDict:
   # prior, centred on the previous plan (or 0): TD-MPC2's first MPPI samples, std its max_std.
   p.num_gaussian = 0
   p.gaussian_std = 2.0
+  # The first round's candidate kinds, in order (ld_mpc_jax.search.CANDIDATES; a kind registered
+  # from your own code joins here by name). The P actor-prior candidates follow them.
+  p.first_round = ('proposal', 'gaussian')
   # Refinement rounds around the elites (0 = selection only): TD-MPC2's MPPI update, 6 rounds
   # of 512 samples, 64 elites, temperature 0.5, std at least 0.05.
   p.iterations = 0
