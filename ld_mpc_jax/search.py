@@ -168,7 +168,9 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
     (weights exp(temperature (J - max J)), MPPI), `index` its best elite; `unique` [K] bool
     leaves repeated candidates out of the softmax;
   - with `safe`, the anchor's sequence unless the best candidate beats the anchor by more than
-    margin x std over members of (J_best - J_anchor); ties keep the anchor.
+    margin x std over members of (J_best - J_anchor); ties keep the anchor. Under 'softmax' the
+    gain is the elites' softmax-weighted J (per member) minus the anchor's: what is executed
+    must beat the anchor, not only its best elite.
   `departed` is whether the executed sequence is not the anchor's (always True without one).
   """
   best = jnp.argmax(scores)
@@ -184,7 +186,10 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
     chosen = actions[best]
   if anchor < 0:
     return chosen, best, jnp.asarray(True), weights
-  if safe:
+  if safe and selection == 'softmax':  # The weighted elites' gain over the anchor, as executed.
+    diff = members @ weights - members[:, anchor]
+    depart = scores @ weights - scores[anchor] > margin * jnp.std(diff)
+  elif safe:
     diff = members[:, best] - members[:, anchor]
     depart = scores[best] - scores[anchor] > margin * jnp.std(diff)
   else:

@@ -183,3 +183,25 @@ def test_a_candidate_kind_registered_here_joins_the_first_round(smoke_config, sm
       make_plan(c, toy_score)
   finally:
     search.CANDIDATES.unregister('toy_target')
+
+
+def test_safe_softmax_gates_on_the_weighted_elites():
+  """Under softmax the weighted elites must beat the anchor, not only the best elite."""
+  actions = jnp.stack([jnp.full((2, 1), v) for v in (0.9, 0.1, 0.0)])  # [3, H=2, A=1]
+  common = dict(anchor=2, margin=1.0, num_elites=3, temperature=0.0)  # Equal elite weights.
+
+  def run(second, selection):
+    members = jnp.array([[3.0, second[0], 0.0], [1.0, second[1], 0.0]])  # The anchor scores 0.
+    return search.select(actions, members.mean(axis=0), members, safe=True,
+                         selection=selection, **common)
+
+  # The best elite beats the anchor by 2 > 1 x std([3, 1]) = 1: the argmax departs either way.
+  for second in ((2.0, 2.0), (-3.0, -3.0)):
+    seq, index, departed, _ = run(second, 'argmax')
+    assert bool(departed) and int(index) == 0 and float(seq[0, 0]) == pytest.approx(0.9)
+  # Softmax: the mean over the three elites gains (3 + 2) / 3 and (1 + 2) / 3 per member,
+  # 4/3 > std = 1/3: it departs; with a poor second elite it gains -1/3: it keeps the anchor.
+  seq, _, departed, _ = run((2.0, 2.0), 'softmax')
+  assert bool(departed) and float(seq[0, 0]) == pytest.approx(1.0 / 3.0)
+  seq, _, departed, _ = run((-3.0, -3.0), 'softmax')
+  assert not bool(departed) and float(seq[0, 0]) == 0.0
