@@ -5,6 +5,7 @@ type of the field they replace: `--set=eval.noise_stds=0.0,0.05` is a tuple of f
 `--set=plan.guidance_scale=0` a float, `False`/`false`/`0` a false bool.
 """
 
+import re
 from typing import Any, Dict, Iterable
 
 from absl import flags
@@ -74,9 +75,16 @@ def parse_items(items: Iterable[str]) -> Dict[str, str]:
   return out
 
 
+# A comma starts a new item only where a dotted field name and '=' follow it, so tuple values
+# keep theirs: 'plan.first_round=proposal,gaussian,plan.iterations=0' is two items.
+_ITEM_START = re.compile(r',\s*(?=[A-Za-z_][\w.]*\s*=)')
+
+
 def parse_variant(text: str):
-  """'safe1:plan.safe_selection=True,plan.safe_margin=1.0' -> ('safe1', {field: value})."""
+  """'safe1:plan.safe_selection=True,plan.safe_margin=1.0' -> ('safe1', {field: value}).
+
+  Tuple values keep their commas: 'k:plan.first_round=proposal,gaussian' sets one field."""
   name, sep, rest = text.partition(':')
   if not sep or not name:
     raise ValueError(f'--variant must be NAME:field=value,..., got {text!r}')
-  return name, parse_items(item.strip() for item in rest.split(',') if item.strip())
+  return name, parse_items(item.strip() for item in _ITEM_START.split(rest) if item.strip())

@@ -26,7 +26,7 @@ from ld_mpc_jax.planner import make_plan, make_propose
 from ld_mpc_jax.registry import Registry
 
 # What a decision reports beside its action: int32 [3] = (kind of the winning candidate, an
-# index into search.CANDIDATE_KINDS or -1 for policies that do not plan; the refinement round it
+# index into search.CANDIDATES.names() or -1 for policies that do not plan; the refinement round it
 # came from; 1 if the planner departed from the actor prior's own sequence, else 0).
 NO_PLAN_INFO = (-1, 0, 0)
 

@@ -63,7 +63,8 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
 def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
   """A saved config brought up to the current fields, once, on load: fields added since it was
   saved get the values that mean what its run did; renamed sections get their new name
-  (`objective` -> `critic`); JSON lists become tuples again."""
+  (`objective` -> `critic`). Sequence fields saved as JSON lists stay lists (a ConfigDict keeps
+  a field's type on assignment); the library reads them only as sequences."""
   legacy.rename_sections(config)  # Before the fills, which use the new names.
   legacy.fill_model_fields(config)
   for section, defaults in (('eval', _EVAL_DEFAULTS), ('plan', _PLAN_DEFAULTS),
@@ -73,10 +74,6 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
     legacy.fill(config, 'online', dict(
         act_pessimism=config.plan.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
         exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan'))
-  config.model.actor_hidden = tuple(config.model.actor_hidden)
-  config.plan.first_round = tuple(config.plan.first_round)
-  for name in ('noise_stds', 'splits', 'seeds', 'baselines'):
-    config.eval[name] = tuple(config.eval[name])
   return config
 
 

@@ -102,10 +102,16 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   return evaluation.result(records, info)
 
 
+# Part of every cache key: raise it when a code change alters the episodes of an unchanged
+# config, so that cached cells made by the old code are not reused (2: the softmax safe gate).
+CACHE_VERSION = 2
+
+
 def _cell_path(workdir: str, config, step: int, mode: str, split: str, seed: int,
                num_episodes: int, obs_noise_std: float) -> str:
   """Cache file of one evaluation: keyed by everything that changes its episodes."""
-  relevant = dict(step=step, mode=mode, split=split, seed=seed, episodes=num_episodes,
+  relevant = dict(version=CACHE_VERSION, step=step, mode=mode, split=split, seed=seed,
+                  episodes=num_episodes,
                   noise=obs_noise_std, task=config.task, plan=config.plan.to_dict(),
                   mppi=config.mppi.to_dict(), data=config.data.to_dict(),
                   eval={k: config.eval[k] for k in ('action_repeat', 'max_episode_steps')})

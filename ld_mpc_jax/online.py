@@ -284,9 +284,11 @@ class OnlineJob:
     step = self.counters['env_steps']
     if metrics:
       self.run.check_loss(metrics['loss'], f'environment step {step}')
-    decisions = max(int(self.winners[:-1].sum()), 1)
+    # Shares of planned decisions: NaN where nothing was planned (random waves, the actor acting).
+    decisions = int(self.winners[:-1].sum()) or float('nan')
+    acting = {'plan': 'planner', 'actor': 'actor'}[self.config.online.act_mode]
     row = dict(env_steps=step, episodes=self.counters['episodes'],
-               updates=self.counters['updates'], acting='planner' if planner else 'random',
+               updates=self.counters['updates'], acting=acting if planner else 'random',
                episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
                episode_success=float(np.mean([e['success'].any() for e in episodes])),
                max_step_reward=self.dense_max,  # Dense reward, also under a sparse one.
@@ -301,7 +303,7 @@ class OnlineJob:
       run_files.append_csv(os.path.join(self.run.workdir, LOSSES_CSV),
                            dict(env_steps=step, **metrics))
     for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
-      if k != 'acting':
+      if k != 'acting' and np.isfinite(v):  # NaN marks "not measured" in the CSV only.
         self.run.writer.add_scalar(f'online/{k}', v, step)
     self.bar.set_postfix(updates=self.counters['updates'],
                          success=np.mean([e['success'].any() for e in episodes]))

@@ -41,7 +41,7 @@ class PlanOutput:
   scores: jnp.ndarray  # [K] J of every candidate.
   candidates: jnp.ndarray  # [K, H, A] every candidate action sequence.
   index: jnp.ndarray  # [] the executed candidate (softmax selection: its best elite).
-  kind: jnp.ndarray  # [] which kind of candidate won: an index into CANDIDATE_KINDS.
+  kind: jnp.ndarray  # [] which kind of candidate won: an index into CANDIDATES.names().
   iteration: jnp.ndarray  # [] after which refinement round it was found (0: the first round).
   departed: jnp.ndarray  # [] bool: the executed sequence is not the actor prior's own.
 
@@ -171,6 +171,8 @@ def _make_first_round(config: ml_collections.ConfigDict, nets: Networks) -> Call
            for name, num in first_round_counts(config) if num]
 
   def first(params, z, prop_key, noise_key, init):
+    if not draws:  # Only the actor prior's candidates (num_candidates == num_prior_candidates).
+      return jnp.zeros((0, config.horizon, config.action_dim))
     return jnp.concatenate([draw(params, z, prop_key, noise_key, init) for draw in draws])
 
   return first

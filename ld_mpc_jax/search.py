@@ -37,7 +37,8 @@ class CandidateKind:
   `make(config, nets, propose)` -> draw(params, z [D], prop_key, noise_key, init) -> [n, H, A]
   sequences in [-1, 1] (`propose` is the planner's proposal sampler, `init` the previous plan
   shifted, or None; derive your own keys with jax.random.fold_in). The actor prior's rollouts
-  and the refinement rounds are built by the planner itself (count and make None).
+  and the refinement rounds are built by the planner itself (count and make None). A kind whose
+  count is above 0 must be named in `plan.first_round` (so read the count from a config field).
   """
   description: str
   count: Optional[Callable[[ml_collections.ConfigDict], int]] = None
@@ -116,7 +117,7 @@ class Pool(NamedTuple):
   actions: jnp.ndarray  # [E, H, A]
   scores: jnp.ndarray  # [E]
   members: jnp.ndarray  # [M, E]
-  kind: jnp.ndarray  # [E] int32, index into CANDIDATE_KINDS
+  kind: jnp.ndarray  # [E] int32, index into CANDIDATES.names()
   iteration: jnp.ndarray  # [E] int32: 0 for the first round, i for the i-th refinement
 
 
@@ -169,8 +170,9 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
     leaves repeated candidates out of the softmax;
   - with `safe`, the anchor's sequence unless the best candidate beats the anchor by more than
     margin x std over members of (J_best - J_anchor); ties keep the anchor. Under 'softmax' the
-    gain is the elites' softmax-weighted J (per member) minus the anchor's: what is executed
-    must beat the anchor, not only its best elite.
+    gain is the elites' softmax-weighted J (per member) minus the anchor's, a proxy for the J
+    of the weighted mean sequence that is executed (which is not scored): the elites together
+    must beat the anchor, not only the best one.
   `departed` is whether the executed sequence is not the anchor's (always True without one).
   """
   best = jnp.argmax(scores)
@@ -187,8 +189,8 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
   if anchor < 0:
     return chosen, best, jnp.asarray(True), weights
   if safe and selection == 'softmax':  # The weighted elites' gain over the anchor, as executed.
-    diff = members @ weights - members[:, anchor]
-    depart = scores @ weights - scores[anchor] > margin * jnp.std(diff)
+    diff = jnp.sum(members * weights, axis=-1) - members[:, anchor]  # Exact sums on GPU too.
+    depart = jnp.sum(scores * weights) - scores[anchor] > margin * jnp.std(diff)
   elif safe:
     diff = members[:, best] - members[:, anchor]
     depart = scores[best] - scores[anchor] > margin * jnp.std(diff)
@@ -243,4 +245,9 @@ def _check_first_round(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, in
   if len(set(names)) != len(names) or 'proposal' not in names:
     raise ValueError(f"config.plan.first_round must name each kind once, 'proposal' among them, "
                      f'got {names}')
+  for name in drawn:  # A kind given a count but left out of the first round would be ignored.
+    if name not in names and CANDIDATES.get(name).count(config) > 0:
+      raise ValueError(f'config.plan.first_round leaves out {name!r}, which its settings give '
+                       f'{CANDIDATES.get(name).count(config)} candidates: add it, or set its '
+                       'count to 0')
   return first_round_counts(config)

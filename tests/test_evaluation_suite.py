@@ -120,10 +120,15 @@ def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
   evaluation_suite.evaluate_checkpoint(config, None, workdir, log=lines.append, progress=False,
                                        **grid)
   assert len(calls) == 8 and len(os.listdir(os.path.join(workdir, 'evals'))) == 8
+  # So is any cell after a code change that raised the cache version.
+  monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', evaluation_suite.CACHE_VERSION + 1)
+  evaluation_suite.evaluate_checkpoint(config, None, workdir, log=lines.append, progress=False,
+                                       **grid)
+  assert len(calls) == 12
   # Without a workdir nothing is cached.
   evaluation_suite.evaluate_checkpoint(config, None, None, log=lines.append, progress=False,
                                        **grid)
-  assert len(calls) == 12
+  assert len(calls) == 16
 
 
 def test_train_split_needs_data_collected_on_mt1_goals(monkeypatch):

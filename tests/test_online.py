@@ -4,6 +4,8 @@ launcher. (The acting settings: tests/test_exploration.py and tests/test_config_
 The launched smoke runs (buffer, checkpoints, SIGKILL and resume) are tests/e2e/test_online_runs.py.
 """
 
+import csv
+import math
 import os
 import subprocess
 import sys
@@ -68,6 +70,11 @@ def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkey
   used = _record_policies(config, str(tmp_path / 'run'), monkeypatch)
   assert {u[1] for u in used if u[0] == 'act'} == {'actor'}
   assert 'plan' in {u[1] for u in used if u[0] == 'eval'}
+  # online.csv says who acted; no decision was planned, so the planner's shares are unmeasured.
+  with open(tmp_path / 'run' / 'online.csv') as f:
+    rows = list(csv.DictReader(f))
+  assert [r['acting'] for r in rows] == ['random', 'actor']
+  assert math.isnan(float(rows[1]['won_proposal'])) and math.isnan(float(rows[1]['departed']))
 
 
 @pytest.mark.parametrize('override,match', [

@@ -49,6 +49,11 @@ def test_parse_variant():
   assert name == 'safe1'
   assert items == {'plan.safe_selection': 'True', 'plan.safe_margin': '1.0'}
   assert overrides.parse_variant('argmax:') == ('argmax', {})
+  # A tuple value keeps its commas; the next field starts a new item.
+  _, items = overrides.parse_variant(
+      'g:plan.first_round=proposal,gaussian, plan.iterations=0,eval.noise_stds=0.0,0.1')
+  assert items == {'plan.first_round': 'proposal,gaussian', 'plan.iterations': '0',
+                   'eval.noise_stds': '0.0,0.1'}
   for bad in ('noname', ':plan.x=1', 'a:plan.x'):
     with pytest.raises(ValueError):
       overrides.parse_variant(bad)

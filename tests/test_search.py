@@ -185,6 +185,19 @@ def test_a_candidate_kind_registered_here_joins_the_first_round(smoke_config, sm
     search.CANDIDATES.unregister('toy_target')
 
 
+def test_first_round_counts_must_match_the_kinds_named(smoke_config, smoke_params, z):
+  """Gaussian candidates asked for but left out of the first round fail at build time; a first
+  round of the actor prior's candidates alone plans."""
+  c = search_config(smoke_config, 0)
+  c.plan.first_round = ('proposal',)
+  with pytest.raises(ValueError, match="leaves out 'gaussian', which its settings give 8"):
+    make_plan(c, toy_score)
+  c.plan.num_gaussian, c.plan.num_candidates = 0, c.plan.num_prior_candidates
+  out = make_plan(c, toy_score)(smoke_params, z, jax.random.key(0))
+  assert out.candidates.shape[0] == c.plan.num_prior_candidates
+  assert search.CANDIDATES.names()[int(out.kind)] == 'actor_prior'
+
+
 def test_safe_softmax_gates_on_the_weighted_elites():
   """Under softmax the weighted elites must beat the anchor, not only the best elite."""
   actions = jnp.stack([jnp.full((2, 1), v) for v in (0.9, 0.1, 0.0)])  # [3, H=2, A=1]
