@@ -77,6 +77,22 @@ def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkey
   assert math.isnan(float(rows[1]['won_proposal'])) and math.isnan(float(rows[1]['departed']))
 
 
+def test_any_task_by_flag_acts_and_evaluates_on_that_task(tmp_path, monkeypatch):
+  from ld_mpc_jax import envs  # pylint: disable=g-import-not-at-top
+  made = []
+  original = envs.make_env
+  def recording(task, *args, **kwargs):
+    made.append(task)
+    return original(task, *args, **kwargs)
+  monkeypatch.setattr(envs, 'make_env', recording)
+  config = door_open_online.get_config('smoke')
+  config.task = 'push-v3'
+  _record_policies(config, str(tmp_path / 'run'), monkeypatch)
+  assert made and set(made) == {'push-v3'}  # Acting and evaluation environments alike.
+  with open(tmp_path / 'run' / 'report.json') as f:
+    assert '"task": "push-v3"' in f.read()
+
+
 @pytest.mark.parametrize('override,match', [
     ('--config.online.init_from=/nonexistent/run', 'init_from'),
     ('--config.online.update_ratio=-1', 'update_ratio'),
