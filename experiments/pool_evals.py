@@ -3,9 +3,11 @@
   python -m experiments.pool_evals runs/a/evaluation.json runs/b/evaluation.json ...
   python -m experiments.pool_evals runs/online/ft_seed{0,1,2}/episodes.csv
 
-A file is an `experiments.evaluate --out` JSON or a run's own `episodes.csv` (training or online
-fine-tuning). Each file's records count once (a file is one `run`, named by its path, so
-episodes of different checkpoints never pair up). Prints per goal split and policy the pooled successes with a Wilson
+A file is an `experiments.evaluate --out` JSON, an `experiments.compare_selection --out` JSON or
+a run's own `episodes.csv` (training or online fine-tuning). Each file's records count once. A
+file is one `run`, named by its path; a file whose records name several runs (compare_selection
+over several workdirs) keeps them apart as PATH:RUN, so episodes of different checkpoints never
+pair up. Prints per goal split and policy the pooled successes with a Wilson
 interval and the rate of each file, then exact McNemar tests between policies on the same
 episodes. Multi-task evaluations (records with a `task`) first get the per-task table of
 `multitask_eval`, pooled over the files.
@@ -23,8 +25,9 @@ def pool(results: list, names: list) -> dict:
   """[evaluate JSON dicts], [their names] -> evaluation_suite.summarize of all their records."""
   records = []
   for result, name in zip(results, names):
+    several = len({str(r.get('run')) for r in result['records']}) > 1
     for r in result['records']:
-      records.append({**r, 'run': name})
+      records.append({**r, 'run': f"{name}:{r['run']}" if several else name})
   return evaluation_suite.summarize(records)
 
 

@@ -28,6 +28,20 @@ def test_pool_counts_records_over_files_and_pairs_within_a_file():
   assert t['p_value'] == pytest.approx(2 / 2 ** 8)
 
 
+def test_pool_keeps_the_runs_of_one_file_apart():
+  # One compare_selection JSON over two checkpoints: episode i of run A is not episode i of B.
+  a = _result({'plan': [1, 1, 0, 0], 'actor': [0, 0, 1, 1]})
+  b = _result({'plan': [0, 0, 1, 1], 'actor': [1, 1, 0, 0]})
+  both = {'records': [{**r, 'run': run} for run, res in (('A', a), ('B', b))
+                      for r in res['records']]}
+  s = pool_evals.pool([both], ['sel.json'])['held_out']
+  assert s['policies']['plan']['per_run']['rates'] == {'sel.json:A': 0.5, 'sel.json:B': 0.5}
+  t = s['paired']['plan vs actor']
+  # Paired within each run: 2 + 2 plan-only and 2 + 2 actor-only; pairing across runs would
+  # have given 0 discordant episodes.
+  assert (t['n'], t['a_only'], t['b_only']) == (8, 4, 4)
+
+
 def test_main_prints_per_task_table_pooled_over_files(tmp_path, capsys):
   paths = []
   for name, outcomes in (('a', [1, 1, 0, 0]), ('b', [1, 0, 0, 0])):
