@@ -73,7 +73,8 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
   if 'online' in config:  # Online runs saved before acting had its own settings.
     legacy.fill(config, 'online', dict(
         act_pessimism=config.plan.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
-        exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan'))
+        exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan',
+        act_safe_selection=config.plan.safe_selection))
   return config
 
 

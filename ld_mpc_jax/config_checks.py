@@ -210,6 +210,9 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
                      f'got {o.act_mode!r}')
   if not 0.0 <= o.exec_noise_corr < 1.0:
     raise ValueError(f'config.online.exec_noise_corr must be in [0, 1), got {o.exec_noise_corr}')
+  if o.act_safe_selection and config.plan.num_prior_candidates < 1:
+    raise ValueError("config.online.act_safe_selection needs the actor prior's own sequence as a "
+                     'candidate: config.plan.num_prior_candidates >= 1')
   # act_pessimism < 0 is optimism while acting: mean + |act_pessimism| std of the value ensemble.
 
 

@@ -8,12 +8,14 @@ import numpy as np
 
 def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
   """A copy of config for the planner while acting: `config.online`'s exploration noise on its
-  candidates and its acting pessimism (`online.act_pessimism`; evaluation keeps
-  `plan.pessimism`): unfamiliar states are model error offline, opportunity online."""
+  candidates, its acting pessimism (`online.act_pessimism`; evaluation keeps `plan.pessimism`):
+  unfamiliar states are model error offline, opportunity online; and its acting selection
+  (`online.act_safe_selection`; evaluation keeps `plan.safe_selection`)."""
   c = ml_collections.ConfigDict(config.to_dict())
   c.plan.action_noise_std = config.online.action_noise_std
   c.plan.prior_noise_std = config.online.prior_noise_std
   c.plan.pessimism = config.online.act_pessimism
+  c.plan.safe_selection = config.online.act_safe_selection
   return c
 
 

@@ -28,6 +28,16 @@ def test_old_config_without_the_field_loads_with_its_run_value(tmp_path, section
   assert config[section][name] == OLD_RUN_VALUES[section, name]
 
 
+@pytest.mark.parametrize('safe', [False, True])
+def test_old_online_run_acted_with_its_plan_selection(tmp_path, safe):
+  from experiments.configs import door_open_online
+  raw = json.loads(door_open_online.get_config('smoke').to_json_best_effort())
+  raw['plan']['safe_selection'] = safe
+  del raw['online']['act_safe_selection']  # Saved before acting had its own selection.
+  (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
+  assert checkpointing.load_config(str(tmp_path)).online.act_safe_selection is safe
+
+
 def test_saved_config_round_trips(tmp_path):
   config = door_open.get_config('smoke')
   checkpointing.save_config(config, str(tmp_path))

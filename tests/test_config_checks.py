@@ -61,6 +61,15 @@ def test_acting_settings_are_checked(overrides, match):
     config_checks.validate_config(c)
 
 
+def test_safe_selection_while_acting_needs_the_actor_priors_sequence():
+  c = door_open_online.get_config('smoke')
+  c.online.act_safe_selection, c.plan.num_prior_candidates = True, 0
+  with pytest.raises(ValueError, match='act_safe_selection needs'):
+    config_checks.validate_config(c)
+  c.plan.num_prior_candidates = 1
+  config_checks.validate_config(c)
+
+
 def test_batch_size_must_split_over_the_tasks():
   c = mt10.get_config('smoke')
   c.train.batch_size = 12

@@ -11,13 +11,14 @@ from ld_mpc_jax import exploration
 def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():
   c = door_open_online.get_config('smoke')
   c.online.action_noise_std, c.online.prior_noise_std, c.online.act_pessimism = 0.3, 0.4, -0.5
+  c.plan.safe_selection, c.online.act_safe_selection = True, False  # Safe only in evaluation.
   plan = c.plan.to_dict()
   acting = exploration.acting_config(c)
-  assert (acting.plan.action_noise_std, acting.plan.prior_noise_std,
-          acting.plan.pessimism) == (0.3, 0.4, -0.5)
+  assert (acting.plan.action_noise_std, acting.plan.prior_noise_std, acting.plan.pessimism,
+          acting.plan.safe_selection) == (0.3, 0.4, -0.5, False)
   assert c.plan.to_dict() == plan  # The evaluation's config is left as it was.
-  others = lambda p: {k: v for k, v in p.items()
-                      if k not in ('action_noise_std', 'prior_noise_std', 'pessimism')}
+  others = lambda p: {k: v for k, v in p.items() if k not in (
+      'action_noise_std', 'prior_noise_std', 'pessimism', 'safe_selection')}
   assert others(acting.plan.to_dict()) == others(plan)
   assert acting.online.to_dict() == c.online.to_dict()
 

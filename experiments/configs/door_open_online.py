@@ -38,6 +38,10 @@ def online_settings() -> ml_collections.ConfigDict:
   # steers away from exactly the unfamiliar states exploration should reach (TD-MPC2 has none).
   # Negative = optimism: mean + |act_pessimism| std, a bonus for what the ensemble disputes.
   o.act_pessimism = 0.0
+  # Safe selection while acting (evaluation keeps plan.safe_selection): off, so that acting
+  # departs from the actor prior wherever the argmax says, and the data shows whether it was
+  # right; a margin that keeps the actor prior belongs to what is executed when it counts.
+  o.act_safe_selection = False
   # Gaussian noise on the executed action while acting, its std linear from start to end over
   # the run (DDPG/TD3-style action noise, annealed; 0 and 0 = the planner's action as chosen).
   o.exec_noise_start = 0.0
