@@ -6,9 +6,10 @@ Compilation dominates the suite's time on a CPU, so before JAX is imported:
 - XLA's elemental CPU emitters (faster to compile than its fusion emitters);
 - one persistent compilation cache for the session, shared by the pytest-xdist workers and by
   the subprocesses that tests launch (a killed-and-resumed run compiles once);
-- the tests marked `long` start first, so that no xdist worker is left running one alone at
-  the end.
-Both are environment variables, so a user's own settings win.
+- the tests marked `long` (end-to-end, left out of the default run by pyproject.toml's addopts;
+  `-m long` or `-m ""` runs them) start first, so that no xdist worker is left running one
+  alone at the end.
+The XLA settings are environment variables, so a user's own settings win.
 """
 
 import atexit

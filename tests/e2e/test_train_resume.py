@@ -20,7 +20,7 @@ def data_dir(tmp_path_factory):
   return str(tmp_path_factory.mktemp('data'))
 
 
-@pytest.mark.long
+# Not marked long: the one end-to-end check of resuming after a crash in the default run.
 def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
   workdir = str(tmp_path / 'run')
   cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open.py:smoke',
