@@ -25,16 +25,21 @@ def test_maxq_actor_climbs_a_toy_q(smoke_config):
   params['critics']['q']['heads']['dense_0']['kernel'] = jnp.asarray(kernel)
   params['critics']['q']['heads']['dense_0']['bias'] *= 0.0
   z = jax.random.normal(jax.random.key(1), (16, d))
-  mode = lambda p: nets.actor.apply({'params': p['actor']}, z)
+  mode = jax.jit(lambda p: nets.actor.apply({'params': p['actor']}, z))
   before = float(jnp.mean(mode(params) @ w))
   opt = optax.adam(1e-2)
   state = opt.init(params)
-  grad_fn = jax.jit(jax.grad(lambda p, k: maxq_actor_loss(nets, p, z, k, 1e-4)))
-  for i in range(100):
-    g = grad_fn(params, jax.random.key(i))
-    assert float(jnp.abs(g['critics']['q']['heads']['dense_0']['kernel']).max()) == 0.0
+
+  @jax.jit  # One program per step: the optimiser's update op by op compiles many small ones.
+  def step(params, state, key):
+    g = jax.grad(lambda p: maxq_actor_loss(nets, p, z, key, 1e-4))(params)
     updates, state = opt.update(g, state, params)
-    params = optax.apply_updates(params, updates)
+    q_grad = jnp.abs(g['critics']['q']['heads']['dense_0']['kernel']).max()
+    return optax.apply_updates(params, updates), state, q_grad
+
+  for i in range(100):
+    params, state, q_grad = step(params, state, jax.random.key(i))
+    assert float(q_grad) == 0.0
   after = mode(params)
   assert float(jnp.mean(after @ w)) > before + 1.0
   assert bool(jnp.all(jnp.sign(jnp.mean(after, 0)) == w))
@@ -190,8 +195,13 @@ def test_loss_metrics_and_total(smoke_config):
   for name, names in expected.items():
     c = with_overrides(smoke_config, overrides[name])
     params = models.init_params(c, jax.random.key(0))
-    loss, metrics = losses.make_loss_fn(c, models.build_networks(c))(params, params, batch,
-                                                                     jax.random.key(1))
+    loss_fn = losses.make_loss_fn(c, models.build_networks(c))
+    args = (params, params, batch, jax.random.key(1))
+    if name != 'smoke':  # The names only: traced, not compiled (compiling dominates the test).
+      assert set(jax.eval_shape(loss_fn, *args)[1]) == names, name
+      continue
+    # One jitted program: operation by operation, the loss compiles hundreds of small ones.
+    loss, metrics = jax.jit(loss_fn)(*args)
     assert set(metrics) == names, name
     terms = {n: metrics[f'loss_{n}'] for n, _ in losses.WEIGHTS if f'loss_{n}' in metrics}
     np.testing.assert_allclose(loss, losses.weighted_sum(terms, c.loss), rtol=1e-6)

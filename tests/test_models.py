@@ -39,14 +39,15 @@ def test_network_output_shapes(smoke_config, smoke_params):
   c = smoke_config
   b, h, d, a = 3, c.horizon, c.model.latent_dim, c.action_dim
   z = jnp.ones((b, d))
-  out = nets.proposal.apply({'params': smoke_params['proposal']}, jnp.ones((b, h, a)),
-                            jnp.full((b,), 0.5), z)
-  assert out.shape == (b, h, a)
-  out = nets.dynamics.apply({'params': smoke_params['dynamics']}, z, jnp.array(0.3), z,
-                            jnp.ones((b, a)))
-  assert out.shape == (b, d)
-  r, v = nets.objective.apply({'params': smoke_params['objective']}, jnp.ones((b, h + 1, d)),
-                              jnp.ones((b, h, a)))
+  shape = lambda f: jax.eval_shape(f).shape  # Traced, not compiled.
+  out = shape(lambda: nets.proposal.apply({'params': smoke_params['proposal']},
+                                          jnp.ones((b, h, a)), jnp.full((b,), 0.5), z))
+  assert out == (b, h, a)
+  out = shape(lambda: nets.dynamics.apply({'params': smoke_params['dynamics']}, z,
+                                          jnp.array(0.3), z, jnp.ones((b, a))))
+  assert out == (b, d)
+  r, v = jax.eval_shape(lambda: nets.objective.apply({'params': smoke_params['objective']},
+                                                     jnp.ones((b, h + 1, d)), jnp.ones((b, h, a))))
   assert r.shape == (b, h, c.model.num_bins) and v.shape == (b, h + 1, c.model.num_bins)
   pi = nets.actor.apply({'params': smoke_params['actor']}, 10 * z)
   assert pi.shape == (b, a) and bool(jnp.all(jnp.abs(pi) <= 1))

@@ -19,21 +19,22 @@ def test_self_attention_matches_flax_attention(length, causal):
   x = jax.random.normal(jax.random.key(0), (2, 3, length, 16))
   mask = nn.make_causal_mask(jnp.ones(x.shape[:-1])) if causal else None
   theirs = nn.MultiHeadDotProductAttention(num_heads=4)
-  params = theirs.init(jax.random.key(1), x, x)
+  params = jax.jit(theirs.init)(jax.random.key(1), x, x)  # Jitted: op by op compiles many.
   ours = SelfAttention(num_heads=4)
-  assert (jax.tree_util.tree_structure(ours.init(jax.random.key(1), x))
-          == jax.tree_util.tree_structure(params))
-  shapes = lambda p: jax.tree_util.tree_map(jnp.shape, p)
-  assert shapes(ours.init(jax.random.key(1), x)) == shapes(params)
-  expected = theirs.apply(params, x, x, mask=mask)
-  np.testing.assert_allclose(ours.apply(params, x, mask), expected, atol=1e-5)
+  shapes = lambda p: jax.tree_util.tree_map(lambda leaf: tuple(leaf.shape), p)
+  ours_tree = jax.eval_shape(ours.init, jax.random.key(1), x)  # Traced, not compiled.
+  assert jax.tree_util.tree_structure(ours_tree) == jax.tree_util.tree_structure(params)
+  assert shapes(ours_tree) == shapes(params)
+  expected = jax.jit(lambda p: theirs.apply(p, x, x, mask=mask))(params)
+  np.testing.assert_allclose(jax.jit(lambda p: ours.apply(p, x, mask))(params), expected,
+                             atol=1e-5)
   # A single query (the short path's unrolled scores) against the same row of the full output.
   last = slice(length - 1, None)
-  np.testing.assert_allclose(ours.apply(params, x, mask, queries=last), expected[..., last, :],
-                             atol=1e-5)
+  np.testing.assert_allclose(jax.jit(lambda p: ours.apply(p, x, mask, queries=last))(params),
+                             expected[..., last, :], atol=1e-5)
   # Training passes (deterministic=False, here without dropout) take the matmul path.
-  np.testing.assert_allclose(ours.apply(params, x, mask, deterministic=False), expected,
-                             atol=1e-5)
+  training = jax.jit(lambda p: ours.apply(p, x, mask, deterministic=False))
+  np.testing.assert_allclose(training(params), expected, atol=1e-5)
 
 
 def test_self_attention_rejects_indivisible_width():
@@ -46,13 +47,14 @@ def test_self_attention_rejects_indivisible_width():
 def test_transformer_outputs_equal_sliced_full_output(length, outputs):
   tr = Transformer(num_blocks=2, num_heads=2)
   x = jax.random.normal(jax.random.key(0), (4, length, 8))
-  params = tr.init(jax.random.key(1), x)
-  full = tr.apply(params, x)
-  part = tr.apply(params, x, outputs=outputs)
+  params = jax.jit(tr.init)(jax.random.key(1), x)  # Jitted: op by op compiles many programs.
+  full = jax.jit(tr.apply)(params, x)
+  apply_part = jax.jit(lambda p, x: tr.apply(p, x, outputs=outputs))
+  part = apply_part(params, x)
   assert part.shape == full[:, outputs].shape
   np.testing.assert_allclose(part, full[:, outputs], atol=1e-5)
   # The tokens left out still act as keys and values: changing one changes the output.
-  moved = tr.apply(params, x.at[:, 0].multiply(-1.0), outputs=outputs)
+  moved = apply_part(params, x.at[:, 0].multiply(-1.0))
   assert np.abs(moved - part).max() > 1e-3
 
 
