@@ -93,9 +93,14 @@ def _objective_terminal_part(config, params, latents, actions):
   """J minus its discounted rewards: gamma^H times the terminal value the planner uses."""
   nets = models.build_networks(config)
   score = objective.make_score(config, nets)
-  r_logits, _ = nets.objective.apply({'params': params['objective']}, latents, actions)
-  rewards = two_hot_decode(r_logits, config.model.vmin, config.model.vmax)
-  return score(params, latents, actions) - discounted_return(rewards, 0.0, config.gamma)
+
+  @jax.jit  # One program: operation by operation, the networks compile many small ones.
+  def terminal_part(params, latents, actions):
+    r_logits, _ = nets.objective.apply({'params': params['objective']}, latents, actions)
+    rewards = two_hot_decode(r_logits, config.model.vmin, config.model.vmax)
+    return score(params, latents, actions) - discounted_return(rewards, 0.0, config.gamma)
+
+  return terminal_part(params, latents, actions)
 
 
 @pytest.mark.parametrize('value', ['expectile', 'behaviour'])
