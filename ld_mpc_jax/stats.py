@@ -7,7 +7,6 @@ A record is a dict with at least `success` (0/1) and the fields that identify it
 from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 
 import numpy as np
-from scipy import stats as sps
 
 # The fields that identify an episode; `run` names the checkpoint (e.g. the training seed),
 # `task` the task of a multi-task agent's episode (absent, so None, for a single task).
@@ -18,6 +17,7 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> List[fl
   """Wilson score interval [lo, hi] of a binomial proportion (scipy.stats.binomtest)."""
   if n <= 0:
     return [0.0, 1.0]
+  from scipy import stats as sps  # Here, not at the top: scipy.stats takes seconds to import.
   ci = sps.binomtest(int(successes), int(n)).proportion_ci(confidence, method='wilson')
   return [float(ci.low), float(ci.high)]
 
@@ -46,6 +46,7 @@ def mcnemar_exact(a: Sequence[int], b: Sequence[int]) -> Dict[str, float]:
     raise ValueError(f'paired outcomes need the same episodes, got {a.shape} and {b.shape}')
   a_only, b_only = int(np.sum((a == 1) & (b == 0))), int(np.sum((a == 0) & (b == 1)))
   discordant = a_only + b_only
+  from scipy import stats as sps  # pylint: disable=g-import-not-at-top
   p = sps.binomtest(a_only, discordant, 0.5).pvalue if discordant else 1.0
   return dict(n=int(a.size), a_only=a_only, b_only=b_only, p_value=float(p))
 

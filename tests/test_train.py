@@ -108,12 +108,24 @@ def test_bad_config_fails_before_compilation(tmp_path, data_dir, monkeypatch, fi
     train.train_and_evaluate(c, str(tmp_path / 'run'))
 
 
-def test_eval_episodes_zero_trains_without_evaluating(tmp_path, data_dir):
-  c = smoke(data_dir)
-  c.eval.episodes = 0
-  report = train.train_and_evaluate(c, str(tmp_path / 'run'))
+@pytest.fixture(scope='module')
+def unevaluated_runs(tmp_path_factory, data_dir):
+  """Two runs of one config and seed with `eval.episodes = 0`: {name: (workdir, report)}.
+  Shared by the two tests below, so the suite trains them once."""
+  runs_dir = tmp_path_factory.mktemp('unevaluated')
+  out = {}
+  for name in ('a', 'b'):
+    c = smoke(data_dir)
+    c.eval.episodes = 0
+    workdir = str(runs_dir / name)
+    out[name] = (workdir, train.train_and_evaluate(c, workdir))
+  return out
+
+
+def test_eval_episodes_zero_trains_without_evaluating(unevaluated_runs):
+  workdir, report = unevaluated_runs['a']
   assert report['steps'] == 4 and report['success_rate'] is None and report['baselines'] == {}
-  assert not os.path.exists(tmp_path / 'run' / 'eval.csv')
+  assert not os.path.exists(os.path.join(workdir, 'eval.csv'))
 
 
 @pytest.mark.parametrize('steps_per_s,expected', [
@@ -135,15 +147,10 @@ def test_report_summary_states_speed_or_that_nothing_was_trained(steps_per_s, ex
   assert 'nan' not in md
 
 
-def test_same_seed_trains_bit_identical_parameters(tmp_path, data_dir):
+def test_same_seed_trains_bit_identical_parameters(unevaluated_runs):
   """Two runs of one config and seed on one machine agree to the bit (results can be re-run)."""
   import jax
-  params = []
-  for name in ('a', 'b'):
-    c = smoke(data_dir, num_steps=3)
-    c.eval.episodes = 0
-    train.train_and_evaluate(c, str(tmp_path / name))
-    params.append(checkpointing.load_for_evaluation(str(tmp_path / name))[1])
+  params = [checkpointing.load_for_evaluation(unevaluated_runs[name][0])[1] for name in 'ab']
   diffs = jax.tree_util.tree_map(lambda x, y: float(np.max(np.abs(np.asarray(x) - np.asarray(y)))),
                                  *params)
   assert max(jax.tree_util.tree_leaves(diffs)) == 0.0

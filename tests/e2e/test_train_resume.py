@@ -25,7 +25,7 @@ def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
   workdir = str(tmp_path / 'run')
   cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open.py:smoke',
          f'--workdir={workdir}', f'--config.data.dir={data_dir}',
-         '--config.train.num_steps=60', '--config.train.checkpoint_every=5',
+         '--config.train.num_steps=15', '--config.train.checkpoint_every=5',
          '--config.train.log_every=5', '--config.train.eval_every=1000',
          '--config.eval.episodes=0']  # Resuming is tested here; evaluation elsewhere.
   proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -39,11 +39,11 @@ def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
   os.kill(proc.pid, signal.SIGKILL)
   proc.wait()
   killed_at = max(int(d) for d in os.listdir(ckpt_dir) if d.isdigit())
-  assert killed_at < 60
+  assert killed_at < 15
   assert not os.path.exists(os.path.join(workdir, 'report.json'))
   done = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
   assert done.returncode == 0, done.stderr[-2000:]
   with open(os.path.join(workdir, 'report.json')) as f:
-    assert json.load(f)['steps'] == 60
+    assert json.load(f)['steps'] == 15
   steps = [int(r['step']) for r in run_files.read_csv(os.path.join(workdir, 'metrics.csv'))]
-  assert steps[-1] == 60 and min(steps) <= killed_at
+  assert steps[-1] == 15 and min(steps) <= killed_at
