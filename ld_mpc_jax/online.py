@@ -230,7 +230,8 @@ class OnlineJob:
       self.catch_up()
       policy = self._policy(first, seeds)
     obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(self.envs, seeds)])
-    eps = [dict(obs=[x], action=[], reward=[], success=[]) for x in obs]
+    # Copies: `obs` rows are overwritten in place by every step below.
+    eps = [dict(obs=[np.copy(x)], action=[], reward=[], success=[]) for x in obs]
     active, t = np.ones(n, bool), 0
     noise, noise_rng = np.zeros((n, act_dim)), np.random.default_rng([self.config.seed, first, 29])
     self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)

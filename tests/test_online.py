@@ -12,6 +12,7 @@ import sys
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
@@ -75,6 +76,19 @@ def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkey
     rows = list(csv.DictReader(f))
   assert [r['acting'] for r in rows] == ['random', 'actor']
   assert math.isnan(float(rows[1]['won_proposal'])) and math.isnan(float(rows[1]['departed']))
+  # Every stored episode starts at its own reset observation (not at a later one written into
+  # the same array), in the random wave and the acting wave alike.
+  from ld_mpc_jax import data, envs  # pylint: disable=g-import-not-at-top
+  buffer = data.load(online.buffer_path(str(tmp_path / 'run'), 80))
+  seeds = envs.episode_seeds(config.seed, buffer.num_episodes, 'online')
+  assert buffer.num_episodes == 4
+  for i, s in enumerate(seeds):
+    env = envs.make_env(config.task, seed=config.data.seed,
+                        action_repeat=config.eval.action_repeat,
+                        max_episode_steps=config.online.episode_steps)
+    first = buffer.episode(i)['obs']
+    assert np.allclose(first[0], env.reset(seed=int(s))[0], atol=1e-6)
+    assert not np.allclose(first[0], first[-1])
 
 
 def test_any_task_by_flag_acts_and_evaluates_on_that_task(tmp_path, monkeypatch):
