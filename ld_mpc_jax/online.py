@@ -50,8 +50,9 @@ BUFFER_DIR = 'online'
 def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collections.ConfigDict]:
   """The config of the offline run `online.init_from` (None: from scratch).
 
-  Raises a one-line ValueError when it is not a training workdir with a checkpoint, or when its
-  networks differ from config's (the parameters would not fit).
+  Raises a one-line ValueError when it is not a training workdir with a checkpoint, when it was
+  trained on another task, or when its networks differ from config's (the parameters would not
+  fit).
   """
   path = config.online.init_from
   if not path:
@@ -60,6 +61,9 @@ def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collection
     source = checkpointing.load_config(path)
   except FileNotFoundError as err:
     raise ValueError(f'config.online.init_from: {err}') from None
+  if source.task != config.task:  # Its dataset would be collected again on the wrong task.
+    raise ValueError(f'config.online.init_from={path!r} was trained on {source.task}, not '
+                     f'{config.task}: pass --config.task={source.task}')
   if checkpointing.checkpoint_manager(path).latest_step() is None:
     raise ValueError(f'config.online.init_from={path!r} has no checkpoint')
   shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, checkpointing.abstract_state(c))

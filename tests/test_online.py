@@ -120,3 +120,16 @@ def test_bad_online_config_exits_2_with_one_line(tmp_path, override, match):
   assert done.returncode == 2
   lines = done.stderr.strip().splitlines()
   assert len(lines) == 1 and lines[0].startswith('error:') and match in lines[0]
+
+
+def test_fine_tuning_from_a_run_of_another_task_is_refused_naming_the_flag(tmp_path):
+  from ld_mpc_jax import checkpointing  # pylint: disable=g-import-not-at-top
+  from experiments.configs import door_open  # pylint: disable=g-import-not-at-top
+  offline = door_open.get_config('smoke')
+  offline.task = 'push-v3'
+  checkpointing.save_config(offline, str(tmp_path / 'push_run'))
+  config = door_open_online.get_config('smoke')
+  config.online.init_from = str(tmp_path / 'push_run')
+  with pytest.raises(ValueError, match=r'trained on push-v3, not door-open-v3: pass '
+                     r'--config.task=push-v3'):
+    online.check_init_from(config)
