@@ -82,10 +82,10 @@ def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkey
   buffer = data.load(online.buffer_path(str(tmp_path / 'run'), 80))
   seeds = envs.episode_seeds(config.seed, buffer.num_episodes, 'online')
   assert buffer.num_episodes == 4
+  env = envs.make_env(config.task, seed=config.data.seed,
+                      action_repeat=config.eval.action_repeat,
+                      max_episode_steps=config.online.episode_steps)
   for i, s in enumerate(seeds):
-    env = envs.make_env(config.task, seed=config.data.seed,
-                        action_repeat=config.eval.action_repeat,
-                        max_episode_steps=config.online.episode_steps)
     first = buffer.episode(i)['obs']
     assert np.allclose(first[0], env.reset(seed=int(s))[0], atol=1e-6)
     assert not np.allclose(first[0], first[-1])
