@@ -22,17 +22,36 @@ from ld_mpc_jax.registry import Registry
 
 ACTORS = Registry('actor', 'config.critic.actor')
 
+# How the stochastic actor's raw output x becomes its log-std (config.critic.log_std_map), both
+# within TD-MPC2's bounds [-10, 2]:
+#   'clip'  clip(x, -10, 2): log-std 0 (std 1) at x = 0, no gradient outside the bounds;
+#   'tanh'  -10 + 6 (tanh(x) + 1), TD-MPC2's math.log_std: log-std -4 (std 0.018) at x = 0, a
+#           smooth gradient everywhere.
+LOG_STD_MAPS = ('clip', 'tanh')
+LOG_STD_MIN, LOG_STD_MAX = -10.0, 2.0
+
+
+def log_std_from(x: jnp.ndarray, kind: str) -> jnp.ndarray:
+  """The actor's log-std from its raw output x (same shape) under the map `kind`."""
+  if kind == 'clip':
+    return jnp.clip(x, LOG_STD_MIN, LOG_STD_MAX)
+  if kind == 'tanh':
+    return LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (jnp.tanh(x) + 1.0)
+  raise ValueError(f'config.critic.log_std_map must be one of {LOG_STD_MAPS}, got {kind!r}')
+
 
 class Actor(nn.Module):
   """Policy prior a = tanh(MLP(z)) in [-1, 1]^A.
 
   `stochastic`: the MLP also outputs a log-std, and `sample` draws the tanh-squashed Gaussian
-  policy of SAC / TD-MPC2 (log-std in [-10, 2], TD-MPC2's bounds); calling the module gives its
-  mode tanh(mean), which the planner and the actor-alone policy use.
+  policy of SAC / TD-MPC2 (log-std in [-10, 2], TD-MPC2's bounds, through `log_std_map`, see
+  LOG_STD_MAPS); calling the module gives its mode tanh(mean), which the planner and the
+  actor-alone policy use.
   """
   hidden: tuple
   action_dim: int
   stochastic: bool = False
+  log_std_map: str = 'clip'
 
   def setup(self):
     out = self.action_dim * (2 if self.stochastic else 1)
@@ -44,7 +63,8 @@ class Actor(nn.Module):
   def sample(self, z: jnp.ndarray, key: jax.Array):
     """z [..., D] -> (a [..., A] in (-1, 1), log pi(a|z) [...]), reparameterised."""
     out = self.mlp(z)
-    mean, log_std = out[..., :self.action_dim], jnp.clip(out[..., self.action_dim:], -10., 2.)
+    mean = out[..., :self.action_dim]
+    log_std = log_std_from(out[..., self.action_dim:], self.log_std_map)
     eps = jax.random.normal(key, mean.shape)
     u = mean + jnp.exp(log_std) * eps
     a = jnp.tanh(u)

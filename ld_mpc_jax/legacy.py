@@ -17,12 +17,12 @@ RENAMED_SECTIONS = {'objective': 'critic'}
 LEGACY_CRITIC = dict(value='behaviour', actor='bc', latent_rollout=False, num_values=1,
                      num_q=2, hidden=(256, 256), expectile=0.7, value_scale=100.0,
                      awr_temperature=1.0, awr_max_weight=100.0, rollout_steps=1,
-                     td_target='one_step', entropy_coef=1e-4)
+                     td_target='one_step', entropy_coef=1e-4, log_std_map='clip')
 # section -> {field: value for runs saved before it existed}.
 MODEL_FIELDS = {
     'model': dict(proposal_type='diffusion_seq', dynamics_type='diffusion_ar',
                   normalize_obs=False, normalize_dynamics=False, task_dim=96),
-    'critic': dict(td_target='one_step', entropy_coef=1e-4),
+    'critic': dict(td_target='one_step', entropy_coef=1e-4, log_std_map='clip'),
     'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0),
 }
 TASK_DIM = MODEL_FIELDS['model']['task_dim']  # Before it was a field (TD-MPC2's width).

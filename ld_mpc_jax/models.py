@@ -122,7 +122,8 @@ def build_networks(config: ml_collections.ConfigDict) -> Networks:
       dynamics=dynamics.get(config).build(config),
       objective=SequenceObjective(num_blocks=m.objective_blocks, num_bins=m.num_bins, **common),
       actor=Actor(tuple(m.actor_hidden), config.action_dim,
-                  stochastic=actors.get(config).stochastic),
+                  stochastic=actors.get(config).stochastic,
+                  log_std_map=config.critic.log_std_map),
       critics=build_critics(config) if uses_critics(config) else None,
   )
 

@@ -75,3 +75,13 @@ def test_batch_size_must_split_over_the_tasks():
   c.train.batch_size = 12
   with pytest.raises(ValueError, match='multiple of the number of tasks'):
     config_checks.validate_config(c)
+
+
+def test_log_std_map_is_checked():
+  c = door_open_online.get_config('smoke')
+  c.critic.log_std_map = 'tanh'
+  config_checks.validate_config(c)
+  c.critic.log_std_map = 'softplus'
+  with pytest.raises(ValueError, match=r"^config.critic.log_std_map must be one of \('clip', "
+                                       r"'tanh'\), got 'softplus'$"):
+    config_checks.validate_config(c)

@@ -134,6 +134,9 @@ def get_config() -> ml_collections.ConfigDict:
   o.awr_max_weight = 100.0  # IQL's clip of the exponentiated advantage.
   # Actor 'maxq' (online): entropy bonus of the max-Q policy, TD-MPC2's entropy_coef.
   o.entropy_coef = 1e-4
+  # Actor 'maxq': its raw output -> log-std (ld_mpc_jax.actors.LOG_STD_MAPS). 'clip' starts near
+  # std 1; 'tanh' is TD-MPC2's -10 + 6 (tanh(x) + 1), which starts near std 0.02.
+  o.log_std_map = 'clip'
   # Train reward and value heads on the dynamics model's own H-step latent rollouts as well as on
   # encoder latents, with a latent-consistency loss on the rollout (TD-MPC2).
   o.latent_rollout = True
