@@ -31,13 +31,18 @@ LOG_STD_MAPS = ('clip', 'tanh')
 LOG_STD_MIN, LOG_STD_MAX = -10.0, 2.0
 
 
+def check_log_std_map(kind: str) -> None:
+  """One-line ValueError unless `kind` is in LOG_STD_MAPS."""
+  if kind not in LOG_STD_MAPS:
+    raise ValueError(f'config.critic.log_std_map must be one of {LOG_STD_MAPS}, got {kind!r}')
+
+
 def log_std_from(x: jnp.ndarray, kind: str) -> jnp.ndarray:
   """The actor's log-std from its raw output x (same shape) under the map `kind`."""
+  check_log_std_map(kind)
   if kind == 'clip':
     return jnp.clip(x, LOG_STD_MIN, LOG_STD_MAX)
-  if kind == 'tanh':
-    return LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (jnp.tanh(x) + 1.0)
-  raise ValueError(f'config.critic.log_std_map must be one of {LOG_STD_MAPS}, got {kind!r}')
+  return LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (jnp.tanh(x) + 1.0)
 
 
 class Actor(nn.Module):

@@ -151,9 +151,7 @@ def _validate_critic(config: ml_collections.ConfigDict) -> None:
   if actor.value and o.value != actor.value:
     raise ValueError(f'config.critic.actor {o.actor!r} needs the Q ensemble: '
                      f'config.critic.value={actor.value!r}')
-  if o.log_std_map not in actors.LOG_STD_MAPS:
-    raise ValueError(f'config.critic.log_std_map must be one of {actors.LOG_STD_MAPS}, '
-                     f'got {o.log_std_map!r}')
+  actors.check_log_std_map(o.log_std_map)
   if not 0.0 < o.expectile < 1.0:
     raise ValueError(f'config.critic.expectile must be in (0, 1), got {o.expectile}')
   for name in ('num_values', 'num_q', 'rollout_steps'):
