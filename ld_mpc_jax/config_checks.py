@@ -14,6 +14,9 @@ _POSITIVE_INTS = (
 # Policy modes (ld_mpc_jax.agent.POLICY_MODES) that can act online: the planner, or the actor
 # prior alone (with the executed-action noise).
 ACT_MODES = ('plan', 'actor')
+# Goal configurations of online training episodes: the 50 of MT1 seed `data.seed`, or a fresh one
+# per episode (envs.make_env(random_goals=True)).
+TRAIN_GOALS = ('mt1', 'random')
 
 
 def _get(config, dotted: str):
@@ -209,6 +212,9 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   if o.act_mode not in ACT_MODES:
     raise ValueError(f'config.online.act_mode must be one of {", ".join(map(repr, ACT_MODES))}, '
                      f'got {o.act_mode!r}')
+  if o.train_goals not in TRAIN_GOALS:
+    raise ValueError(f'config.online.train_goals must be one of '
+                     f'{", ".join(map(repr, TRAIN_GOALS))}, got {o.train_goals!r}')
   if not 0.0 <= o.exec_noise_corr < 1.0:
     raise ValueError(f'config.online.exec_noise_corr must be in [0, 1), got {o.exec_noise_corr}')
   if o.act_safe_selection and config.plan.num_prior_candidates < 1:

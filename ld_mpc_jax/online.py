@@ -3,7 +3,8 @@
 `train_online(config, workdir)` is the main job's online mode (`config.online.enabled`;
 experiments/configs/door_open_online.py). N = `online.num_envs` environments run one episode each
 in lockstep (a wave); episodes run their full `online.episode_steps` environment steps, as the
-scripted data do, and start from the goals of MT1 seed `config.data.seed`. From scratch, the
+scripted data do, and start from the goals of MT1 seed `config.data.seed` (or, with
+`online.train_goals='random'`, from a fresh goal configuration each). From scratch, the
 waves of the first `online.seed_steps` environment steps act with uniform random actions; after
 them the agent acts with its planner and EMA parameters (one jitted plan per environment, or
 `online.plan_chunk` environments per vmap, `agent.BatchAgentPolicy`), with the exploration noise
@@ -152,7 +153,9 @@ class OnlineJob:
     self.act_config = acting_config(config)
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,
-                               max_episode_steps=o.episode_steps) for _ in range(o.num_envs)]
+                               max_episode_steps=o.episode_steps,
+                               random_goals=o.train_goals == 'random')
+                 for _ in range(o.num_envs)]
     self.metrics, self.last, self.noise_std = {}, None, 0.0
     self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
                          unit='env step', dynamic_ncols=True)

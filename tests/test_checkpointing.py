@@ -34,8 +34,10 @@ def test_old_online_run_acted_with_its_plan_selection(tmp_path, safe):
   raw = json.loads(door_open_online.get_config('smoke').to_json_best_effort())
   raw['plan']['safe_selection'] = safe
   del raw['online']['act_safe_selection']  # Saved before acting had its own selection.
+  del raw['online']['train_goals']  # Saved when training always used the MT1 seed's 50 goals.
   (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
-  assert checkpointing.load_config(str(tmp_path)).online.act_safe_selection is safe
+  loaded = checkpointing.load_config(str(tmp_path))
+  assert loaded.online.act_safe_selection is safe and loaded.online.train_goals == 'mt1'
 
 
 def test_saved_config_round_trips(tmp_path):

@@ -53,6 +53,7 @@ def test_online_batch_is_not_checked_without_seed_updates():
     (dict(updates_per_call=0), 'updates_per_call must be an integer'),
     (dict(exec_noise_start=-0.1), 'must be >= 0'),
     (dict(exec_noise_corr=1.0), r'exec_noise_corr must be in \[0, 1\)'),
+    (dict(train_goals='fixed'), "train_goals must be one of 'mt1', 'random', got 'fixed'"),
 ])
 def test_acting_settings_are_checked(overrides, match):
   c = door_open_online.get_config('smoke')

@@ -111,6 +111,25 @@ def test_seeded_resets_and_observation_noise():
   assert clean.reset(seed=11)[0].tolist() == o_clean.tolist()
 
 
+def test_random_goals_draw_fresh_seeded_configurations():
+  """random_goals (online.train_goals='random'): each reset without a goal draws a configuration
+  outside the 50 of the MT1 seed, the same one again for the same reset seed; a given goal still
+  sets that goal."""
+  from ld_mpc_jax.envs import goals  # pylint: disable=g-import-not-at-top
+  env = metaworld_env.make_env('reach-v3', seed=0, random_goals=True)
+  fixed = metaworld_env.make_env('reach-v3', seed=0)
+  _, mt1 = goals.mt1_goals('reach-v3', 0)
+  drawn = np.stack([env.reset(seed=s)[1]['goal_vector'] for s in (1, 2, 1)])
+  np.testing.assert_array_equal(drawn[0], drawn[2])
+  assert np.abs(drawn[0] - drawn[1]).max() > 0.01
+  assert not goals.matches(drawn, mt1).any()
+  assert goals.matches(np.stack([fixed.reset(seed=s)[1]['goal_vector'] for s in (1, 2)]),
+                       mt1).all()
+  task = metaworld_env.mt1_tasks('reach-v3', 0)[3]
+  np.testing.assert_allclose(env.reset(seed=5, options={'goal': task})[1]['goal_vector'], mt1[3])
+  np.testing.assert_array_equal(env.reset(seed=1)[1]['goal_vector'], drawn[0])
+
+
 def test_episode_seed_streams_differ():
   a = metaworld_env.episode_seeds(0, 5, 'eval')
   b = metaworld_env.episode_seeds(0, 5, 'collect')

@@ -92,19 +92,29 @@ def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkey
 
 
 def test_any_task_by_flag_acts_and_evaluates_on_that_task(tmp_path, monkeypatch):
+  """With online.train_goals='random' as well: the acting environments draw fresh goal
+  configurations, the evaluation ones keep the held-out goals."""
   from ld_mpc_jax import envs  # pylint: disable=g-import-not-at-top
   made = []
   original = envs.make_env
   def recording(task, *args, **kwargs):
-    made.append(task)
+    made.append((task, kwargs.get('random_goals', False)))
     return original(task, *args, **kwargs)
   monkeypatch.setattr(envs, 'make_env', recording)
   config = door_open_online.get_config('smoke')
-  config.task = 'push-v3'
+  config.task, config.online.train_goals = 'push-v3', 'random'
   _record_policies(config, str(tmp_path / 'run'), monkeypatch)
-  assert made and set(made) == {'push-v3'}  # Acting and evaluation environments alike.
+  assert made and {task for task, _ in made} == {'push-v3'}  # Acting and evaluation alike.
+  assert made[:config.online.num_envs] == [('push-v3', True)] * config.online.num_envs
+  assert not any(random for _, random in made[config.online.num_envs:])
   with open(tmp_path / 'run' / 'report.json') as f:
     assert '"task": "push-v3"' in f.read()
+  from ld_mpc_jax import data  # pylint: disable=g-import-not-at-top
+  buffer = data.load(online.buffer_path(str(tmp_path / 'run'), 80))
+  starts = np.stack([envs.metaworld_env.goal_vector(buffer.episode(i)['obs'][0])
+                     for i in range(buffer.num_episodes)])
+  _, mt1 = envs.goals.mt1_goals('push-v3', config.data.seed)
+  assert not envs.goals.matches(starts, mt1).any()  # None of the 50 goals of the MT1 seed.
 
 
 @pytest.mark.parametrize('override,match', [

@@ -55,6 +55,11 @@ def online_settings() -> ml_collections.ConfigDict:
   # the executed-action noise below): does planning while acting make better data?
   o.act_mode = 'plan'
   o.updates_per_call = 1  # Updates per jitted call (lax.scan): fewer dispatches on a CPU.
+  # Goal configurations of the training episodes: 'mt1', the 50 of MT1 seed `data.seed` (the
+  # scripted data's); 'random', a fresh one per episode from the task's whole random-reset space,
+  # as TD-MPC2 trains (its Meta-World wrapper sets `_freeze_rand_vec = False`). Evaluation keeps
+  # the held-out goals either way.
+  o.train_goals = 'mt1'
   # 'dense': Meta-World's shaped reward; 'sparse': 1 on steps where the task is solved, else 0.
   o.reward = 'dense'
   # Planner environments per vmap (0: one jitted plan per environment, the faster on a 2-core

@@ -87,12 +87,17 @@ class MetaWorldWrapper(gym.Wrapper):
     max_episode_steps: episode limit in environment steps.
     obs_noise_std: std of Gaussian noise added to every returned observation.
     terminate_on_success: end the episode at the first successful sub-step.
+    random_goals: resets without a goal draw a fresh goal configuration from the task's whole
+      random-reset space (seeded by the reset's seed), as TD-MPC2 trains
+      (`_freeze_rand_vec = False` in its Meta-World wrapper), instead of one of the 50 of its
+      MT1 seed.
   """
 
   def __init__(self, env: gym.Env, seed: int, action_repeat: int = 2,
                max_episode_steps: int = METAWORLD_MAX_PATH_LENGTH,
                obs_noise_std: float = 0.0,
-               terminate_on_success: bool = False):
+               terminate_on_success: bool = False,
+               random_goals: bool = False):
     super().__init__(env)
     if action_repeat < 1:
       raise ValueError(f'action_repeat must be >= 1, got {action_repeat}')
@@ -105,6 +110,7 @@ class MetaWorldWrapper(gym.Wrapper):
     self.max_episode_steps = int(max_episode_steps)
     self.obs_noise_std = float(obs_noise_std)
     self.terminate_on_success = bool(terminate_on_success)
+    self.random_goals = bool(random_goals)
     self._noise_rng = np.random.default_rng(seed)
     self._env_steps = 0
     self._needs_reset = True
@@ -138,7 +144,7 @@ class MetaWorldWrapper(gym.Wrapper):
 
     `options={'goal': task}` (a `metaworld.Task` of this environment's task) starts at that goal
     configuration; without it the environment draws one of its own 50 goals with its seeded
-    random state. `info['goal_vector']` ([6], `goal_vector` of the noise-free first observation)
+    random state, or with `random_goals` a fresh configuration. `info['goal_vector']` ([6], `goal_vector` of the noise-free first observation)
     identifies the configuration.
     """
     options = dict(options or {})
@@ -148,7 +154,9 @@ class MetaWorldWrapper(gym.Wrapper):
       self.env.unwrapped.seed(int(seed))
       self._noise_rng = np.random.default_rng(int(seed))
     if self._task_select is not None:
-      self._task_select.toggle_sample_tasks_on_reset(goal is None)
+      self._task_select.toggle_sample_tasks_on_reset(goal is None and not self.random_goals)
+    if goal is None and self.random_goals:
+      self._unfreeze_goal()
     if goal is not None:
       if self._task_select is None:
         raise ValueError('this environment has no Meta-World goal configurations to set')
@@ -160,6 +168,16 @@ class MetaWorldWrapper(gym.Wrapper):
     info['env_steps'] = 0
     info['goal_vector'] = goal_vector(obs)
     return self._noisy(obs), info
+
+  def _unfreeze_goal(self) -> None:
+    """The next reset draws its goal configuration from the environment's seeded np_random."""
+    inner = self.env.unwrapped
+    if not inner._set_task_called:  # pylint: disable=protected-access
+      if self._task_select is None:
+        raise ValueError('this environment has no Meta-World goal configuration to start from')
+      inner.set_task(self._task_select.tasks[0])  # The task's constants; its goal is redrawn.
+    inner._freeze_rand_vec = False  # pylint: disable=protected-access
+    inner.seeded_rand_vec = True  # Its np_random (seeded by reset), not NumPy's global state.
 
   def step(self, action: np.ndarray
            ) -> Tuple[np.ndarray, float, bool, bool, Dict[str, Any]]:
@@ -194,6 +212,7 @@ def make_env(task: str, seed: int, action_repeat: int = 2,
              max_episode_steps: int = METAWORLD_MAX_PATH_LENGTH,
              obs_noise_std: float = 0.0,
              terminate_on_success: bool = False,
+             random_goals: bool = False,
              render_mode: Optional[str] = None,
              camera_name: str = 'corner',
              image_size: int = 480) -> MetaWorldWrapper:
@@ -208,6 +227,8 @@ def make_env(task: str, seed: int, action_repeat: int = 2,
       and 500 steps an episode has at most 250 decisions.
     obs_noise_std: std of Gaussian noise added to observations (seeded).
     terminate_on_success: end episodes at the first success (evaluation).
+    random_goals: resets without a goal draw a fresh goal configuration
+      (MetaWorldWrapper), not one of the 50.
     render_mode: None or 'rgb_array' (offscreen MuJoCo rendering; on a machine
       without a display set MUJOCO_GL=osmesa, needs libosmesa6).
     camera_name: MuJoCo camera used when rendering.
@@ -239,7 +260,8 @@ def make_env(task: str, seed: int, action_repeat: int = 2,
   return MetaWorldWrapper(env, seed=int(seed), action_repeat=action_repeat,
                           max_episode_steps=max_episode_steps,
                           obs_noise_std=obs_noise_std,
-                          terminate_on_success=terminate_on_success)
+                          terminate_on_success=terminate_on_success,
+                          random_goals=random_goals)
 
 
 # Independent seed streams, so evaluation never replays a collected (or online) episode.
