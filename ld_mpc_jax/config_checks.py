@@ -215,6 +215,9 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   if o.train_goals not in TRAIN_GOALS:
     raise ValueError(f'config.online.train_goals must be one of '
                      f'{", ".join(map(repr, TRAIN_GOALS))}, got {o.train_goals!r}')
+  if o.train_goals == 'random' and not o.init_from and 'train' in config.eval.splits:
+    raise ValueError("config.online.train_goals='random' leaves no train goal split (each "
+                     "episode draws its own goal): set config.eval.splits=held_out")
   if not 0.0 <= o.exec_noise_corr < 1.0:
     raise ValueError(f'config.online.exec_noise_corr must be in [0, 1), got {o.exec_noise_corr}')
   if o.act_safe_selection and config.plan.num_prior_candidates < 1:

@@ -41,10 +41,14 @@ def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Option
   TD-MPC2 data (config.data.source 'tdmpc2') drew a random goal per episode, not MT1 goals: their
   goal vectors come from the observations as for any data, and the MT1 seed is None. Online
   training from scratch (config.online, no init_from) has no dataset: its episodes start from
-  the 50 goals of MT1 seed `data.seed`, which are then the training goals.
+  the 50 goals of MT1 seed `data.seed`, which are then the training goals, or with
+  `online.train_goals='random'` from a fresh goal each: no goal vectors to keep out of held_out
+  (continuous draws) and no train split.
   """
   d = config.data
   if online_enabled(config) and not config.online.init_from:
+    if config.online.train_goals == 'random':
+      return np.zeros((0, envs.metaworld_env.GOAL_DIM)), None
     return goals.mt1_goals(config.task, d.seed)[1], d.seed
   if d.source == 'tdmpc2':
     return goals.dataset_goal_vectors(data.load_for_config(config)), None

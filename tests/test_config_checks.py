@@ -54,9 +54,11 @@ def test_online_batch_is_not_checked_without_seed_updates():
     (dict(exec_noise_start=-0.1), 'must be >= 0'),
     (dict(exec_noise_corr=1.0), r'exec_noise_corr must be in \[0, 1\)'),
     (dict(train_goals='fixed'), "train_goals must be one of 'mt1', 'random', got 'fixed'"),
+    (dict(train_goals='random'), 'leaves no train goal split'),
 ])
 def test_acting_settings_are_checked(overrides, match):
   c = door_open_online.get_config('smoke')
+  c.eval.splits = ('held_out', 'train')
   c.online.update(overrides)
   with pytest.raises(ValueError, match=match):
     config_checks.validate_config(c)

@@ -115,6 +115,8 @@ def test_any_task_by_flag_acts_and_evaluates_on_that_task(tmp_path, monkeypatch)
                      for i in range(buffer.num_episodes)])
   _, mt1 = envs.goals.mt1_goals('push-v3', config.data.seed)
   assert not envs.goals.matches(starts, mt1).any()  # None of the 50 goals of the MT1 seed.
+  vectors, mt1_seed = evaluation_suite.dataset_goals(config)  # No train split to evaluate.
+  assert vectors.shape == (0, 6) and mt1_seed is None
 
 
 @pytest.mark.parametrize('override,match', [

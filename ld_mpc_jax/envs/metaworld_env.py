@@ -32,6 +32,7 @@ METAWORLD_MAX_PATH_LENGTH = 500
 # Where a state observation holds the (first) object's position and the goal position.
 OBJECT_SLICE = slice(4, 7)
 GOAL_SLICE = slice(36, 39)
+GOAL_DIM = 6  # goal_vector's width: object position and goal position.
 
 
 def goal_vector(obs: np.ndarray) -> np.ndarray:
