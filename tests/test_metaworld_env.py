@@ -5,7 +5,7 @@ import metaworld
 import numpy as np
 import pytest
 
-from ld_mpc_jax.envs import metaworld_env
+from ld_mpc_jax.envs import goals, metaworld_env
 
 
 class _SuccessAtEnv(gym.Env):
@@ -115,7 +115,6 @@ def test_random_goals_draw_fresh_seeded_configurations():
   """random_goals (online.train_goals='random'): each reset without a goal draws a configuration
   outside the 50 of the MT1 seed, the same one again for the same reset seed; a given goal still
   sets that goal."""
-  from ld_mpc_jax.envs import goals  # pylint: disable=g-import-not-at-top
   env = metaworld_env.make_env('reach-v3', seed=0, random_goals=True)
   fixed = metaworld_env.make_env('reach-v3', seed=0)
   _, mt1 = goals.mt1_goals('reach-v3', 0)

@@ -145,8 +145,8 @@ class MetaWorldWrapper(gym.Wrapper):
 
     `options={'goal': task}` (a `metaworld.Task` of this environment's task) starts at that goal
     configuration; without it the environment draws one of its own 50 goals with its seeded
-    random state, or with `random_goals` a fresh configuration. `info['goal_vector']` ([6], `goal_vector` of the noise-free first observation)
-    identifies the configuration.
+    random state, or with `random_goals` a fresh configuration. `info['goal_vector']` ([6],
+    `goal_vector` of the noise-free first observation) identifies the configuration.
     """
     options = dict(options or {})
     goal = options.pop('goal', None)
