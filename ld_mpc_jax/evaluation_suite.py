@@ -190,8 +190,10 @@ def summarize(records: Sequence[dict]) -> Dict[str, Any]:
       policies[mode] = s
     paired = {}
     for a, b in itertools.combinations(modes, 2):
-      paired[f'{a} vs {b}'] = stats.paired(stats.select(recs, policy=a),
-                                           stats.select(recs, policy=b))
+      ra, rb = stats.select(recs, policy=a), stats.select(recs, policy=b)
+      if {stats.episode_key(r) for r in ra} & {stats.episode_key(r) for r in rb}:
+        paired[f'{a} vs {b}'] = stats.paired(ra, rb)
+      # else: never on the same episodes (pooled from different files), so no paired test.
     out[split] = dict(policies=policies, paired=paired)
   return out
 

@@ -51,14 +51,16 @@ def mcnemar_exact(a: Sequence[int], b: Sequence[int]) -> Dict[str, float]:
   return dict(n=int(a.size), a_only=a_only, b_only=b_only, p_value=float(p))
 
 
-def _key(record: dict) -> Tuple:
+def episode_key(record: dict) -> Tuple:
+  """The fields (EPISODE_KEY) that name a record's episode; equal keys, the same episode."""
   return tuple(record.get(k) for k in EPISODE_KEY)
 
 
 def paired(records_a: Iterable[dict], records_b: Iterable[dict]) -> Dict[str, float]:
   """McNemar test of two policies on the episodes both were evaluated on (matched by key)."""
-  by_key = {_key(r): int(r['success']) for r in records_b}
-  pairs = [(int(r['success']), by_key[_key(r)]) for r in records_a if _key(r) in by_key]
+  by_key = {episode_key(r): int(r['success']) for r in records_b}
+  pairs = [(int(r['success']), by_key[episode_key(r)]) for r in records_a
+           if episode_key(r) in by_key]
   if not pairs:
     raise ValueError('the two sets of records share no episode')
   a, b = zip(*pairs)

@@ -42,6 +42,18 @@ def test_pool_keeps_the_runs_of_one_file_apart():
   assert (t['n'], t['a_only'], t['b_only']) == (8, 4, 4)
 
 
+def test_policies_from_different_files_pool_without_a_paired_test():
+  # 'safe' was evaluated in one file, 'argmax' in another: each pools, but they share no
+  # episode, so only the pairs within a file are tested (no error).
+  a = _result({'argmax': [1, 1, 0, 0], 'actor': [1, 0, 0, 0]})
+  b = _result({'safe': [1, 1, 1, 0], 'actor': [1, 0, 0, 0]})
+  s = pool_evals.pool([a, b], ['a', 'b'])['held_out']
+  assert s['policies']['actor']['successes'] == 2
+  assert set(s['paired']) == {'argmax vs actor', 'actor vs safe'}  # In order of appearance.
+  t = s['paired']['actor vs safe']
+  assert (t['n'], t['a_only'], t['b_only']) == (4, 0, 2)
+
+
 def test_main_prints_per_task_table_pooled_over_files(tmp_path, capsys):
   paths = []
   for name, outcomes in (('a', [1, 1, 0, 0]), ('b', [1, 0, 0, 0])):
