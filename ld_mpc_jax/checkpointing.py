@@ -74,7 +74,8 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
     legacy.fill(config, 'online', dict(
         act_pessimism=config.plan.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
         exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan',
-        act_safe_selection=config.plan.safe_selection, train_goals='mt1'))
+        act_safe_selection=config.plan.safe_selection, train_goals='mt1',
+        act_num_gaussian=config.plan.num_gaussian, act_iterations=config.plan.iterations))
   return config
 
 

@@ -223,7 +223,25 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   if o.act_safe_selection and config.plan.num_prior_candidates < 1:
     raise ValueError("config.online.act_safe_selection needs the actor prior's own sequence as a "
                      'candidate: config.plan.num_prior_candidates >= 1')
+  _validate_acting_search(config)
   # act_pessimism < 0 is optimism while acting: mean + |act_pessimism| std of the value ensemble.
+
+
+def _validate_acting_search(config: ml_collections.ConfigDict) -> None:
+  """The evaluation planner's search (`plan.*`), then the acting one's (`online.act_*`)."""
+  o = config.online
+  from ld_mpc_jax import search  # pylint: disable=g-import-not-at-top
+  for name in ('act_num_gaussian', 'act_iterations'):
+    if not isinstance(o[name], int) or o[name] < 0:
+      raise ValueError(f'config.online.{name} must be an integer >= 0, got {o[name]!r}')
+  search.validate_search(config)  # The evaluation planner's (make_plan checks it again).
+  acting = ml_collections.ConfigDict(config.to_dict())  # The search of exploration.acting_config.
+  acting.plan.num_gaussian, acting.plan.iterations = o.act_num_gaussian, o.act_iterations
+  try:  # Then the acting planner's.
+    search.validate_search(acting)
+  except ValueError as err:
+    raise ValueError(f'while acting (config.online.act_num_gaussian, act_iterations): '
+                     f'{err}') from None
 
 
 def check_online_budget(config: ml_collections.ConfigDict) -> None:

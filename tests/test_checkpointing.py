@@ -40,6 +40,16 @@ def test_old_online_run_acted_with_its_plan_selection(tmp_path, safe):
   assert loaded.online.act_safe_selection is safe and loaded.online.train_goals == 'mt1'
 
 
+def test_old_online_run_searched_while_acting_as_it_evaluated(tmp_path):
+  from experiments.configs import door_open_online
+  raw = json.loads(door_open_online.get_config('cpu').to_json_best_effort())
+  raw['plan']['num_gaussian'], raw['plan']['iterations'] = 16, 2
+  del raw['online']['act_num_gaussian'], raw['online']['act_iterations']
+  (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
+  loaded = checkpointing.load_config(str(tmp_path))
+  assert (loaded.online.act_num_gaussian, loaded.online.act_iterations) == (16, 2)
+
+
 def test_saved_config_round_trips(tmp_path):
   config = door_open.get_config('smoke')
   checkpointing.save_config(config, str(tmp_path))

@@ -64,6 +64,19 @@ def test_acting_settings_are_checked(overrides, match):
     config_checks.validate_config(c)
 
 
+def test_the_acting_search_is_checked_with_a_message_naming_it():
+  c = door_open_online.get_config('cpu')
+  c.online.act_iterations = -1
+  with pytest.raises(ValueError, match='online.act_iterations must be an integer >= 0'):
+    config_checks.validate_config(c)
+  c.online.act_iterations, c.online.act_num_gaussian = 3, 0
+  c.plan.num_elites = 40  # Above the acting first round (24 + 8), not the evaluation's (+ 32).
+  with pytest.raises(ValueError, match='while acting .*num_elites'):
+    config_checks.validate_config(c)
+  c.online.act_num_gaussian = 32
+  config_checks.validate_config(c)
+
+
 def test_safe_selection_while_acting_needs_the_actor_priors_sequence():
   c = door_open_online.get_config('smoke')
   c.online.act_safe_selection, c.plan.num_prior_candidates = True, 0

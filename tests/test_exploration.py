@@ -23,6 +23,15 @@ def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():
   assert acting.online.to_dict() == c.online.to_dict()
 
 
+def test_acting_searches_with_its_own_settings_and_evaluation_with_the_plans():
+  c = door_open_online.get_config('cpu_correlated')
+  assert (c.online.act_num_gaussian, c.online.act_iterations) == (32, 3)  # As the presets act.
+  c.plan.num_gaussian, c.plan.iterations = 0, 0  # Evaluation: proposal and actor prior only.
+  acting = exploration.acting_config(c)
+  assert (acting.plan.num_gaussian, acting.plan.iterations) == (32, 3)
+  assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)
+
+
 def test_executed_noise_anneals_linearly():
   c = door_open_online.get_config('cpu')
   start, end = c.online.exec_noise_start, c.online.exec_noise_end

@@ -42,6 +42,11 @@ def online_settings() -> ml_collections.ConfigDict:
   # departs from the actor prior wherever the argmax says, and the data shows whether it was
   # right; a margin that keeps the actor prior belongs to what is executed when it counts.
   o.act_safe_selection = False
+  # The search while acting (evaluation keeps plan.num_gaussian and plan.iterations): broad
+  # Gaussian candidates and MPPI refinement rounds widen what is tried; on push's online
+  # checkpoints they cost success when evaluating (docs/results.md). Presets set both sides.
+  o.act_num_gaussian = 0
+  o.act_iterations = 0
   # Gaussian noise on the executed action while acting, its std linear from start to end over
   # the run (DDPG/TD3-style action noise, annealed; 0 and 0 = the planner's action as chosen).
   o.exec_noise_start = 0.0
@@ -84,6 +89,7 @@ def _budget(c: ml_collections.ConfigDict) -> None:
   p.num_candidates, p.num_prior_candidates = 24, 8
   p.num_gaussian = 32
   p.iterations, p.num_refine, p.num_elites = 3, 32, 8
+  c.online.act_num_gaussian, c.online.act_iterations = p.num_gaussian, p.iterations
   # TD-MPC2's targets and policy: values of the current policy, not of the buffer's actions.
   c.critic.td_target = 'policy'
   c.critic.actor = 'maxq'
