@@ -62,6 +62,12 @@ def read_records(path: str) -> list:
 
 
 def main(paths: list) -> None:
+  if any(p in ('-h', '--help', '-help') for p in paths):
+    print(__doc__.strip())
+    return
+  options = [p for p in paths if p.startswith('-')]
+  if options:
+    cli.fail(f'pool_evals takes file paths only, not options: {" ".join(options)} (see --help)')
   if not paths:
     cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json ...')
   results = [{'records': read_records(path)} for path in paths]

@@ -2,7 +2,7 @@
 
 import ml_collections
 
-from ld_mpc_jax import legacy, tasks
+from ld_mpc_jax import exploration, legacy, tasks
 
 _POSITIVE_INTS = (
     'obs_dim', 'action_dim', 'horizon',
@@ -235,10 +235,8 @@ def _validate_acting_search(config: ml_collections.ConfigDict) -> None:
     if not isinstance(o[name], int) or o[name] < 0:
       raise ValueError(f'config.online.{name} must be an integer >= 0, got {o[name]!r}')
   search.validate_search(config)  # The evaluation planner's (make_plan checks it again).
-  acting = ml_collections.ConfigDict(config.to_dict())  # The search of exploration.acting_config.
-  acting.plan.num_gaussian, acting.plan.iterations = o.act_num_gaussian, o.act_iterations
   try:  # Then the acting planner's.
-    search.validate_search(acting)
+    search.validate_search(exploration.acting_config(config))
   except ValueError as err:
     raise ValueError(f'while acting (config.online.act_num_gaussian, act_iterations): '
                      f'{err}') from None

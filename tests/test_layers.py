@@ -127,12 +127,12 @@ LAYERS = (
                      'tasks')),
     ('data', ('data', 'data.dataset', 'data.collection', 'data.replay', 'data.tdmpc2',
               'data.multitask', 'data.sources')),
-    ('config checks', ('config_checks',)),
+    ('config checks', ('config_checks', 'exploration')),
     ('model', ('models',)),
     ('learn', ('losses', 'train_state', 'checkpointing')),
     ('plan', ('planner', 'mppi', 'agent')),
     ('eval', ('evaluation', 'evaluation_suite', 'diagnostics', 'multitask_eval', 'run_files')),
-    ('runs', ('exploration', 'runs', 'online', 'train', '')),
+    ('runs', ('runs', 'online', 'train', '')),
 )
 
 

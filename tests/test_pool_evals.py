@@ -144,3 +144,11 @@ def test_main_reads_a_runs_episodes_csv(tmp_path, capsys):
   out = capsys.readouterr().out
   assert '| held_out | planner | 3/4 = 0.75 |' in out and '| 7.5 | not recorded |' in out
   assert '| held_out | planner vs actor prior | 4 | 2 | 0 | 0.5 |' in out
+
+
+def test_main_prints_its_usage_for_help_and_refuses_other_options(capsys):
+  pool_evals.main(['--help'])
+  assert 'python -m experiments.pool_evals' in capsys.readouterr().out
+  with pytest.raises(SystemExit) as err:
+    pool_evals.main(['a.json', '--policies=plan'])
+  assert err.value.code == 2 and 'file paths only' in capsys.readouterr().err
