@@ -8,12 +8,17 @@ A and B are `experiments.sweep` outputs (for example the same preset with and wi
 override), or `experiments.evaluate --out` JSONs of the sweep's seed workdirs: several files
 joined by commas count as one side (their records carry the training seed as `run`), e.g.
 `B=runs/x/seed0/eval_k0.json,runs/x/seed1/eval_k0.json` for an evaluation-time override. A run's
-own `episodes.csv` (training or online fine-tuning) is a side too. An episode of A pairs with the episode of B with the same training seed, goal split,
+own `episodes.csv` (training or online fine-tuning) is a side too, and so is an
+`experiments.compare_selection --out` JSON (its records name their workdir, whose config.json
+gives the training seed; choose its planners with e.g. `--policies='plan[argmax]'`). An episode of A pairs with the episode of B with the same training seed, goal split,
 evaluation seed and episode index: the same goal and reset seed, a checkpoint trained with the
 same seed under each config. Prints both success rates over the paired episodes and the exact
 McNemar test on the discordant pairs, per policy. Paired episodes whose recorded goals differ end
 the program with one line: they were not the same episodes.
 """
+
+import json
+import os
 
 from absl import app, flags
 
@@ -26,8 +31,30 @@ _SPLIT = flags.DEFINE_string('split', 'held_out', 'Goal split.')
 
 
 def read_side(spec: str) -> dict:
-  """{'records': ...} of one file, or of several joined by commas."""
-  return {'records': [r for path in spec.split(',') for r in read_records(path)]}
+  """{'records': ...} of one file, or of several joined by commas. A record whose `run` is a
+  workdir (an `experiments.compare_selection` JSON) gets that workdir's training seed instead, so
+  that checkpoints of two configs pair by seed as a sweep's do."""
+  seeds = {}
+  records = []
+  for path in spec.split(','):
+    for r in read_records(path):
+      if isinstance(r.get('run'), str):
+        if r['run'] not in seeds:
+          seeds[r['run']] = _training_seed(r['run'], path)
+        r = {**r, 'run': seeds[r['run']]}
+      records.append(r)
+  return {'records': records}
+
+
+def _training_seed(workdir: str, path: str) -> int:
+  """config.seed of the training run at `workdir`, named by a record of `path`."""
+  config = os.path.join(workdir, 'config.json')
+  try:
+    with open(config) as f:
+      return int(json.load(f)['seed'])
+  except (OSError, ValueError, KeyError) as err:
+    cli.fail(f'{path} names the run {workdir}, whose training seed cannot be read from '
+             f'{config}: {err!r}')
 
 
 def paired_rows(a: dict, b: dict, policies, split: str) -> list:

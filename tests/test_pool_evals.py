@@ -152,3 +152,25 @@ def test_main_prints_its_usage_for_help_and_refuses_other_options(capsys):
   with pytest.raises(SystemExit) as err:
     pool_evals.main(['a.json', '--policies=plan'])
   assert err.value.code == 2 and 'file paths only' in capsys.readouterr().err
+
+
+def test_compare_sweeps_pairs_compare_selection_files_by_training_seed(tmp_path, capsys):
+  from experiments import compare_sweeps
+  sides = []
+  for name, seed_of, success in (('a', {'x': 3, 'y': 4}, 1), ('b', {'u': 4, 'v': 3}, 0)):
+    records = []
+    for run, seed in seed_of.items():
+      workdir = tmp_path / run
+      workdir.mkdir()
+      (workdir / 'config.json').write_text(json.dumps({'seed': seed}))
+      records.append(dict(run=str(workdir), split='held_out', eval_seed=0, episode=0,
+                          policy='plan[argmax]', success=success if seed == 3 else 1))
+    (tmp_path / f'{name}.json').write_text(json.dumps({'records': records}))
+    sides.append(compare_sweeps.read_side(str(tmp_path / f'{name}.json')))
+  (row,) = compare_sweeps.paired_rows(*sides, ['plan[argmax]'], 'held_out')
+  # Seed 3 (x against v) differs, seed 4 (y against u) does not.
+  assert (row['episodes'], row['a'], row['b'], row['a_only'], row['seeds']) == (2, 2, 1, 1, [3, 4])
+  (tmp_path / 'x' / 'config.json').unlink()
+  with pytest.raises(SystemExit) as err:
+    compare_sweeps.read_side(str(tmp_path / 'a.json'))
+  assert err.value.code == 2 and 'training seed cannot be read' in capsys.readouterr().err
