@@ -10,7 +10,9 @@ joined by commas count as one side (their records carry the training seed as `ru
 `B=runs/x/seed0/eval_k0.json,runs/x/seed1/eval_k0.json` for an evaluation-time override. A run's
 own `episodes.csv` (training or online fine-tuning) is a side too, and so is an
 `experiments.compare_selection --out` JSON (its records name their workdir, whose config.json
-gives the training seed; choose its planners with e.g. `--policies='plan[argmax]'`). An episode of A pairs with the episode of B with the same training seed, goal split,
+gives the training seed; choose its planners with e.g. `--policies='plan[argmax]'`).
+`--policies='plan[safe1]=plan[safe1_k4]'` pairs A's first policy with B's second: two variants
+evaluated in different files on the same checkpoints and episodes. An episode of A pairs with the episode of B with the same training seed, goal split,
 evaluation seed and episode index: the same goal and reset seed, a checkpoint trained with the
 same seed under each config. Prints both success rates over the paired episodes and the exact
 McNemar test on the discordant pairs, per policy. Paired episodes whose recorded goals differ end
@@ -26,7 +28,8 @@ from experiments import cli
 from experiments.pool_evals import read_records
 from ld_mpc_jax import stats
 
-_POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'], 'Policies to pair.')
+_POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'],
+                               'Policies to pair; A_POLICY=B_POLICY pairs two different ones.')
 _SPLIT = flags.DEFINE_string('split', 'held_out', 'Goal split.')
 
 
@@ -61,10 +64,11 @@ def paired_rows(a: dict, b: dict, policies, split: str) -> list:
   """One row per policy: episodes, success of A and B on them, McNemar (A only, B only, p)."""
   rows = []
   for policy in policies:
-    pick = lambda sweep: {tuple(r.get(k) for k in stats.EPISODE_KEY): r
-                          for r in sweep['records']
-                          if r['policy'] == policy and r['split'] == split}
-    ra, rb = pick(a), pick(b)
+    pick = lambda sweep, name: {tuple(r.get(k) for k in stats.EPISODE_KEY): r
+                                for r in sweep['records']
+                                if r['policy'] == name and r['split'] == split}
+    name_a, _, name_b = policy.partition('=')
+    ra, rb = pick(a, name_a), pick(b, name_b or name_a)
     keys = sorted(set(ra) & set(rb))
     if not keys:
       continue

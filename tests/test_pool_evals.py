@@ -174,3 +174,14 @@ def test_compare_sweeps_pairs_compare_selection_files_by_training_seed(tmp_path,
   with pytest.raises(SystemExit) as err:
     compare_sweeps.read_side(str(tmp_path / 'a.json'))
   assert err.value.code == 2 and 'training seed cannot be read' in capsys.readouterr().err
+
+
+def test_compare_sweeps_pairs_two_differently_named_policies():
+  from experiments import compare_sweeps
+  rec = lambda policy, ep, success: dict(run=0, split='held_out', eval_seed=0, episode=ep,
+                                         policy=policy, success=success)
+  a = {'records': [rec('plan[k64]', 0, 1), rec('plan[k64]', 1, 0)]}
+  b = {'records': [rec('plan[k4]', 0, 0), rec('plan[k4]', 1, 0), rec('plan[k64]', 0, 1)]}
+  (row,) = compare_sweeps.paired_rows(a, b, ['plan[k64]=plan[k4]'], 'held_out')
+  assert (row['episodes'], row['a'], row['b'], row['a_only'], row['b_only']) == (2, 1, 0, 1, 0)
+  assert row['policy'] == 'plan[k64]=plan[k4]'
