@@ -12,11 +12,12 @@ own `episodes.csv` (training or online fine-tuning) is a side too, and so is an
 `experiments.compare_selection --out` JSON (its records name their workdir, whose config.json
 gives the training seed; choose its planners with e.g. `--policies='plan[argmax]'`).
 `--policies='plan[safe1]=plan[safe1_k4]'` pairs A's first policy with B's second: two variants
-evaluated in different files on the same checkpoints and episodes. An episode of A pairs with the episode of B with the same training seed, goal split,
-evaluation seed and episode index: the same goal and reset seed, a checkpoint trained with the
-same seed under each config. Prints both success rates over the paired episodes and the exact
-McNemar test on the discordant pairs, per policy. Paired episodes whose recorded goals differ end
-the program with one line: they were not the same episodes.
+evaluated in different files on the same checkpoints and episodes. An episode of A pairs with
+the episode of B with the same training seed, goal split, evaluation seed and episode index: the
+same goal and reset seed, a checkpoint trained with the same seed under each config. Prints both
+success rates over the paired episodes and the exact McNemar test on the discordant pairs, per
+policy. Paired episodes whose recorded goals differ end the program with one line: they were not
+the same episodes.
 """
 
 import json
@@ -62,11 +63,11 @@ def _training_seed(workdir: str, path: str) -> int:
 
 def paired_rows(a: dict, b: dict, policies, split: str) -> list:
   """One row per policy: episodes, success of A and B on them, McNemar (A only, B only, p)."""
+  pick = lambda sweep, name: {tuple(r.get(k) for k in stats.EPISODE_KEY): r
+                              for r in sweep['records']
+                              if r['policy'] == name and r['split'] == split}
   rows = []
   for policy in policies:
-    pick = lambda sweep, name: {tuple(r.get(k) for k in stats.EPISODE_KEY): r
-                                for r in sweep['records']
-                                if r['policy'] == name and r['split'] == split}
     name_a, _, name_b = policy.partition('=')
     ra, rb = pick(a, name_a), pick(b, name_b or name_a)
     keys = sorted(set(ra) & set(rb))
