@@ -47,8 +47,8 @@ def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int) ->
     _, evaluate = multitask_eval.grid(cfg, ('held_out',))
     recs = evaluate(cfg, params, workdir, step, (mode,), ('held_out',), (seed,), episodes,
                     run=workdir)
-    for r in recs:
-      r['policy'] = policy
+    for r in recs:  # The training seed lets compare_sweeps pair two configs' checkpoints.
+      r.update(policy=policy, train_seed=int(config.seed))
     records.extend(recs)
   return records
 

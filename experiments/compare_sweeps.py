@@ -9,8 +9,9 @@ override), or `experiments.evaluate --out` JSONs of the sweep's seed workdirs: s
 joined by commas count as one side (their records carry the training seed as `run`), e.g.
 `B=runs/x/seed0/eval_k0.json,runs/x/seed1/eval_k0.json` for an evaluation-time override. A run's
 own `episodes.csv` (training or online fine-tuning) is a side too, and so is an
-`experiments.compare_selection --out` JSON (its records name their workdir, whose config.json
-gives the training seed; choose its planners with e.g. `--policies='plan[argmax]'`).
+`experiments.compare_selection --out` JSON (its records name their workdir and its training
+seed, read from the workdir's config.json for older files; choose its planners with e.g.
+`--policies='plan[argmax]'`).
 `--policies='plan[safe1]=plan[safe1_k4]'` pairs A's first policy with B's second: two variants
 evaluated in different files on the same checkpoints and episodes. An episode of A pairs with
 the episode of B with the same training seed, goal split, evaluation seed and episode index: the
@@ -43,7 +44,9 @@ def read_side(spec: str) -> dict:
   for path in spec.split(','):
     for r in read_records(path):
       if isinstance(r.get('run'), str):
-        if r['run'] not in seeds:
+        if 'train_seed' in r:
+          seeds[r['run']] = r['train_seed']
+        elif r['run'] not in seeds:  # Written before records carried it: the workdir's config.
           seeds[r['run']] = _training_seed(r['run'], path)
         r = {**r, 'run': seeds[r['run']]}
       records.append(r)

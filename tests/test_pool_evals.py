@@ -185,3 +185,14 @@ def test_compare_sweeps_pairs_two_differently_named_policies():
   (row,) = compare_sweeps.paired_rows(a, b, ['plan[k64]=plan[k4]'], 'held_out')
   assert (row['episodes'], row['a'], row['b'], row['a_only'], row['b_only']) == (2, 1, 0, 1, 0)
   assert row['policy'] == 'plan[k64]=plan[k4]'
+
+
+def test_compare_sweeps_takes_the_recorded_training_seed_without_the_workdir(tmp_path):
+  from experiments import compare_sweeps
+  rec = lambda run, seed, success: dict(run=run, train_seed=seed, split='held_out', eval_seed=0,
+                                        episode=0, policy='plan[argmax]', success=success)
+  for name, records in (('a', [rec('/gone/x', 5, 1)]), ('b', [rec('/gone/y', 5, 0)])):
+    (tmp_path / f'{name}.json').write_text(json.dumps({'records': records}))
+  sides = [compare_sweeps.read_side(str(tmp_path / f'{n}.json')) for n in 'ab']
+  (row,) = compare_sweeps.paired_rows(*sides, ['plan[argmax]'], 'held_out')
+  assert (row['episodes'], row['a_only'], row['seeds']) == (1, 1, [5])
