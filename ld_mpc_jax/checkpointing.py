@@ -80,8 +80,15 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
 
 
 def abstract_state(config: ml_collections.ConfigDict) -> TrainState:
-  """Shapes and dtypes of a TrainState, without allocating it (restore target)."""
-  return jax.eval_shape(lambda: create_train_state(config, jax.random.key(0)))
+  """Shapes, dtypes and placement of a TrainState, without allocating it (restore target).
+
+  Placed on this process's first device: without a placement orbax takes the one saved with the
+  checkpoint, and a checkpoint written on a GPU then refuses to load on a CPU ("Topology
+  mismatch"). Data-parallel runs replicate the restored state themselves.
+  """
+  shapes = jax.eval_shape(lambda: create_train_state(config, jax.random.key(0)))
+  here = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+  return jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=here), shapes)
 
 
 def restore_latest(manager: ocp.CheckpointManager,

@@ -84,3 +84,26 @@ def test_a_config_with_an_objective_section_is_refused_naming_critic():
     validate_config(config)
   with pytest.raises(ValueError, match="'objective.hidden'.*now config.critic"):
     with_overrides(door_open.get_config('smoke'), {'objective.hidden': (8,)})
+
+
+def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
+  """A run trained on a GPU is evaluated on a laptop: the saved placement ("cuda:0") is not
+  this machine's, and the state still restores, onto this process's device, values intact."""
+  import jax
+  import numpy as np
+  import orbax.checkpoint as ocp
+  from ld_mpc_jax.train_state import create_train_state
+  config = door_open.get_config('smoke')
+  state = create_train_state(config, jax.random.key(3))
+  manager = checkpointing.checkpoint_manager(str(tmp_path))
+  manager.save(7, args=ocp.args.StandardSave(state))
+  manager.wait_until_finished()
+  placement = tmp_path / 'checkpoints' / '7' / 'default' / '_sharding'
+  saved = placement.read_text()
+  assert '"cpu:0"' in saved.replace('\\"', '"')
+  placement.write_text(saved.replace('cpu:0', 'cuda:0'))
+  restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)), config)
+  assert int(restored.step) == int(state.step)
+  for a, b in zip(jax.tree.leaves(restored.ema_params), jax.tree.leaves(state.ema_params)):
+    np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert a.devices() == {jax.local_devices()[0]}
