@@ -1,6 +1,8 @@
 """ld_mpc_jax.exploration: the acting planner's settings, the annealed std of the executed-action
 noise and its correlated (AR(1)) draws."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -30,6 +32,20 @@ def test_acting_searches_with_its_own_settings_and_evaluation_with_the_plans():
   acting = exploration.acting_config(c)
   assert (acting.plan.num_gaussian, acting.plan.iterations) == (32, 3)
   assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)
+
+
+def test_cpu_tanh_is_cpu_correlated_with_tanh_and_evaluation_without_the_search():
+  base, tanh = (json.loads(door_open_online.get_config(p).to_json_best_effort())
+                for p in ('cpu_correlated', 'cpu_tanh'))
+  changed = {(section, k) for section in base if isinstance(base[section], dict)
+             for k in base[section] if base[section][k] != tanh[section][k]}
+  assert changed == {('critic', 'log_std_map'), ('plan', 'num_gaussian'), ('plan', 'iterations')}
+  assert {k: v for k, v in base.items() if not isinstance(v, dict)} == {
+      k: v for k, v in tanh.items() if not isinstance(v, dict)}
+  c = door_open_online.get_config('cpu_tanh')
+  assert (c.critic.log_std_map, c.plan.num_gaussian, c.plan.iterations) == ('tanh', 0, 0)
+  acting = exploration.acting_config(c)
+  assert (acting.plan.num_gaussian, acting.plan.iterations) == (32, 3)  # Acting still searches.
 
 
 def test_executed_noise_anneals_linearly():
