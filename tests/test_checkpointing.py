@@ -1,14 +1,19 @@
 """ld_mpc_jax.checkpointing: configs saved before a field existed load with the value their run
-used (migrate_config), so library code reads fields directly."""
+used (migrate_config), so library code reads fields directly; checkpoints restore onto this
+process's device whatever device wrote them."""
 
 import json
 
+import jax
+import numpy as np
+import orbax.checkpoint as ocp
 import pytest
 
 from experiments.configs import door_open
 from experiments.overrides import with_overrides
 from ld_mpc_jax import checkpointing, envs
 from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.train_state import create_train_state
 
 # Fields whose fallbacks moved into migrate_config, with what a run saved before them did.
 OLD_RUN_VALUES = {
@@ -89,10 +94,6 @@ def test_a_config_with_an_objective_section_is_refused_naming_critic():
 def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
   """A run trained on a GPU is evaluated on a laptop: the saved placement ("cuda:0") is not
   this machine's, and the state still restores, onto this process's device, values intact."""
-  import jax
-  import numpy as np
-  import orbax.checkpoint as ocp
-  from ld_mpc_jax.train_state import create_train_state
   config = door_open.get_config('smoke')
   state = create_train_state(config, jax.random.key(3))
   manager = checkpointing.checkpoint_manager(str(tmp_path))
