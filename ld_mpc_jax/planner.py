@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax import diffusion, dynamics, proposals
+from ld_mpc_jax import config_cache, diffusion, dynamics, proposals
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.models import Networks, build_networks
 from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_scores, make_score
@@ -265,6 +265,17 @@ def make_plan(config: ml_collections.ConfigDict,
   """
   validate_config(config)
   validate_search(config)
+  if score_fn is None:  # One traced planner per config value in a process (config_cache).
+    return _cached_plan(config)
+  return _build_plan(config, score_fn)
+
+
+@config_cache.by_config
+def _cached_plan(config: ml_collections.ConfigDict) -> Callable:
+  return _build_plan(config, None)
+
+
+def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) -> Callable:
   nets = build_networks(config)
   # Settings read now, not at trace time: a config changed after make_plan changes nothing.
   p = ml_collections.ConfigDict(config.plan.to_dict())

@@ -16,6 +16,13 @@ defined. Lookups never fall back to a default: an unknown name is a one-line err
 
 from typing import Any, Callable, Dict, Iterator, Tuple
 
+_generation = [0]  # Bumped whenever any registry changes (config_cache keys on it).
+
+
+def generation() -> int:
+  """How many times any registry has changed in this process."""
+  return _generation[0]
+
 
 class Registry:
   """Name -> entry for one family of kinds, in registration order."""
@@ -32,12 +39,14 @@ class Registry:
       if name in self._entries:
         raise ValueError(f'{self.family} kind {name!r} is already registered')
       self._entries[name] = obj
+      _generation[0] += 1
       return obj
     return add if entry is None else add(entry)
 
   def unregister(self, name: str) -> None:
     """Removes `name` (tests that register a toy kind clean up after themselves)."""
     self._entries.pop(name)
+    _generation[0] += 1
 
   def check(self, name: str) -> str:
     """`name` if it is registered, else a one-line ValueError listing the registered names."""

@@ -9,7 +9,7 @@ from jax.sharding import Mesh
 import ml_collections
 import optax
 
-from ld_mpc_jax import sharding, tasks
+from ld_mpc_jax import config_cache, sharding, tasks
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.losses import make_loss_fn
 from ld_mpc_jax.models import build_networks, init_params, set_obs_normalization
@@ -74,6 +74,25 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   batch through `sharding.shard_batch`. Otherwise it is a plain single-device jit.
   """
   validate_config(config)
+  if mesh is None and not config.train.data_parallel:
+    return _jitted_update(config)
+  mesh = sharding.make_mesh() if mesh is None else mesh
+  sharding.local_batch_size(config.train.batch_size, mesh)  # Raises if B % devices != 0.
+  rep = sharding.replicated(mesh)
+  return jax.jit(_update_fn(config), in_shardings=(rep, sharding.batch_sharded(mesh), rep),
+                 out_shardings=(rep, rep), donate_argnums=0)
+
+
+@config_cache.by_config  # Traced once per config value in a process.
+def _jitted_update(config: ml_collections.ConfigDict) -> Callable:
+  update = _update_fn(config)
+  jitted = jax.jit(update, donate_argnums=0)
+  jitted.unjitted = update  # For make_multi_update.
+  return jitted
+
+
+def _update_fn(config: ml_collections.ConfigDict) -> Callable:
+  """The unjitted update(state, batch, key) -> (state, metrics) of `make_update`."""
   nets = build_networks(config)
   loss_fn = make_loss_fn(config, nets)
   if tasks.is_multitask(config):  # batch['task'] [B] too; one share per task (tasks.py).
@@ -102,15 +121,7 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
                            step=state.step + 1)
     return new_state, metrics
 
-  if mesh is None and not config.train.data_parallel:
-    jitted = jax.jit(update, donate_argnums=0)
-    jitted.unjitted = update  # For make_multi_update.
-    return jitted
-  mesh = sharding.make_mesh() if mesh is None else mesh
-  sharding.local_batch_size(config.train.batch_size, mesh)  # Raises if B % devices != 0.
-  rep = sharding.replicated(mesh)
-  return jax.jit(update, in_shardings=(rep, sharding.batch_sharded(mesh), rep),
-                 out_shardings=(rep, rep), donate_argnums=0)
+  return update
 
 
 def make_multi_update(config: ml_collections.ConfigDict, num: int) -> Callable:

@@ -120,7 +120,7 @@ def test_modules_at_most_400_lines_and_functions_at_most_60():
 # The package's layers, lowest first: a module imports only modules of its own layer or below
 # (BUILD.md, Layout). A new module must be placed here.
 LAYERS = (
-    ('ops', ('diffusion', 'ops', 'registry', 'stats', 'sharding', 'legacy')),
+    ('ops', ('config_cache', 'diffusion', 'ops', 'registry', 'stats', 'sharding', 'legacy')),
     ('nets', ('networks', 'networks.mlp', 'networks.transformer')),
     ('envs', ('envs', 'envs.suite', 'envs.goals', 'envs.metaworld_env')),
     ('model parts', ('actors', 'critics', 'proposals', 'dynamics', 'objective', 'search',

@@ -66,7 +66,9 @@ def test_update_rejects_wrong_batch_shape(smoke_config):
 
 def test_update_does_not_recompile(smoke_config):
   state = create_train_state(smoke_config, jax.random.key(0))
-  update = make_update(smoke_config)
+  update = make_update(smoke_config)  # Shared by every test of this config (config_cache).
+  sizes = []
   for i in range(3):
     state, _ = update(state, make_batch(smoke_config, seed=i), jax.random.key(i))
-  assert update._cache_size() == 1
+    sizes.append(update._cache_size())
+  assert sizes[0] == sizes[-1] >= 1

@@ -1,0 +1,55 @@
+"""config_cache: one built function per config value; nothing traced twice for equal configs."""
+
+import jax.numpy as jnp
+
+from experiments.configs import door_open
+from ld_mpc_jax import config_cache, make_plan, models, registry
+from ld_mpc_jax.train_state import make_update
+
+
+def test_equal_configs_share_one_built_function_and_others_do_not():
+  built = []
+
+  @config_cache.by_config
+  def build(config):
+    built.append(config.model.width)
+    return lambda: config.model.width
+
+  a, b = door_open.get_config('smoke'), door_open.get_config('smoke')
+  assert build(a) is build(b) and built == [16]
+  b.model.width = 32
+  assert build(b) is not build(a) and built == [16, 32]
+  # The function was built from a copy: changing the caller's config afterwards changes nothing.
+  a.model.width = 64
+  assert build(door_open.get_config('smoke'))() == 16
+
+
+def test_a_registry_change_rebuilds_and_old_entries_are_dropped():
+  built = []
+
+  @config_cache.by_config
+  def build(config):
+    built.append(1)
+    return object()
+
+  c = door_open.get_config('smoke')
+  first = build(c)
+  family = registry.Registry('toy family')
+  family.register('toy', object())
+  assert build(c) is not first and len(built) == 2
+  family.unregister('toy')
+  for width in range(config_cache.MAX_ENTRIES + 1):
+    c.model.width = 8 + width
+    build(c)
+  assert build.cache_size() == config_cache.MAX_ENTRIES
+
+
+def test_builders_trace_once_per_config_value():
+  config = door_open.get_config('smoke')
+  assert make_plan(config) is make_plan(door_open.get_config('smoke'))
+  assert make_update(config) is make_update(door_open.get_config('smoke'))
+  # A score function of the caller's own is never cached.
+  score = lambda params, latents, actions: jnp.zeros(latents.shape[0])
+  assert make_plan(config, score) is not make_plan(config, score)
+  # init_params jits one initialiser per config value.
+  assert models._jitted_init(config) is models._jitted_init(door_open.get_config('smoke'))
