@@ -66,7 +66,9 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   batch: obs [B, H+2, obs_dim], action [B, H+1, A], reward [B, H+1] (float32): windows of
   T = H + 1 steps plus one for the value bootstrap (see losses.make_loss_fn); a multi-task
   config also needs task int32 [B], task-major (ld_mpc_jax.tasks.multitask_loss).
-  Metrics are a dict of scalars, including the gradient norm before clipping.
+  Metrics are a dict of scalars, including the gradient norm before clipping. On one device the
+  same jitted function serves every config of the same value in this process
+  (ld_mpc_jax.config_cache), so a second run of a config traces nothing again.
 
   With `config.train.data_parallel` (or a `mesh` given), the same update is compiled for a 1-D
   device mesh (default: all devices, ld_mpc_jax.sharding): the batch split along its first
