@@ -37,6 +37,7 @@ import scipy.stats
 from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
+from ld_mpc_jax import run_files, stats
 
 VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant to reuse).
     'mlp_mlp': ('1 MLP proposal (1-step) + MLP dynamics',
@@ -118,11 +119,62 @@ def evaluate_on(root, source, dataset, seed, tag, overrides, mode, episodes, noi
     return _load(path)
   config, params, _ = checkpointing.load_for_evaluation(workdir)
   config = with_overrides(config, overrides)
-  r = run_evaluation(config, params, mode, episodes, seed, obs_noise_std=noise)
+  # The episodes of the variants' own final evaluation (its first evaluation seed, not the
+  # training seed), so that every policy of a training seed runs the same episodes.
+  eval_seed = config.eval.seeds[0]
+  r = run_evaluation(config, params, mode, episodes, eval_seed, obs_noise_std=noise)
   out = {k: v for k, v in r.items() if k != 'successes'}
+  out['eval_seed'] = eval_seed
   out['num_params'] = _load(os.path.join(workdir, 'report.json'))['num_params']
   _dump(out, path)
   return out
+
+
+SAME_EPISODE = ('split', 'eval_seed', 'episode', 'reset_seed', 'goal_id')
+
+
+def episode_records(root, name, dataset, seed) -> list:
+  """Per-episode held-out records of one policy at one training seed: a trained variant's own
+  final evaluation (episodes.csv), else the `eval_<name>.json` the sweep wrote."""
+  source = VARIANTS[name][2] if name in VARIANTS else 'ldmpc'
+  workdir = os.path.join(root, dataset, source or name, f'seed{seed}')
+  if source is None:
+    rows = run_files.read_csv(os.path.join(workdir, 'episodes.csv'))
+    return [r for r in rows if (r['policy'], r['split']) == ('plan', 'held_out')]
+  path = os.path.join(workdir, f'eval_{name}.json')
+  return _load(path).get('records', []) if os.path.exists(path) else []
+
+
+def paired_with(root, reference, other, pairs) -> dict:
+  """Exact McNemar of `reference` against `other` on the episodes both ran, pooled over the
+  `mixed` training seeds of `pairs`; None unless both ran exactly the same episodes."""
+  a, b = [], []
+  for dataset, seed in pairs:
+    if dataset != 'mixed':
+      continue
+    ref, oth = (episode_records(root, n, dataset, seed) for n in (reference, other))
+    key = lambda r: tuple(str(r[k]) for k in SAME_EPISODE)
+    if not ref or [key(r) for r in ref] != [key(r) for r in oth]:
+      return None  # Different episodes (e.g. files of the older sweep): no paired test.
+    a += [int(r['success']) for r in ref]
+    b += [int(r['success']) for r in oth]
+  return stats.mcnemar_exact(a, b) if a else None
+
+
+def paired_md(root, rows, pairs, labels, reference='ldmpc') -> str:
+  """Markdown table: `reference` against every other row on the same episodes."""
+  lines = [f'{labels[reference]} against each policy on the same held-out episodes, pooled '
+           'over the `mixed` training seeds (exact McNemar):', '',
+           '| policy | only the reference succeeded | only this policy succeeded | p |',
+           '|---|---|---|---|']
+  for name in rows:
+    if name == reference:
+      continue
+    t = paired_with(root, reference, name, pairs)
+    cells = ('-', '-', 'not run on the same episodes') if t is None else (
+        t['a_only'], t['b_only'], f"{t['p_value']:.2g}")
+    lines.append(f'| {labels[name]} | ' + ' | '.join(map(str, cells)) + ' |')
+  return '\n'.join(lines) + '\n'
 
 
 def row(label, results) -> dict:
@@ -257,6 +309,8 @@ def main(argv):
   out['wall_seconds'] = wall()
   _dump(out, os.path.join(root, 'ablations.json'))
   md = table_md(rows, out['wall_seconds'], _SEEDS.value, out['command'])
+  if 'ldmpc' in rows:
+    md += '\n' + paired_md(root, rows, pairs, labels)
   if 'noise_sweep' in out:
     stds = list(next(iter(out['noise_sweep'].values())))
     md += ('\nObservation-noise sweep (mixed, seed 0; success vs. Gaussian noise std on the '

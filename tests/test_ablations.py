@@ -89,3 +89,54 @@ def test_finished_runs_are_reused_not_retrained(tmp_path, smoke_config):
   cached.write_text(json.dumps({'success_rate': 0.25}))
   assert ablations.evaluate_on(str(tmp_path), 'ldmpc', 'mixed', 0, 'eval_mppi', {}, 'mppi',
                                1)['success_rate'] == 0.25
+
+
+def _episodes(seed_count=50, eval_seed=0):
+  return [dict(split='held_out', eval_seed=eval_seed, episode=i, reset_seed=1000 + i,
+               goal_id=f'g{i}') for i in range(seed_count)]
+
+
+def _write_planner(root, seed, successes):
+  workdir = root / 'mixed' / 'ldmpc' / f'seed{seed}'
+  workdir.mkdir(parents=True)
+  rows = [dict(run=1, policy=p, **e, success=s) for p in ('plan', 'actor')
+          for e, s in zip(_episodes(len(successes)), successes)]
+  header = list(rows[0])
+  lines = [','.join(header)] + [','.join(str(r[k]) for k in header) for r in rows]
+  (workdir / 'episodes.csv').write_text('\n'.join(lines) + '\n')
+  return workdir
+
+
+def test_paired_table_pools_the_seeds_on_the_same_episodes(tmp_path):
+  plan = {0: [1, 1, 0, 0], 1: [1, 0, 1, 1]}
+  actor = {0: [0, 1, 1, 0], 1: [0, 0, 0, 1]}
+  for seed in plan:
+    workdir = _write_planner(tmp_path, seed, plan[seed])
+    records = [dict(e, success=s) for e, s in zip(_episodes(4), actor[seed])]
+    (workdir / 'eval_actor.json').write_text(json.dumps({'records': records}))
+  pairs = [('mixed', 0), ('mixed', 1)]
+  t = ablations.paired_with(str(tmp_path), 'ldmpc', 'actor', pairs)
+  assert (t['n'], t['a_only'], t['b_only']) == (8, 3, 1)
+  # Files of a sweep that ran the baseline on other episodes are not paired.
+  records = [dict(e, success=1) for e in _episodes(4, eval_seed=1)]
+  (tmp_path / 'mixed' / 'ldmpc' / 'seed1' / 'eval_actor.json').write_text(
+      json.dumps({'records': records}))
+  assert ablations.paired_with(str(tmp_path), 'ldmpc', 'actor', pairs) is None
+  md = ablations.paired_md(str(tmp_path), {'ldmpc': {}, 'actor': {}}, pairs,
+                           {'ldmpc': 'five', 'actor': 'prior'})
+  assert '| prior | - | - | not run on the same episodes |' in md
+
+
+def test_baselines_run_the_variants_evaluation_seed_not_the_training_seed(
+    tmp_path, monkeypatch, smoke_config):
+  from ld_mpc_jax import checkpointing, runs
+  workdir = tmp_path / 'mixed' / 'ldmpc' / 'seed2'
+  workdir.mkdir(parents=True)
+  (workdir / 'report.json').write_text(json.dumps({'num_params': 3}))
+  smoke_config.eval.seeds = (7,)
+  monkeypatch.setattr(checkpointing, 'load_for_evaluation', lambda w: (smoke_config, {}, 4))
+  seen = []
+  monkeypatch.setattr(runs, 'run_evaluation', lambda c, p, mode, n, seed, **k: seen.append(
+      seed) or {'success_rate': 0.5, 'successes': 1, 'records': []})
+  out = ablations.evaluate_on(str(tmp_path), 'ldmpc', 'mixed', 2, 'eval_actor', {}, 'actor', 2)
+  assert seen == [7] and out['eval_seed'] == 7 and out['num_params'] == 3
