@@ -48,8 +48,9 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.train.eval_every = 2_000
     return c
   if preset == 'ablation':
-    # Sized so that experiments.ablations (6 variants x 4 runs + baselines, 50-episode
-    # evaluations) fits in about two hours on a 2-core CPU.
+    # Small, so that experiments.ablations can run on a 2-core CPU: 3 mixed seeds without the
+    # expert seed took about two hours there, two sweep processes side by side (one training
+    # 4-16 minutes on one core; docs/ablations.md, Results).
     resize(c, width=64, heads=4, blocks=1)
     c.model.actor_hidden = (64, 64)
     c.critic.hidden = (64, 64)
