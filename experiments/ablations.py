@@ -148,12 +148,12 @@ def episode_records(root, name, dataset, seed) -> list:
 def paired_with(root, reference, other, pairs) -> dict:
   """Exact McNemar of `reference` against `other` on the episodes both ran, pooled over the
   `mixed` training seeds of `pairs`; None unless both ran exactly the same episodes."""
+  key = lambda r: tuple(str(r[k]) for k in SAME_EPISODE)
   a, b = [], []
   for dataset, seed in pairs:
     if dataset != 'mixed':
       continue
     ref, oth = (episode_records(root, n, dataset, seed) for n in (reference, other))
-    key = lambda r: tuple(str(r[k]) for k in SAME_EPISODE)
     if not ref or [key(r) for r in ref] != [key(r) for r in oth]:
       return None  # Different episodes (e.g. files of the older sweep): no paired test.
     a += [int(r['success']) for r in ref]

@@ -272,7 +272,7 @@ def make_plan(config: ml_collections.ConfigDict,
   return _build_plan(config, score_fn)
 
 
-@config_cache.by_config
+@config_cache.by_config  # Traced once per config value in a process.
 def _cached_plan(config: ml_collections.ConfigDict) -> Callable:
   return _build_plan(config, None)
 
