@@ -37,7 +37,8 @@ import scipy.stats
 from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
-from ld_mpc_jax import run_files, stats
+from experiments.pool_evals import read_records
+from ld_mpc_jax import stats
 
 VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant to reuse).
     'mlp_mlp': ('1 MLP proposal (1-step) + MLP dynamics',
@@ -138,11 +139,11 @@ def episode_records(root, name, dataset, seed) -> list:
   final evaluation (episodes.csv), else the `eval_<name>.json` the sweep wrote."""
   source = VARIANTS[name][2] if name in VARIANTS else 'ldmpc'
   workdir = os.path.join(root, dataset, source or name, f'seed{seed}')
-  if source is None:
-    rows = run_files.read_csv(os.path.join(workdir, 'episodes.csv'))
-    return [r for r in rows if (r['policy'], r['split']) == ('plan', 'held_out')]
-  path = os.path.join(workdir, f'eval_{name}.json')
-  return _load(path).get('records', []) if os.path.exists(path) else []
+  path = os.path.join(workdir, 'episodes.csv' if source is None else f'eval_{name}.json')
+  if not os.path.exists(path):
+    return []
+  return stats.select(read_records(path), policy='plan' if source is None else None,
+                      split='held_out')
 
 
 def paired_with(root, reference, other, pairs) -> dict:

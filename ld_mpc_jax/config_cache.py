@@ -42,6 +42,5 @@ def by_config(build: Callable) -> Callable:
       entries.popitem(last=False)
     return fn
 
-  cached.cache_clear = entries.clear
   cached.cache_size = lambda: len(entries)
   return cached
