@@ -26,8 +26,8 @@ from ld_mpc_jax import config_cache, diffusion, dynamics, proposals
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.models import Networks, build_networks
 from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_scores, make_score
-from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, first_round_counts, refine, select,
-                               validate_search)
+from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, effective_margin,
+                               first_round_counts, refine, select, validate_search)
 
 __all__ = ['CANDIDATE_KINDS', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
            'make_rollout', 'make_member_scores', 'shift_sequence']
@@ -290,6 +290,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   refine_pool = _make_refine(config, nets, score_draws)
   kinds, num_first = _first_kinds(config), sum(n for _, n in first_round_counts(config))
   anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
+  margin = effective_margin(config)  # plan.safe_margin, scaled by K if asked.
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
     if z.shape != (d,):
@@ -305,7 +306,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     if refine_pool is not None:
       pool, unique = refine_pool(params, z, dyn_key, pool)
     sequence, index, departed, _ = select(pool.actions, pool.scores, pool.members, anchor,
-                                          p.safe_selection, p.safe_margin, p.selection,
+                                          p.safe_selection, margin, p.selection,
                                           p.num_elites, p.temperature, unique)
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
     action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)

@@ -15,15 +15,21 @@ the planner departs from it only when the best candidate's score exceeds the act
 `plan.safe_margin` times the spread of their difference over the members (a paired comparison:
 both are scored by the same ensemble members and dynamics draws). In the spirit of safe policy
 improvement (SPIBB, Laroche et al. 2019: keep the baseline's action where the data cannot
-support a change) and of uncertainty-penalised planning (MOPO, FOWM).
+support a change) and of uncertainty-penalised planning (MOPO, FOWM). With
+`plan.safe_margin_scaling='expected_max'` the margin grows with the number of candidates scored:
+the winner is the maximum of n noisy scores, so its expected optimism is about E[max of n
+standard normals] (`expected_max(n)`, about sqrt(2 ln n)) score-noise units, and the threshold is
+safe_margin x expected_max(n) x the spread (`effective_margin`).
 """
 
 import dataclasses
+import math
 from typing import Callable, NamedTuple, Optional, Tuple
 
 import jax
 import jax.numpy as jnp
 import ml_collections
+import numpy as np
 
 from ld_mpc_jax.registry import Registry
 
@@ -97,6 +103,7 @@ def first_round_counts(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, in
 
 
 SELECTIONS = ('argmax', 'softmax')
+MARGIN_SCALINGS = ('none', 'expected_max')
 
 
 def elite_moments(actions: jnp.ndarray, scores: jnp.ndarray, temperature: float,
@@ -202,6 +209,35 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
   return sequence, jnp.where(depart, best, anchor), depart, weights
 
 
+def expected_max(n: int) -> float:
+  """E[max of n independent standard normals]: 0 for n = 1, 1/sqrt(pi) for n = 2, about
+  sqrt(2 ln n) for large n. Numerical integral of x n phi(x) Phi(x)^(n-1) (build time, NumPy)."""
+  if n < 1:
+    raise ValueError(f'expected_max needs n >= 1, got {n}')
+  x = np.linspace(-12.0, 12.0, 24_001)
+  pdf = np.exp(-0.5 * x * x) / math.sqrt(2.0 * math.pi)
+  cdf = 0.5 * (1.0 + np.vectorize(math.erf)(x / math.sqrt(2.0)))
+  y = x * n * pdf * cdf ** (n - 1)
+  return float(np.sum(y[1:] + y[:-1]) * 0.5 * (x[1] - x[0]))  # Trapezoid rule.
+
+
+def num_scored(config: ml_collections.ConfigDict) -> int:
+  """Candidates `plan` scores in one call: the first round (the actor prior's included) and
+  `plan.num_refine` per refinement round."""
+  p = config.plan
+  first = sum(n for _, n in first_round_counts(config)) + p.num_prior_candidates
+  return first + p.iterations * p.num_refine
+
+
+def effective_margin(config: ml_collections.ConfigDict) -> float:
+  """The safe-selection margin used by `plan`: `plan.safe_margin`, times
+  expected_max(candidates scored) under `plan.safe_margin_scaling='expected_max'`."""
+  p = config.plan
+  if p.get('safe_margin_scaling', 'none') == 'expected_max':
+    return p.safe_margin * expected_max(num_scored(config))
+  return float(p.safe_margin)
+
+
 def validate_search(config: ml_collections.ConfigDict) -> None:
   """One-line ValueErrors for the search and selection settings of config.plan."""
   p = config.plan
@@ -225,6 +261,10 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
                      'candidate: set config.plan.num_prior_candidates >= 1')
   if p.safe_margin < 0:
     raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
+  scaling = p.get('safe_margin_scaling', 'none')
+  if scaling not in MARGIN_SCALINGS:
+    raise ValueError(f'config.plan.safe_margin_scaling must be one of {MARGIN_SCALINGS}, '
+                     f'got {scaling!r}')
   from ld_mpc_jax import proposals  # pylint: disable=g-import-not-at-top
   others = any(n for name, n in counts if name != 'proposal')
   if (others or p.iterations) and not proposals.get(config).sequence:

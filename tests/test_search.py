@@ -218,3 +218,57 @@ def test_safe_softmax_gates_on_the_weighted_elites():
   assert bool(departed) and float(seq[0, 0]) == pytest.approx(1.0 / 3.0)
   seq, _, departed, _ = run((-3.0, -3.0), 'softmax')
   assert not bool(departed) and float(seq[0, 0]) == 0.0
+
+
+def test_expected_max_matches_the_order_statistics_table():
+  assert search.expected_max(1) == pytest.approx(0.0, abs=1e-6)
+  assert search.expected_max(2) == pytest.approx(1 / np.sqrt(np.pi), abs=1e-5)
+  # Tabulated expected maxima of n standard normals (Harter 1961).
+  for n, value in ((3, 0.8463), (10, 1.5388), (100, 2.5076)):
+    assert search.expected_max(n) == pytest.approx(value, abs=1e-3)
+  with pytest.raises(ValueError, match='n >= 1'):
+    search.expected_max(0)
+
+
+def _departure_rate(k: int, margin: float, trials: int = 4000) -> float:
+  """Share of decisions departing from the anchor when every candidate is equally good and the
+  M = 5 members disagree by independent unit noise."""
+  members = jax.random.normal(jax.random.key(0), (trials, 5, k))
+  actions = jnp.zeros((k, 1, 1))
+  depart = jax.vmap(lambda m: search.select(actions, m.mean(0), m, k - 1, True, margin,
+                                            'argmax', 1, 0.5)[2])
+  return float(jnp.mean(depart(members)))
+
+
+def test_expected_max_scaling_holds_noise_departures_flat_in_k():
+  fixed = {k: _departure_rate(k, 0.5) for k in (4, 64)}
+  scaled = {k: _departure_rate(k, 0.5 * search.expected_max(k)) for k in (4, 64)}
+  assert fixed[64] > fixed[4] + 0.3  # A fixed margin departs on noise more often at large K,
+  assert abs(scaled[64] - scaled[4]) < 0.06  # the scaled one about as often at every K.
+
+
+def test_effective_margin_counts_every_scored_candidate(smoke_config):
+  c = search_config(smoke_config, 2)  # 6 + 8 first-round candidates, 2 rounds of 32.
+  c.plan.safe_margin = 2.0
+  assert search.num_scored(c) == 6 + 8 + 2 * 32
+  assert search.effective_margin(c) == 2.0
+  c.plan.safe_margin_scaling = 'expected_max'
+  assert search.effective_margin(c) == pytest.approx(2.0 * search.expected_max(78))
+  c.plan.safe_margin_scaling = 'sqrt'
+  with pytest.raises(ValueError, match='safe_margin_scaling must be one of'):
+    make_plan(c)
+
+
+def test_plan_uses_the_scaled_margin(smoke_config, smoke_params, z):
+  scaled = safe_config(ml_collections.ConfigDict(smoke_config.to_dict()), 5.0)
+  scaled.plan.safe_margin_scaling = 'expected_max'
+  fixed = safe_config(ml_collections.ConfigDict(smoke_config.to_dict()),
+                      5.0 * search.expected_max(6))
+  a_plan, b_plan = make_plan(scaled, noisy_members), make_plan(fixed, noisy_members)
+  departed = []
+  for seed in range(6):
+    a, b = (f(smoke_params, z, jax.random.key(seed)) for f in (a_plan, b_plan))
+    np.testing.assert_array_equal(a.action, b.action)
+    assert bool(a.departed) == bool(b.departed)
+    departed.append(bool(a.departed))
+  assert 0 < sum(departed) < len(departed)  # The gate decides both ways here.
