@@ -34,6 +34,15 @@ def _data_defaults() -> dict:
   return dict(source=envs.SUITE.name, path='', max_episode_steps=envs.MAX_EPISODE_STEPS)
 
 
+def legacy_defaults() -> dict:
+  """{section: {field: value}}: what a config saved before a field existed is read with.
+
+  Such a value changes nothing against the code before the field (evaluation_suite drops fields
+  at these values from its cache keys, so adding a field does not invalidate cached cells).
+  """
+  return dict(plan=dict(_PLAN_DEFAULTS), data=_data_defaults())
+
+
 def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointManager:
   """Synchronous manager under <workdir>/checkpoints (a step is visible only once complete)."""
   options = ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,

@@ -18,7 +18,7 @@ import jax
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax import data, envs, evaluation, sharding, stats
+from ld_mpc_jax import checkpointing, data, envs, evaluation, sharding, stats
 from ld_mpc_jax.agent import BatchAgentPolicy
 from ld_mpc_jax.config_checks import online_enabled
 from ld_mpc_jax.envs import goals
@@ -107,20 +107,44 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
 
 
 # Part of every cache key: raise it when a code change alters the episodes of an unchanged
-# config, so that cached cells made by the old code are not reused (2: the softmax safe gate).
-CACHE_VERSION = 2
+# config, so that cached cells made by the old code are not reused (2: the softmax safe gate;
+# 3: fields at their legacy defaults left out of the key).
+CACHE_VERSION = 3
 
 
-def _cell_path(workdir: str, config, step: int, mode: str, split: str, seed: int,
-               num_episodes: int, obs_noise_std: float) -> str:
-  """Cache file of one evaluation: keyed by everything that changes its episodes."""
-  relevant = dict(version=CACHE_VERSION, step=step, mode=mode, split=split, seed=seed,
-                  episodes=num_episodes,
-                  noise=obs_noise_std, task=config.task, plan=config.plan.to_dict(),
-                  mppi=config.mppi.to_dict(), data=config.data.to_dict(),
+def _json(value) -> str:
+  return json.dumps(value, sort_keys=True, default=str)
+
+
+def _cache_key(config, step: int, mode: str, split: str, seed: int, num_episodes: int,
+               obs_noise_std: float, version: int) -> str:
+  """Digest of everything that changes one evaluation's episodes.
+
+  From version 3, `plan` and `data` fields at their legacy defaults (checkpointing: the value a
+  config saved before the field existed is read with) are left out: a new field at its no-change
+  default leaves every key, and so every cached cell, as it was.
+  """
+  plan, data_ = config.plan.to_dict(), config.data.to_dict()
+  if version >= 3:
+    neutral = checkpointing.legacy_defaults()
+    plan, data_ = ({k: v for k, v in section.items()
+                    if k not in neutral[name] or _json(v) != _json(neutral[name][k])}
+                   for name, section in (('plan', plan), ('data', data_)))
+  relevant = dict(version=version, step=step, mode=mode, split=split, seed=seed,
+                  episodes=num_episodes, noise=obs_noise_std, task=config.task, plan=plan,
+                  mppi=config.mppi.to_dict(), data=data_,
                   eval={k: config.eval[k] for k in ('action_repeat', 'max_episode_steps')})
-  digest = hashlib.sha1(json.dumps(relevant, sort_keys=True, default=str).encode()).hexdigest()
-  return os.path.join(workdir, 'evals', f'{mode}_{split}_seed{seed}_{digest[:10]}.json')
+  return hashlib.sha1(_json(relevant).encode()).hexdigest()[:10]
+
+
+def _cell_paths(workdir: str, config, step: int, mode: str, split: str, seed: int,
+                num_episodes: int, obs_noise_std: float) -> Tuple[str, str]:
+  """(the cache file of one evaluation, the file version 2 named it or None): at version 3 an
+  unchanged config still finds the cells cached by version 2 (the same episodes); a later
+  version, raised for a change of the episodes, must not."""
+  name = lambda v: os.path.join(workdir, 'evals', f'{mode}_{split}_seed{seed}_' + _cache_key(
+      config, step, mode, split, seed, num_episodes, obs_noise_std, v) + '.json')
+  return name(CACHE_VERSION), (name(2) if CACHE_VERSION == 3 else None)
 
 
 def evaluate_checkpoint(config: ml_collections.ConfigDict, params, workdir: Optional[str],
@@ -135,10 +159,11 @@ def evaluate_checkpoint(config: ml_collections.ConfigDict, params, workdir: Opti
   """
   records = []
   for split, seed, mode in itertools.product(splits, seeds, modes):
-    path = (_cell_path(workdir, config, step, mode, split, seed, num_episodes, obs_noise_std)
-            if workdir else None)
-    if path and os.path.exists(path):
-      with open(path) as f:
+    path, old = (_cell_paths(workdir, config, step, mode, split, seed, num_episodes,
+                             obs_noise_std) if workdir else (None, None))
+    found = next((p for p in (path, old) if p and os.path.exists(p)), None)
+    if found:
+      with open(found) as f:
         cell = json.load(f)
     else:
       r = evaluate_policy(config, params, mode, num_episodes, seed, split, obs_noise_std,

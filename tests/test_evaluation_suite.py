@@ -131,6 +131,44 @@ def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
   assert len(calls) == 16
 
 
+def test_cache_keys_ignore_fields_at_their_legacy_defaults(tmp_path, monkeypatch):
+  calls = _stub_evaluations(monkeypatch)
+  config, workdir = door_open.get_config('smoke'), str(tmp_path)
+  grid = dict(step=4, modes=('plan',), splits=('held_out',), seeds=(0,), num_episodes=3,
+              log=lambda line: None, progress=False)
+  evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  # A config without a field that has a legacy default (as before the field existed) is the
+  # same cell: adding such a field at its no-change value keeps every cached evaluation.
+  older = door_open.get_config('smoke')
+  assert older.plan.safe_margin_scaling == 'none'
+  del older.plan['safe_margin_scaling']
+  older.data.path = ''
+  evaluation_suite.evaluate_checkpoint(older, None, workdir, **grid)
+  assert len(calls) == 1
+  # The field at another value is another cell.
+  config.plan.safe_margin_scaling = 'expected_max'
+  evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  assert len(calls) == 2
+
+
+def test_cells_cached_by_version_2_are_found_at_version_3(tmp_path, monkeypatch):
+  calls = _stub_evaluations(monkeypatch)
+  config, workdir = door_open.get_config('smoke'), str(tmp_path)
+  grid = dict(step=4, modes=('plan',), splits=('held_out',), seeds=(0,), num_episodes=3,
+              log=lambda line: None, progress=False)
+  monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', 2)
+  first = evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  [v2_file] = os.listdir(os.path.join(workdir, 'evals'))
+  monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', 3)
+  again = evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  assert len(calls) == 1 and again == first
+  assert os.listdir(os.path.join(workdir, 'evals')) == [v2_file]
+  # A later version (raised because episodes changed) does not reuse them.
+  monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', 4)
+  evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  assert len(calls) == 2
+
+
 def test_train_split_needs_data_collected_on_mt1_goals(monkeypatch):
   config = door_open.get_config('smoke')
   monkeypatch.setattr(evaluation_suite, 'dataset_goals', lambda c: (np.zeros((2, 6)), 3))
