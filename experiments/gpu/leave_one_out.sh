@@ -1,0 +1,44 @@
+# Four leave-one-out runs of door_open_online.py:cpu_tanh (door-open-v3, training seed 2), one
+# process each, side by side on one GPU; each cut at $T seconds (SIGINT: it stops at a wave end
+# after its last checkpoint) and packed into $OUT (the latest checkpoint and buffer, CSVs, logs).
+# A cut run finishes anywhere with the same train command and its workdir (resume.sh beside it).
+# Run from the repository root on the GPU machine: T=470 OUT=/tmp/out bash experiments/gpu/leave_one_out.sh
+set -u
+export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
+T=${T:-500}
+nvidia-smi -L; git rev-parse HEAD 2>/dev/null || cat .whl/COMMIT
+python3 -c "import jax, flax; print('jax', jax.__version__, 'flax', flax.__version__, jax.devices())"
+base="--config=experiments/configs/door_open_online.py:cpu_tanh --config.seed=2 --config.online.plan_chunk=4"
+run() {  # NAME OVERRIDES...: the preset with those overrides, its log in its workdir
+  name=$1; shift; mkdir -p runs/gpu/$name
+  timeout -s INT -k 40 $T python3 -m experiments.train $base "$@" --workdir=runs/gpu/$name >runs/gpu/$name/train.log 2>&1 & }
+start=$(date +%s)
+run no_maxq --config.critic.td_target=window --config.critic.actor=awr
+run no_search --config.online.act_num_gaussian=0 --config.online.act_iterations=0
+run no_optimism --config.online.act_pessimism=0.0
+run no_exec_noise --config.online.exec_noise_start=0.0 --config.online.exec_noise_end=0.0
+sleep 90; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv
+wait
+echo "wall $(( $(date +%s) - start )) s"
+for d in runs/gpu/*; do echo "== $d"; tr '\r' '\n' <$d/train.log | grep -v '^$' | tail -n 4; tail -n 2 $d/online.csv 2>/dev/null; done
+python3 - <<'PY'
+import os, tarfile
+out = os.environ['OUT']
+for name in sorted(os.listdir('runs/gpu')):
+  d = f'runs/gpu/{name}'
+  ck = os.path.join(d, 'checkpoints')
+  steps = sorted(int(s) for s in os.listdir(ck) if s.isdigit()) if os.path.isdir(ck) else []
+  last = str(steps[-1]) if steps else None
+  def keep(ti):
+    p = ti.name.split('/')
+    if len(p) > 3 and p[2] == 'checkpoints' and p[3].isdigit() and p[3] != last: return None
+    if p[-1].startswith('buffer_') and p[-1] != f'buffer_{last}.npz': return None
+    return ti
+  path = f'{out}/{name}.tgz'
+  with tarfile.open(path, 'w:gz') as t: t.add(d, arcname=f'gpu/{name}', filter=keep)
+  size = os.path.getsize(path); print(name, 'last step', last, 'tgz MiB', round(size / 2**20, 1))
+  if size > 15.5 * 2**20:
+    data = open(path, 'rb').read(); os.remove(path); n = 15 * 2**20
+    for i in range(0, len(data), n): open(f'{path}.{i // n}', 'wb').write(data[i:i + n])
+PY
+ls -la $OUT
