@@ -39,6 +39,8 @@ def legacy_defaults() -> dict:
 
   Such a value changes nothing against the code before the field (evaluation_suite drops fields
   at these values from its cache keys, so adding a field does not invalidate cached cells).
+  Changing a value already in these tables moves cached cells to another config's key: raise
+  evaluation_suite.CACHE_VERSION with it.
   """
   return dict(plan=dict(_PLAN_DEFAULTS), data=_data_defaults())
 

@@ -71,6 +71,23 @@ def append_csv(path: str, row: Dict[str, Any]) -> None:
     writer.writerow(row)
 
 
+def drop_rows_after(path: str, column: str, step: int) -> None:
+  """Removes the rows of the CSV at `path` whose `column` is past `step` (replaced atomically).
+
+  A killed run logged them after its last checkpoint; resumed from that checkpoint, it logs
+  them again, so keeping them would repeat steps and bend the curves back on themselves.
+  """
+  rows = read_csv(path)
+  kept = [r for r in rows if float(r[column]) <= step]
+  if not primary() or len(kept) == len(rows):
+    return
+  with open(path + '.tmp', 'w', newline='') as f:
+    writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(kept)
+  os.replace(path + '.tmp', path)
+
+
 def read_csv(path: str):
   """Rows of the CSV at `path` as dicts of strings; [] if it does not exist."""
   if not os.path.exists(path):

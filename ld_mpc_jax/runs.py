@@ -24,6 +24,10 @@ from ld_mpc_jax import checkpointing, data, evaluation_suite, multitask_eval, ru
 
 PROGRESS_FILE = 'progress.json'
 EVAL_CSV = 'eval.csv'
+# Logs with one row per step and the column that holds it (checkpoint steps: training steps
+# offline, environment steps online). A resumed run drops their rows past its checkpoint.
+STEP_LOGS = ((EVAL_CSV, 'step'), (run_files.ONLINE_CSV, 'env_steps'),
+             (run_files.LOSSES_CSV, 'env_steps'))
 
 
 def window_length(config: ml_collections.ConfigDict) -> int:
@@ -98,8 +102,13 @@ class Run:
                    else run_files.NoWriter())
 
   def restore(self):
-    """The latest checkpoint's TrainState, or None."""
-    return checkpointing.restore_latest(self.manager, self.config)
+    """The latest checkpoint's TrainState, or None; the logs lose rows written after it."""
+    state = checkpointing.restore_latest(self.manager, self.config)
+    if state is not None:
+      for name, column in STEP_LOGS:
+        run_files.drop_rows_after(os.path.join(self.workdir, name), column,
+                                  self.manager.latest_step())
+    return state
 
   def prior_seconds(self) -> float:
     """Training seconds before the latest checkpoint (progress.json; 0 without one)."""

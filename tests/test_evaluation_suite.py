@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import evaluation_suite
+from ld_mpc_jax import checkpointing, evaluation_suite
 
 Z95 = 1.959963984540054  # The 0.975 quantile of the standard normal.
 
@@ -142,8 +142,14 @@ def test_cache_keys_ignore_fields_at_their_legacy_defaults(tmp_path, monkeypatch
   older = door_open.get_config('smoke')
   assert older.plan.safe_margin_scaling == 'none'
   del older.plan['safe_margin_scaling']
-  older.data.path = ''
+  assert older.data.path == ''
+  del older.data['path']
   evaluation_suite.evaluate_checkpoint(older, None, workdir, **grid)
+  assert len(calls) == 1
+  # So is the config read back from a run's config.json (tuples come back as lists).
+  checkpointing.save_config(config, str(tmp_path / 'run'))
+  evaluation_suite.evaluate_checkpoint(checkpointing.load_config(str(tmp_path / 'run')), None,
+                                       workdir, **grid)
   assert len(calls) == 1
   # The field at another value is another cell.
   config.plan.safe_margin_scaling = 'expected_max'

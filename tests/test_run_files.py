@@ -25,6 +25,19 @@ def test_append_csv_writes_the_header_once(tmp_path):
   assert run_files.read_csv(path) == [dict(step='1', loss='0.5'), dict(step='2', loss='0.25')]
 
 
+def test_drop_rows_after_keeps_the_rows_up_to_the_step(tmp_path):
+  path = str(tmp_path / 'online.csv')
+  for step in (40, 80, 120, 160):
+    run_files.append_csv(path, dict(env_steps=step, ret=step / 10))
+  run_files.drop_rows_after(path, 'env_steps', 80)
+  with open(path) as f:
+    assert f.read().splitlines() == ['env_steps,ret', '40,4.0', '80,8.0']
+  run_files.drop_rows_after(path, 'env_steps', 80)  # Nothing past it: unchanged.
+  assert [r['env_steps'] for r in run_files.read_csv(path)] == ['40', '80']
+  run_files.drop_rows_after(str(tmp_path / 'absent.csv'), 'env_steps', 80)  # No file: nothing.
+  assert not os.path.exists(tmp_path / 'absent.csv')
+
+
 def _record(episode, success, **extra):
   return dict(run=3, policy='plan', split='held_out', eval_seed=0, episode=episode,
               reset_seed=100 + episode, goal_id=f'g{episode}', success=success,

@@ -1,8 +1,11 @@
 """ld_mpc_jax.runs: the shared loop checkpoints and evaluates at the same crossings for any job."""
 
+import os
+
 import pytest
 
-from ld_mpc_jax import runs
+from experiments.configs import door_open
+from ld_mpc_jax import checkpointing, run_files, runs
 
 
 @pytest.mark.parametrize('before,after,every,expected', [
@@ -62,3 +65,25 @@ def test_checkpoint_comes_before_the_evaluation_of_the_same_step():
   run.periodic_eval = lambda params, step: order.append('eval')
   runs.loop(run, job, total=3, checkpoint_every=2, eval_every=2)
   assert order == ['checkpoint', 'eval', 'checkpoint']
+
+
+def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, monkeypatch):
+  workdir = str(tmp_path)
+  run = runs.Run(door_open.get_config('smoke'), workdir)
+  for step in (40, 80, 120):  # A run killed at 120, its last checkpoint at 80.
+    run_files.append_csv(os.path.join(workdir, runs.EVAL_CSV), dict(step=step, success_rate=0.5))
+    run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=step))
+    run_files.append_csv(os.path.join(workdir, run_files.LOSSES_CSV), dict(env_steps=step))
+  monkeypatch.setattr(checkpointing, 'restore_latest', lambda manager, config: 'state')
+  monkeypatch.setattr(run.manager, 'latest_step', lambda: 80)
+  assert run.restore() == 'state'
+  assert [r['step'] for r in run_files.read_csv(os.path.join(workdir, runs.EVAL_CSV))] == [
+      '40', '80']
+  for name in (run_files.ONLINE_CSV, run_files.LOSSES_CSV):
+    assert [r['env_steps'] for r in run_files.read_csv(os.path.join(workdir, name))] == [
+        '40', '80']
+  # No checkpoint: a fresh run, whose logs are left alone.
+  monkeypatch.setattr(checkpointing, 'restore_latest', lambda manager, config: None)
+  run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=120))
+  assert run.restore() is None
+  assert len(run_files.read_csv(os.path.join(workdir, run_files.ONLINE_CSV))) == 3

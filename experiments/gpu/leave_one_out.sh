@@ -1,22 +1,23 @@
-# Four leave-one-out runs of door_open_online.py:cpu_tanh (door-open-v3, training seed 2), one
-# process each, side by side on one GPU; each cut at $T seconds (SIGINT: it stops at a wave end
-# after its last checkpoint) and packed into $OUT (the latest checkpoint and buffer, CSVs, logs).
-# A cut run finishes anywhere with the same train command and its workdir (resume.sh beside it).
-# Run from the repository root on the GPU machine: T=470 OUT=/tmp/out bash experiments/gpu/leave_one_out.sh
+# The leave-one-out variants of door_open_online.py:cpu_tanh (variants.sh: door-open-v3, training
+# seed 2), one process each, side by side on one GPU. Each is stopped at $T seconds by SIGINT (a
+# KeyboardInterrupt wherever it is: what it did after its last checkpoint is lost) and packed
+# into $OUT as NAME.tgz (the latest checkpoint and buffer, CSVs, log; split into NAME.tgz.0,
+# .1, ... above 15.5 MiB). A cut run finishes anywhere with resume.sh.
+# From the repository root on the GPU machine: T=470 OUT=/tmp/out bash experiments/gpu/leave_one_out.sh
 set -u
+: "${OUT:?set OUT to the folder the packed runs go to}"
+. "$(dirname "$0")/variants.sh"
+rm -rf runs/gpu  # A warm machine may hold an earlier call's runs: start fresh.
 export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
 T=${T:-500}
 nvidia-smi -L; git rev-parse HEAD 2>/dev/null || cat .whl/COMMIT
 python3 -c "import jax, flax; print('jax', jax.__version__, 'flax', flax.__version__, jax.devices())"
-base="--config=experiments/configs/door_open_online.py:cpu_tanh --config.seed=2 --config.online.plan_chunk=4"
-run() {  # NAME OVERRIDES...: the preset with those overrides, its log in its workdir
-  name=$1; shift; mkdir -p runs/gpu/$name
-  timeout -s INT -k 40 $T python3 -m experiments.train $base "$@" --workdir=runs/gpu/$name >runs/gpu/$name/train.log 2>&1 & }
+run() {  # NAME: the preset with that variant's overrides, its log in its workdir
+  mkdir -p runs/gpu/$1
+  timeout -s INT -k 40 $T python3 -m experiments.train $BASE $(overrides $1) --workdir=runs/gpu/$1 \
+    >runs/gpu/$1/train.log 2>&1 & }
 start=$(date +%s)
-run no_maxq --config.critic.td_target=window --config.critic.actor=awr
-run no_search --config.online.act_num_gaussian=0 --config.online.act_iterations=0
-run no_optimism --config.online.act_pessimism=0.0
-run no_exec_noise --config.online.exec_noise_start=0.0 --config.online.exec_noise_end=0.0
+for name in $VARIANTS; do run $name; done
 sleep 90; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv
 wait
 echo "wall $(( $(date +%s) - start )) s"

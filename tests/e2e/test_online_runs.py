@@ -109,3 +109,5 @@ def test_sigkill_and_resume_restore_buffer_and_step_counter_exactly(finished, la
   assert got.metadata['sampler_rng'] == want.metadata['sampler_rng']
   waves = run_files.read_csv(os.path.join(workdir, online.ONLINE_CSV))
   assert int(waves[-1]['env_steps']) == ENV_STEPS
+  steps = [int(w['env_steps']) for w in waves]  # Rows logged after the checkpoint came once.
+  assert steps == sorted(set(steps)), steps
