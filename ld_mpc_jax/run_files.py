@@ -77,9 +77,11 @@ def drop_rows_after(path: str, column: str, step: int) -> None:
   A killed run logged them after its last checkpoint; resumed from that checkpoint, it logs
   them again, so keeping them would repeat steps and bend the curves back on themselves.
   """
+  if not primary():
+    return
   rows = read_csv(path)
   kept = [r for r in rows if float(r[column]) <= step]
-  if not primary() or len(kept) == len(rows):
+  if len(kept) == len(rows):
     return
   with open(path + '.tmp', 'w', newline='') as f:
     writer = csv.DictWriter(f, fieldnames=list(rows[0]))

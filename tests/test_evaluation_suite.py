@@ -131,11 +131,14 @@ def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
   assert len(calls) == 16
 
 
+# One cached cell: the planner on one split and seed, quietly.
+_ONE_CELL = dict(step=4, modes=('plan',), splits=('held_out',), seeds=(0,), num_episodes=3,
+                 log=lambda line: None, progress=False)
+
+
 def test_cache_keys_ignore_fields_at_their_legacy_defaults(tmp_path, monkeypatch):
   calls = _stub_evaluations(monkeypatch)
-  config, workdir = door_open.get_config('smoke'), str(tmp_path)
-  grid = dict(step=4, modes=('plan',), splits=('held_out',), seeds=(0,), num_episodes=3,
-              log=lambda line: None, progress=False)
+  config, workdir, grid = door_open.get_config('smoke'), str(tmp_path), _ONE_CELL
   evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
   # A config without a field that has a legacy default (as before the field existed) is the
   # same cell: adding such a field at its no-change value keeps every cached evaluation.
@@ -159,9 +162,7 @@ def test_cache_keys_ignore_fields_at_their_legacy_defaults(tmp_path, monkeypatch
 
 def test_cells_cached_by_version_2_are_found_at_version_3(tmp_path, monkeypatch):
   calls = _stub_evaluations(monkeypatch)
-  config, workdir = door_open.get_config('smoke'), str(tmp_path)
-  grid = dict(step=4, modes=('plan',), splits=('held_out',), seeds=(0,), num_episodes=3,
-              log=lambda line: None, progress=False)
+  config, workdir, grid = door_open.get_config('smoke'), str(tmp_path), _ONE_CELL
   monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', 2)
   first = evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
   [v2_file] = os.listdir(os.path.join(workdir, 'evals'))
