@@ -116,6 +116,11 @@ def _json(value) -> str:
   return json.dumps(value, sort_keys=True, default=str)
 
 
+def _without(section: dict, defaults: dict) -> dict:
+  """`section` less its fields whose values equal `defaults`' (compared as JSON)."""
+  return {k: v for k, v in section.items() if k not in defaults or _json(v) != _json(defaults[k])}
+
+
 def _cache_key(config, step: int, mode: str, split: str, seed: int, num_episodes: int,
                obs_noise_std: float, version: int) -> str:
   """Digest of everything that changes one evaluation's episodes.
@@ -127,9 +132,8 @@ def _cache_key(config, step: int, mode: str, split: str, seed: int, num_episodes
   plan, data_ = config.plan.to_dict(), config.data.to_dict()
   if version >= 3:
     neutral = checkpointing.legacy_defaults()
-    plan, data_ = ({k: v for k, v in section.items()
-                    if k not in neutral[name] or _json(v) != _json(neutral[name][k])}
-                   for name, section in (('plan', plan), ('data', data_)))
+    plan = _without(plan, neutral['plan'])
+    data_ = _without(data_, neutral['data'])
   relevant = dict(version=version, step=step, mode=mode, split=split, seed=seed,
                   episodes=num_episodes, noise=obs_noise_std, task=config.task, plan=plan,
                   mppi=config.mppi.to_dict(), data=data_,

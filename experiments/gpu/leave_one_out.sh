@@ -10,7 +10,7 @@ set -u
 rm -rf runs/gpu  # A warm machine may hold an earlier call's runs: start fresh.
 export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
 T=${T:-500}
-nvidia-smi -L; git rev-parse HEAD 2>/dev/null || cat .whl/COMMIT
+nvidia-smi -L; git rev-parse HEAD 2>/dev/null || echo 'not a git checkout: record the commit by hand'
 python3 -c "import jax, flax; print('jax', jax.__version__, 'flax', flax.__version__, jax.devices())"
 run() {  # NAME: the preset with that variant's overrides, its log in its workdir
   mkdir -p runs/gpu/$1
