@@ -1,6 +1,9 @@
 # The leave-one-out variants of door_open_online.py:cpu_tanh: `overrides NAME` prints the flags
 # that undo one change (sourced by leave_one_out.sh and resume.sh, so both use the same flags).
-BASE="--config=experiments/configs/door_open_online.py:cpu_tanh --config.seed=2 --config.online.plan_chunk=4"
+# SEED picks the training seed (2 unless set: the seed the one-seed leave-one-out ran on).
+SEED=${SEED:-2}
+case "$SEED" in *[!0-9]*|'') echo "SEED must be a whole number, got '$SEED'" >&2; return 2 ;; esac
+BASE="--config=experiments/configs/door_open_online.py:cpu_tanh --config.seed=$SEED --config.online.plan_chunk=4"
 VARIANTS="no_maxq no_search no_optimism no_exec_noise"
 overrides() {
   case "$1" in
