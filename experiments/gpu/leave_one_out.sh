@@ -1,5 +1,5 @@
 # The leave-one-out variants of door_open_online.py:cpu_tanh (variants.sh: door-open-v3, training
-# seed 2), one process each, side by side on one GPU. Each is stopped at $T seconds by SIGINT (a
+# seed SEED, 2 by default), one process each, side by side on one GPU. Each is stopped at $T seconds by SIGINT (a
 # KeyboardInterrupt wherever it is: what it did after its last checkpoint is lost) and packed
 # into $OUT as NAME.tgz (the latest checkpoint and buffer, CSVs, log; split into NAME.tgz.0,
 # .1, ... above 15.5 MiB). A cut run finishes anywhere with resume.sh.
