@@ -1,0 +1,92 @@
+# Trains mt10.py:cpu (offline, the ten tasks' `mixed` scripted data) on several training seeds
+# side by side on one GPU, and packs each run into $OUT as seedN.tgz for evaluation elsewhere
+# (experiments.evaluate or experiments.compare_selection on the unpacked workdir).
+#   1. every task's dataset, one process per task (cached under data_cache/, as train does);
+#   2. one `experiments.train` process per seed, with --config.eval.episodes=0 (train and
+#      checkpoint only: the ten tasks' evaluation is CPU work, done where the runs are unpacked);
+#   3. each run's latest checkpoint saved again with only its EMA parameters (what evaluation
+#      reads): `params` and the optimizer state are zeroed so that three runs fit what the device
+#      tool returns. Such a checkpoint evaluates exactly as the original; it does not resume
+#      training.
+# From the repository root: OUT=/tmp/out bash experiments/gpu/mt10.sh
+#   SEEDS="0 1 2" (default), CONFIG=experiments/configs/mt10.py:cpu (default; :smoke for a check)
+#   DATA_XZ=DIR: xz-compressed dataset files (NAME.npz.xz, from data_cache/) unpacked into
+#   data_cache/ first, so that the datasets collected elsewhere need not be collected again
+#   (push-v3's takes minutes on one core).
+set -u
+: "${OUT:?set OUT to the folder the packed runs go to}"
+export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
+SEEDS=${SEEDS:-0 1 2}
+CONFIG=${CONFIG:-experiments/configs/mt10.py:cpu}
+RUNS=${RUNS:-runs/gpu_mt10}
+rm -rf "$RUNS"; mkdir -p "$RUNS"
+nvidia-smi -L 2>/dev/null; git rev-parse HEAD 2>/dev/null || echo 'not a git checkout: record the commit by hand'
+python3 -c "import jax, flax; print('jax', jax.__version__, 'flax', flax.__version__, jax.devices())"
+start=$(date +%s)
+if [ -n "${DATA_XZ:-}" ]; then
+  mkdir -p data_cache
+  python3 - "$DATA_XZ" <<'PY'
+import concurrent.futures, glob, lzma, os, sys
+def unpack(path):
+  with lzma.open(path) as f, open(os.path.join('data_cache', os.path.basename(path)[:-3]), 'wb') as g:
+    g.write(f.read())
+  return os.path.basename(path)
+with concurrent.futures.ThreadPoolExecutor(8) as pool:
+  print('unpacked', sorted(pool.map(unpack, glob.glob(f'{sys.argv[1]}/*.npz.xz'))))
+PY
+fi
+n=$(python3 - "$CONFIG" <<'PY'
+import sys
+from ld_mpc_jax import tasks
+path, _, preset = sys.argv[1].partition(':')
+import importlib.util
+spec = importlib.util.spec_from_file_location('cfg', path); mod = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(mod); print(tasks.num_tasks(mod.get_config(preset or None)))
+PY
+)
+echo "collecting $n datasets"
+for k in $(seq 0 $((n - 1))); do
+  python3 - "$CONFIG" "$k" >"$RUNS/collect_$k.log" 2>&1 <<'PY' &
+import sys, time, importlib.util
+from ld_mpc_jax import tasks
+from ld_mpc_jax.data import sources
+path, _, preset = sys.argv[1].partition(':')
+spec = importlib.util.spec_from_file_location('cfg', path); mod = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(mod)
+c, k, t = mod.get_config(preset or None), int(sys.argv[2]), time.time()
+sources.load_for_config(tasks.task_config(c, k), progress=False)
+print(tasks.task_names(c)[k], 'ready in', round(time.time() - t), 's')
+PY
+done
+wait; cat "$RUNS"/collect_*.log | grep -v Warning; echo "data ready at $(( $(date +%s) - start )) s"
+for s in $SEEDS; do
+  python3 -m experiments.train --config="$CONFIG" --config.seed="$s" --config.eval.episodes=0 \
+    --workdir="$RUNS/seed$s" >"$RUNS/train_seed$s.log" 2>&1 &
+done
+sleep 60; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv 2>/dev/null
+wait
+echo "trained at $(( $(date +%s) - start )) s"
+for s in $SEEDS; do echo "== seed $s"; tr '\r' '\n' <"$RUNS/train_seed$s.log" | grep -v '^$' | tail -n 3; done
+python3 - "$RUNS" $SEEDS <<'PY'
+import os, shutil, sys, tarfile
+import jax, jax.numpy as jnp
+import orbax.checkpoint as ocp
+from ld_mpc_jax import checkpointing
+runs, seeds, out = sys.argv[1], sys.argv[2:], os.environ['OUT']
+for s in seeds:
+  src, dst = f'{runs}/seed{s}', f'{runs}/ema_only/seed{s}'
+  config = checkpointing.load_config(src)
+  manager = checkpointing.checkpoint_manager(src)
+  step, state = manager.latest_step(), checkpointing.restore_latest(manager, config)
+  if state is None:
+    print(f'seed {s}: no checkpoint'); continue
+  shutil.copytree(src, dst, ignore=shutil.ignore_patterns('checkpoints'))
+  zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)
+  state = state.replace(params=zero(state.params), opt_state=zero(state.opt_state))
+  m = checkpointing.checkpoint_manager(dst)
+  m.save(step, args=ocp.args.StandardSave(state)); m.wait_until_finished()
+  path = f'{out}/seed{s}.tgz'
+  with tarfile.open(path, 'w:gz') as t: t.add(dst, arcname=f'seed{s}')
+  print(f'seed {s}: step {step}, {os.path.getsize(path) / 2**20:.1f} MiB')
+PY
+echo "packed at $(( $(date +%s) - start )) s"; ls -la "$OUT"
