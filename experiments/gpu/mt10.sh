@@ -10,6 +10,8 @@
 #      training.
 # From the repository root: OUT=/tmp/out bash experiments/gpu/mt10.sh
 #   SEEDS="0 1 2" (default), CONFIG=experiments/configs/mt10.py:cpu (default; :smoke for a check)
+#   TRAIN_T=SECONDS: stop training at that many seconds (SIGINT; the latest checkpoint is packed,
+#   and its step printed); 0 (default) lets it finish.
 #   DATA_XZ=DIR: xz-compressed dataset files (NAME.npz.xz, from data_cache/) unpacked into
 #   data_cache/ first, so that the datasets collected elsewhere need not be collected again
 #   (push-v3's takes minutes on one core).
@@ -60,7 +62,7 @@ PY
 done
 wait; cat "$RUNS"/collect_*.log | grep -v Warning; echo "data ready at $(( $(date +%s) - start )) s"
 for s in $SEEDS; do
-  python3 -m experiments.train --config="$CONFIG" --config.seed="$s" --config.eval.episodes=0 \
+  timeout -s INT -k 30 "${TRAIN_T:-0}" python3 -m experiments.train --config="$CONFIG" --config.seed="$s" --config.eval.episodes=0 \
     --workdir="$RUNS/seed$s" >"$RUNS/train_seed$s.log" 2>&1 &
 done
 sleep 60; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv 2>/dev/null
