@@ -13,7 +13,8 @@ held-out goals; a multi-task checkpoint runs every task. Each evaluation is cach
 with a markdown table beside it (--out with .md): per variant, pooled success, the rate per
 training seed, the share of decisions that departed from the actor prior's own sequence, and the
 paired test against the actor prior pooled and per seed (exact McNemar; "behind" is the largest
-number of episodes a seed's planner lost to its actor prior).
+number of episodes a seed's planner lost to its actor prior). For a multi-task checkpoint a
+second table gives the same test per task (the JSON's rows_by_task).
 """
 
 import json
@@ -72,11 +73,14 @@ def main(argv):
                                 _SEED.value))
   anchor = 'actor' if 'actor' in _BASELINES.value else records[0]['policy']
   rows = evaluation_suite.against_anchor(records, anchor)
+  by_task = evaluation_suite.against_anchor_by_task(records, anchor)
   md = evaluation_suite.anchor_markdown(rows, anchor)
+  if by_task:
+    md += '\n' + evaluation_suite.by_task_markdown(by_task, anchor)
   print(md)
   out = dict(workdirs=_WORKDIRS.value, variants=_VARIANTS.value, baselines=_BASELINES.value,
              episodes=_EPISODES.value, seed=_SEED.value, git_commit=git_commit(), rows=rows,
-             records=records)
+             rows_by_task=by_task, records=records)
   os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)
   with open(_OUT.value, 'w') as f:
     json.dump(out, f, indent=1)

@@ -276,6 +276,36 @@ def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]
   return rows
 
 
+def against_anchor_by_task(records: Sequence[dict], anchor: str = 'actor') -> Dict[str, List[dict]]:
+  """{task: `against_anchor` of that task's records}, in the records' task order; {} when the
+  records hold fewer than two tasks (a single-task checkpoint: the pooled rows say it all)."""
+  names = list(dict.fromkeys(r.get('task') for r in records))
+  if len(names) < 2:
+    return {}
+  return {name: against_anchor(stats.select(records, task=name), anchor) for name in names}
+
+
+def by_task_markdown(by_task: Dict[str, List[dict]], anchor: str = 'actor') -> str:
+  """One row per task, one column per policy: pooled successes, and for the others the paired
+  test against `anchor` (only this / only anchor, exact McNemar p) and the most episodes one
+  training seed lost to it."""
+  if not by_task:
+    return ''
+  policies = [r['policy'] for r in next(iter(by_task.values()))]
+  lines = ['| task | ' + ' | '.join(policies) + ' |', '| --- ' * (len(policies) + 1) + '|']
+  for name, rows in by_task.items():
+    cells = []
+    for r in rows:
+      cell = f"{r['successes']}/{r['episodes']}"
+      if 'vs_anchor' in r:
+        v = r['vs_anchor']
+        cell += f"; {v['a_only']} / {v['b_only']}, p = {v['p_value']:.2g}; behind {r['most_behind']}"
+      cells.append(cell)
+    lines.append(f'| {name} | ' + ' | '.join(cells) + ' |')
+  return (f'Per task (vs {anchor}: only this / only {anchor}, p; most episodes behind {anchor} on '
+          'one seed):\n\n' + '\n'.join(lines) + '\n')
+
+
 def anchor_markdown(rows: Sequence[dict], anchor: str = 'actor') -> str:
   """The rows of `against_anchor` as a markdown table."""
   lines = [f'| policy | held-out success, pooled | per training seed | decisions departing '

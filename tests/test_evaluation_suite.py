@@ -215,3 +215,28 @@ def test_table_pairs_per_run_and_counts_departures():
   assert 'vs_anchor' not in rows['actor'] and 'departure_share' not in rows['actor']
   md = evaluation_suite.anchor_markdown(list(rows.values()))
   assert '| plan[x] | 4/8 = 0.50 | 0.75, 0.25 | 0.10 | 2 / 4, 0.69 | 2 / 1, 0 / 3 | 3 |' in md
+
+
+def test_table_per_task_pairs_within_each_task():
+  # Task t1: the planner wins 2 episodes on run a; task t2: it loses 3 on run b (3 behind there).
+  def tagged(task, recs):
+    return [dict(r, task=task) for r in recs]
+  records = (tagged('t1', _policy_records('plan[x]', 'a', [1, 1, 0])
+                    + _policy_records('actor', 'a', [0, 0, 0])
+                    + _policy_records('plan[x]', 'b', [1, 1, 1])
+                    + _policy_records('actor', 'b', [1, 1, 1]))
+             + tagged('t2', _policy_records('plan[x]', 'a', [1, 1, 1])
+                      + _policy_records('actor', 'a', [1, 1, 1])
+                      + _policy_records('plan[x]', 'b', [0, 0, 0])
+                      + _policy_records('actor', 'b', [1, 1, 1])))
+  by_task = evaluation_suite.against_anchor_by_task(records)
+  assert list(by_task) == ['t1', 't2']
+  t1 = {r['policy']: r for r in by_task['t1']}['plan[x]']
+  t2 = {r['policy']: r for r in by_task['t2']}['plan[x]']
+  assert (t1['successes'], t1['vs_anchor']['a_only'], t1['vs_anchor']['b_only']) == (5, 2, 0)
+  assert (t2['successes'], t2['most_behind']) == (3, 3)
+  md = evaluation_suite.by_task_markdown(by_task)
+  assert '| t2 | 3/6; 0 / 3, p = 0.25; behind 3 | 6/6 |' in md
+  # One task (a single-task checkpoint): no per-task table.
+  assert evaluation_suite.against_anchor_by_task(records[:12]) == {}
+  assert evaluation_suite.by_task_markdown({}) == ''
