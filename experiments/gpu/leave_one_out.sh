@@ -4,6 +4,7 @@
 # into $OUT as NAME.tgz (the latest checkpoint and buffer, CSVs, log; split into NAME.tgz.0,
 # .1, ... above 15.5 MiB). A cut run finishes anywhere with resume.sh.
 # From the repository root on the GPU machine: T=470 OUT=/tmp/out bash experiments/gpu/leave_one_out.sh
+# Other runs: VARIANTS="no_discount no_episode_shape no_update_ratio" SEED=0 T=470 OUT=... bash ...
 set -u
 : "${OUT:?set OUT to the folder the packed runs go to}"
 . "$(dirname "$0")/variants.sh"
