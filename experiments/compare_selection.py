@@ -14,7 +14,8 @@ with a markdown table beside it (--out with .md): per variant, pooled success, t
 training seed, the share of decisions that departed from the actor prior's own sequence, and the
 paired test against the actor prior pooled and per seed (exact McNemar; "behind" is the largest
 number of episodes a seed's planner lost to its actor prior). For a multi-task checkpoint a
-second table gives the same test per task (the JSON's rows_by_task).
+second table gives the same test per task (the JSON's rows_by_task); --tasks=NAME,NAME evaluates
+only those of its tasks.
 """
 
 import json
@@ -32,20 +33,29 @@ _EPISODES = flags.DEFINE_integer('episodes', 50, 'Held-out episodes per seed (an
 _SEED = flags.DEFINE_integer('seed', 0, 'Evaluation seed.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output; the table goes beside it (.md).')
 _OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out file.')
+_TASKS = flags.DEFINE_list('tasks', None, 'Multi-task checkpoints: only these tasks (all by '
+                           'default).')
 flags.mark_flags_as_required(['workdirs', 'out'])
 
 
-def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int) -> list:
-  """Records of every variant ('plan[NAME]') and baseline on one checkpoint's held-out episodes."""
-  from ld_mpc_jax import checkpointing, multitask_eval
+def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
+                 only_tasks=None) -> list:
+  """Records of every variant ('plan[NAME]') and baseline on one checkpoint's held-out episodes
+  (of the tasks in `only_tasks` alone, for a multi-task checkpoint, if given)."""
+  import functools
+  from ld_mpc_jax import checkpointing, multitask_eval, tasks
   from ld_mpc_jax.config_checks import validate_config
   config, params, step = checkpointing.load_for_evaluation(workdir)
+  if only_tasks and not tasks.is_multitask(config):
+    raise ValueError(f'--tasks needs a multi-task checkpoint; {workdir} holds {config.task} alone')
   records = []
   runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items)) for name, items in variants]
   runs += [(mode, mode, config) for mode in baselines]
   for policy, mode, cfg in runs:
     validate_config(cfg)
     _, evaluate = multitask_eval.grid(cfg, ('held_out',))
+    if only_tasks:
+      evaluate = functools.partial(evaluate, only=tuple(only_tasks))
     recs = evaluate(cfg, params, workdir, step, (mode,), ('held_out',), (seed,), episodes,
                     run=workdir)
     for r in recs:  # The training seed lets compare_sweeps pair two configs' checkpoints.
@@ -67,10 +77,18 @@ def main(argv):
     missing = [w for w in _WORKDIRS.value if not os.path.isdir(w)]
     if missing:
       raise FileNotFoundError(f'no run directory {missing[0]}')
+    if _TASKS.value:
+      from ld_mpc_jax import checkpointing, tasks
+      for workdir in _WORKDIRS.value:
+        config = checkpointing.load_config(workdir)
+        if not tasks.is_multitask(config):
+          raise ValueError(f'--tasks needs multi-task checkpoints; {workdir} holds {config.task} '
+                           'alone')
+        cli.check_subset('--tasks', _TASKS.value, tasks.task_names(config))
   records = []
   for workdir in _WORKDIRS.value:
     records.extend(evaluate_run(workdir, variants, _BASELINES.value, _EPISODES.value,
-                                _SEED.value))
+                                _SEED.value, _TASKS.value))
   anchor = 'actor' if 'actor' in _BASELINES.value else records[0]['policy']
   rows = evaluation_suite.against_anchor(records, anchor)
   by_task = evaluation_suite.against_anchor_by_task(records, anchor)

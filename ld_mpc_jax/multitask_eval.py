@@ -8,7 +8,7 @@ policy with Wilson intervals, and the average over tasks; `markdown` and `plot` 
 """
 
 import os
-from typing import Any, Callable, Dict, List, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import ml_collections
 import numpy as np
@@ -19,10 +19,17 @@ from ld_mpc_jax import evaluation_suite, stats, tasks
 def evaluate_tasks(config: ml_collections.ConfigDict, params, workdir, step: int,
                    modes: Sequence[str], splits: Sequence[str], seeds: Sequence[int],
                    num_episodes: int, run: Any = None, obs_noise_std: float = 0.0,
-                   log=print) -> List[dict]:
-  """`evaluation_suite.evaluate_checkpoint` for every task; records carry `task` (its name)."""
+                   log=print, only: Optional[Sequence[str]] = None) -> List[dict]:
+  """`evaluation_suite.evaluate_checkpoint` for every task (or the tasks named in `only`);
+  records carry `task` (its name)."""
+  names = tasks.task_names(config)
+  unknown = [n for n in (only or ()) if n not in names]
+  if unknown:
+    raise ValueError(f'task {unknown[0]!r} is not one of this checkpoint\'s tasks {list(names)}')
   records = []
-  for k, name in enumerate(tasks.task_names(config)):
+  for k, name in enumerate(names):
+    if only and name not in only:
+      continue
     recs = evaluation_suite.evaluate_checkpoint(
         tasks.task_config(config, k), tasks.bind(params, k), workdir, step, modes, splits, seeds,
         num_episodes, run=run, obs_noise_std=obs_noise_std,

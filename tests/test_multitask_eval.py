@@ -88,6 +88,20 @@ def test_each_task_is_evaluated_as_a_single_task_agent(monkeypatch):
   assert pooled['decisions_per_s'] == 20.0  # The median of 10, 20 and 30.
 
 
+def test_only_the_named_tasks_are_evaluated(monkeypatch):
+  calls = _stub_checkpoint(monkeypatch)
+  config = mt10.get_config('smoke')
+  config.tasks = config.tasks[:3]
+  params = {'encoder': {}}
+  records = multitask_eval.evaluate_tasks(config, params, None, 0, ('plan',), ('held_out',),
+                                          (0,), 2, log=lambda line: None, only=(config.tasks[2],))
+  assert [c[0] for c in calls] == [config.tasks[2]]
+  assert {r['task'] for r in records} == {config.tasks[2]}
+  with pytest.raises(ValueError, match="task 'nope-v3' is not one of"):
+    multitask_eval.evaluate_tasks(config, params, None, 0, ('plan',), ('held_out',), (0,), 2,
+                                  only=('nope-v3',))
+
+
 def test_grid_picks_the_evaluation_for_the_config(monkeypatch):
   splits, fn = multitask_eval.grid(mt10.get_config('smoke'), ('held_out', 'train'))
   assert splits == ('held_out', 'train') and fn is multitask_eval.evaluate_tasks
