@@ -43,11 +43,9 @@ def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
   """Records of every variant ('plan[NAME]') and baseline on one checkpoint's held-out episodes
   (of the tasks in `only_tasks` alone, for a multi-task checkpoint, if given)."""
   import functools
-  from ld_mpc_jax import checkpointing, multitask_eval, tasks
+  from ld_mpc_jax import checkpointing, multitask_eval
   from ld_mpc_jax.config_checks import validate_config
-  config, params, step = checkpointing.load_for_evaluation(workdir)
-  if only_tasks and not tasks.is_multitask(config):
-    raise ValueError(f'--tasks needs a multi-task checkpoint; {workdir} holds {config.task} alone')
+  config, params, step = checkpointing.load_for_evaluation(workdir)  # --tasks checked in main.
   records = []
   runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items)) for name, items in variants]
   runs += [(mode, mode, config) for mode in baselines]
