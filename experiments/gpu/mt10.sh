@@ -37,30 +37,22 @@ with concurrent.futures.ThreadPoolExecutor(8) as pool:
   print('unpacked', sorted(pool.map(unpack, glob.glob(f'{sys.argv[1]}/*.npz.xz'))))
 PY
 fi
-n=$(python3 - "$CONFIG" <<'PY'
-import sys
-from ld_mpc_jax import tasks
-path, _, preset = sys.argv[1].partition(':')
-import importlib.util
-spec = importlib.util.spec_from_file_location('cfg', path); mod = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(mod); print(tasks.num_tasks(mod.get_config(preset or None)))
-PY
-)
-echo "collecting $n datasets"
-for k in $(seq 0 $((n - 1))); do
-  python3 - "$CONFIG" "$k" >"$RUNS/collect_$k.log" 2>&1 <<'PY' &
-import sys, time, importlib.util
+python3 - "$CONFIG" <<'PY'  # Every task's dataset, one process per task (cached ones load).
+import concurrent.futures, importlib.util, sys, time
 from ld_mpc_jax import tasks
 from ld_mpc_jax.data import sources
 path, _, preset = sys.argv[1].partition(':')
 spec = importlib.util.spec_from_file_location('cfg', path); mod = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(mod)
-c, k, t = mod.get_config(preset or None), int(sys.argv[2]), time.time()
-sources.load_for_config(tasks.task_config(c, k), progress=False)
-print(tasks.task_names(c)[k], 'ready in', round(time.time() - t), 's')
+config = mod.get_config(preset or None)
+def collect(k):
+  t = time.time()
+  sources.load_for_config(tasks.task_config(config, k), progress=False)
+  return f'{tasks.task_names(config)[k]} ready in {time.time() - t:.0f} s'
+with concurrent.futures.ProcessPoolExecutor(tasks.num_tasks(config)) as pool:
+  print('\n'.join(pool.map(collect, range(tasks.num_tasks(config)))))
 PY
-done
-wait; cat "$RUNS"/collect_*.log | grep -v Warning; echo "data ready at $(( $(date +%s) - start )) s"
+echo "data ready at $(( $(date +%s) - start )) s"
 for s in $SEEDS; do
   timeout -s INT -k 30 "${TRAIN_T:-0}" python3 -m experiments.train --config="$CONFIG" --config.seed="$s" --config.eval.episodes=0 \
     --workdir="$RUNS/seed$s" >"$RUNS/train_seed$s.log" 2>&1 &
