@@ -14,6 +14,7 @@ goal id, success, `first_success` (the decision, counted from 1, at which succes
 None without success), return, length (decisions) and environment steps.
 """
 
+import collections
 import os
 import time
 import warnings
@@ -82,13 +83,24 @@ def _write_video(frames: List[np.ndarray], path: str, fps: int) -> str:
   return path
 
 
-_ENV_POOL: Dict[Tuple, List[Any]] = {}
+# Environments kept between calls, per (factory, settings): one Meta-World environment holds
+# about 30 MB, so 50 of each of MT10's ten tasks would hold 15 GB. Only the pools of the
+# MAX_ENV_POOLS settings used last are kept; older ones are closed.
+MAX_ENV_POOLS = 2
+_ENV_POOL: 'collections.OrderedDict[Tuple, List[Any]]' = collections.OrderedDict()
 
 
 def _envs(factory, n: int, kwargs: Dict[str, Any]) -> List[Any]:
-  """n environments of factory(**kwargs), kept for the next call (building one takes ~0.5 s)."""
+  """n environments of factory(**kwargs), kept for the next call (building one takes ~0.5 s);
+  the least recently used settings' environments are closed beyond MAX_ENV_POOLS."""
   key = (factory, tuple(sorted(kwargs.items())))
   pool = _ENV_POOL.setdefault(key, [])
+  _ENV_POOL.move_to_end(key)
+  while len(_ENV_POOL) > MAX_ENV_POOLS:
+    _, old = _ENV_POOL.popitem(last=False)
+    for env in old:
+      if hasattr(env, 'close'):
+        env.close()
   while len(pool) < n:
     pool.append(factory(**kwargs))
   return pool[:n]

@@ -154,3 +154,29 @@ def test_real_video(tmp_path):
       progress=False)
   assert res['video_path'] == str(tmp_path / 'v.mp4')  # imageio-ffmpeg: mp4, not a gif.
   assert os.path.getsize(res['video_path']) > 0
+
+
+def test_env_pool_keeps_the_latest_settings_and_closes_the_rest(monkeypatch):
+  """Environments are reused for the same settings; beyond MAX_ENV_POOLS settings the oldest
+  pool is closed and dropped (MT10 evaluations held 50 environments of every task before)."""
+  monkeypatch.setattr(evaluation, '_ENV_POOL', type(evaluation._ENV_POOL)())
+  made = []
+
+  class Env:
+    closed = False
+
+    def close(self):
+      self.closed = True
+
+  def factory(**kwargs):
+    made.append(Env())
+    return made[-1]
+
+  first = evaluation._envs(factory, 3, dict(task='a'))
+  assert evaluation._envs(factory, 2, dict(task='a')) == first[:2]  # Reused, none built.
+  assert len(made) == 3
+  for task in 'bcd':
+    evaluation._envs(factory, 2, dict(task=task))
+  assert len(evaluation._ENV_POOL) == evaluation.MAX_ENV_POOLS == 2
+  # a (3 environments) and b (2) closed; c and d (2 each) kept.
+  assert [e.closed for e in made] == [True] * 5 + [False] * 4
