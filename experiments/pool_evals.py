@@ -10,7 +10,8 @@ over several workdirs) keeps them apart as PATH:RUN, so episodes of different ch
 pair up. Prints per goal split and policy the pooled successes with a Wilson
 interval and the rate of each file, then exact McNemar tests between policies on the same
 episodes. Multi-task evaluations (records with a `task`) first get the per-task table of
-`multitask_eval`, pooled over the files.
+`multitask_eval`, pooled over the files; single-task files given with them (to pool several
+settings into one test) join the pooled table, not the per-task one.
 """
 
 import json
@@ -72,11 +73,13 @@ def main(paths: list) -> None:
     cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json ...')
   results = [{'records': read_records(path)} for path in paths]
   records = [r for res in results for r in res['records']]
-  tasks = list(dict.fromkeys(r.get('task') for r in records))
-  if len(tasks) > 1 and None in tasks:
-    cli.fail('the files mix multi-task and single-task evaluations')
-  if tasks != [None]:
-    print(multitask_eval.markdown(multitask_eval.per_task(records, tasks), tasks))
+  tasks = [t for t in dict.fromkeys(r.get('task') for r in records) if t is not None]
+  if tasks:
+    multi = [r for r in records if r.get('task') is not None]
+    print(multitask_eval.markdown(multitask_eval.per_task(multi, tasks), tasks))
+    if len(multi) < len(records):  # Single-task files as well: pooled with them below only.
+      print(f'The per-task table has the multi-task files\' records only; the pooled table '
+            f'below has all {len(records)} records.\n')
   print(evaluation_suite.markdown(pool(results, paths)), end='')
 
 

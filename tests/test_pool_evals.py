@@ -68,15 +68,20 @@ def test_main_prints_per_task_table_pooled_over_files(tmp_path, capsys):
   assert '**average** | **0.38**' in out
 
 
-def test_main_rejects_a_mix_of_multi_and_single_task_files(tmp_path, capsys):
-  multi = _result({'plan': [1]})
-  multi['records'][0]['task'] = 'reach-v3'
+def test_main_pools_multi_and_single_task_files_together(tmp_path, capsys):
+  """Several settings in one test: the per-task table has the multi-task records alone, the
+  pooled table every record (3 of 4 here, where the per-task table says 1 of 2)."""
+  multi = _result({'plan': [1, 0]})
+  for r in multi['records']:
+    r['task'] = 'reach-v3'
   paths = [tmp_path / 'multi.json', tmp_path / 'single.json']
   paths[0].write_text(json.dumps(multi))
-  paths[1].write_text(json.dumps(_result({'plan': [1]})))
-  with pytest.raises(SystemExit) as err:
-    pool_evals.main([str(p) for p in paths])
-  assert err.value.code == 2 and 'mix multi-task and single-task' in capsys.readouterr().err
+  paths[1].write_text(json.dumps(_result({'plan': [1, 1]})))
+  pool_evals.main([str(p) for p in paths])
+  out = capsys.readouterr().out
+  assert '| reach-v3 | 1/2 = 0.50' in out
+  assert 'the pooled table below has all 4 records' in out
+  assert '3/4 = 0.75' in out
 
 
 def test_main_rejects_files_without_records(tmp_path, capsys):
