@@ -73,9 +73,9 @@ def main(paths: list) -> None:
     cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json ...')
   results = [{'records': read_records(path)} for path in paths]
   records = [r for res in results for r in res['records']]
-  tasks = [t for t in dict.fromkeys(r.get('task') for r in records) if t is not None]
-  if tasks:
-    multi = [r for r in records if r.get('task') is not None]
+  multi = [r for r in records if r.get('task') is not None]
+  if multi:
+    tasks = list(dict.fromkeys(r['task'] for r in multi))
     print(multitask_eval.markdown(multitask_eval.per_task(multi, tasks), tasks))
     if len(multi) < len(records):  # Single-task files as well: pooled with them below only.
       print(f'The per-task table has the multi-task files\' records only; the pooled table '
