@@ -57,6 +57,8 @@ def small_config(smoke_config):
   return c
 
 
+# Marked long: benchmark tooling on a whole compiled program (about 13 s each on a quiet core).
+@pytest.mark.long
 def test_plan_hand_count_matches_corrected_xla(small_config):
   hand = flops.plan_flops(small_config)
   assert hand['total'] == (hand['proposal'] + hand['dynamics'] + hand['objective']
@@ -72,6 +74,7 @@ def test_plan_hand_count_matches_corrected_xla(small_config):
   assert xla6['plan_once'] < 0.6 * xla6['total']
 
 
+@pytest.mark.long
 def test_mppi_hand_count_matches_corrected_xla():
   # Width 128: LayerNorm, Mish and SimNorm (not in the hand count) stay below 10%.
   model_cfg = mppi.TDMPC2Config(latent_dim=128, enc_dim=32, mlp_dim=128, num_q=3, num_bins=11)

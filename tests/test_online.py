@@ -47,24 +47,6 @@ def _record_policies(config, workdir, monkeypatch):
   return used
 
 
-def test_exploration_noise_only_when_acting(tmp_path, monkeypatch):
-  config = door_open_online.get_config('smoke')
-  used = _record_policies(config, str(tmp_path / 'run'), monkeypatch)
-  assert ('act', 'plan', 0.2, 0.2) in used
-  evaluations = [u for u in used if u[0] == 'eval']
-  assert evaluations and all(u[2:] == (0.0, 0.0) for u in evaluations)
-  assert all(u[2:] == (0.2, 0.2) for u in used if u[0] == 'act')
-  # The acting planner's candidates are the plain planner's plus noise, same key and params.
-  acting = online.acting_config(config)
-  params = init_params(config, jax.random.key(0))
-  z = jax.random.normal(jax.random.key(1), (config.model.latent_dim,))
-  noisy = make_plan(acting)(params, z, jax.random.key(2)).candidates
-  plain = make_plan(config)(params, z, jax.random.key(2)).candidates
-  assert config.plan.action_noise_std == 0.0 and acting.plan.action_noise_std == 0.2
-  assert float(jnp.abs(noisy - plain).max()) > 0.05
-  assert float(jnp.abs(noisy).max()) <= 1.0
-
-
 def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkeypatch):
   config = door_open_online.get_config('smoke')
   config.online.act_mode = 'actor'
@@ -91,9 +73,10 @@ def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkey
     assert not np.allclose(first[0], first[-1])
 
 
-def test_any_task_by_flag_acts_and_evaluates_on_that_task(tmp_path, monkeypatch):
-  """With online.train_goals='random' as well: the acting environments draw fresh goal
-  configurations, the evaluation ones keep the held-out goals."""
+def test_any_task_by_flag_explores_only_while_acting(tmp_path, monkeypatch):
+  """One smoke run checks both: exploration noise only on the acting planner (none in
+  evaluation), and --config.task with online.train_goals='random': the acting environments draw
+  fresh goal configurations of that task, the evaluation ones keep its held-out goals."""
   from ld_mpc_jax import envs  # pylint: disable=g-import-not-at-top
   made = []
   original = envs.make_env
@@ -103,8 +86,23 @@ def test_any_task_by_flag_acts_and_evaluates_on_that_task(tmp_path, monkeypatch)
   monkeypatch.setattr(envs, 'make_env', recording)
   config = door_open_online.get_config('smoke')
   config.task, config.online.train_goals = 'push-v3', 'random'
-  _record_policies(config, str(tmp_path / 'run'), monkeypatch)
-  assert made and {task for task, _ in made} == {'push-v3'}  # Acting and evaluation alike.
+  used = _record_policies(config, str(tmp_path / 'run'), monkeypatch)
+  # Exploration noise: on every acting planner, on no evaluating one.
+  assert ('act', 'plan', 0.2, 0.2) in used
+  evaluations = [u for u in used if u[0] == 'eval']
+  assert evaluations and all(u[2:] == (0.0, 0.0) for u in evaluations)
+  assert all(u[2:] == (0.2, 0.2) for u in used if u[0] == 'act')
+  # The acting planner's candidates are the plain planner's plus noise, same key and params.
+  acting = online.acting_config(config)
+  params = init_params(config, jax.random.key(0))
+  z = jax.random.normal(jax.random.key(1), (config.model.latent_dim,))
+  noisy = make_plan(acting)(params, z, jax.random.key(2)).candidates
+  plain = make_plan(config)(params, z, jax.random.key(2)).candidates
+  assert config.plan.action_noise_std == 0.0 and acting.plan.action_noise_std == 0.2
+  assert float(jnp.abs(noisy - plain).max()) > 0.05
+  assert float(jnp.abs(noisy).max()) <= 1.0
+  # The task by flag: acting and evaluation alike on push-v3.
+  assert made and {task for task, _ in made} == {'push-v3'}
   assert made[:config.online.num_envs] == [('push-v3', True)] * config.online.num_envs
   assert not any(random for _, random in made[config.online.num_envs:])
   with open(tmp_path / 'run' / 'report.json') as f:

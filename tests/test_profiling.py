@@ -70,6 +70,8 @@ def test_busy_time_is_the_union_of_intervals():
   assert profiling._busy_us([]) == 0
 
 
+# Marked long: benchmark tooling that compiles and traces the whole update.
+@pytest.mark.long
 def test_profile_smoke_update_finds_every_network(smoke_config):
   result = profiling.profile_update(smoke_config, calls=1)
   networks = {key.split('/')[0] for key in result['ms_per_call']}
