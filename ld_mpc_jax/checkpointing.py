@@ -14,7 +14,8 @@ from ld_mpc_jax.train_state import TrainState, create_train_state
 CONFIG_FILE = 'config.json'
 # Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
 _EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
-                      baselines=('actor', 'proposal'), data_parallel=False)
+                      baselines=('actor', 'proposal'), data_parallel=False,
+                      key_seed=-1)
 # Planner settings of experiments/configs/base.py for configs saved before they existed; the
 # values mean what those runs did (no pessimism before `plan.pessimism` existed, no search).
 _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,

@@ -101,7 +101,7 @@ def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
     bad = set(e.splits) - {'held_out', 'train'}
     if bad or not e.splits:
       raise ValueError(f'config.eval.splits must name held_out and/or train, got {e.splits}')
-    for name, least in (('batch_size', 1), ('plan_chunk', 0)):
+    for name, least in (('batch_size', 1), ('plan_chunk', 0), ('key_seed', -1)):
       if name in e and (not isinstance(e[name], int) or e[name] < least):
         raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
   if 'data' in config:

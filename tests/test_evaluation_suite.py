@@ -160,6 +160,43 @@ def test_cache_keys_ignore_fields_at_their_legacy_defaults(tmp_path, monkeypatch
   assert len(calls) == 2
 
 
+def test_key_seed_draws_other_keys_on_the_same_episodes(tmp_path, monkeypatch):
+  """eval.key_seed: the policy's keys from another seed, the episodes from the evaluation seed;
+  at its default (-1) every cached cell keeps its key."""
+  seen = {}
+  class Policy:
+    def __init__(self, config, params, mode, seed, chunk, mesh):
+      seen['key_seed'] = seed
+  def run_episodes(policy, eps, *args, **kwargs):
+    seen['episodes'] = [e.reset_seed for e in eps]
+    return [dict(success=1)], {}
+  monkeypatch.setattr(evaluation_suite, 'BatchAgentPolicy', Policy)
+  monkeypatch.setattr(evaluation_suite.evaluation, 'run_episodes', run_episodes)
+  monkeypatch.setattr(evaluation_suite.evaluation, 'result', lambda records, info: records)
+  monkeypatch.setattr(evaluation_suite, 'episodes',
+                      lambda config, split, seed, n: [goals_episode(seed, i) for i in range(n)])
+  config = door_open.get_config('smoke')
+  evaluation_suite.evaluate_policy(config, None, 'plan', 2, seed=3)
+  assert seen == dict(key_seed=3, episodes=[30, 31])
+  config.eval.key_seed = 5
+  evaluation_suite.evaluate_policy(config, None, 'plan', 2, seed=3)
+  assert seen == dict(key_seed=5, episodes=[30, 31])
+  # The cache: the default is the cell as before the field, another key seed another cell.
+  calls = _stub_evaluations(monkeypatch)
+  older = door_open.get_config('smoke')
+  del older.eval['key_seed']
+  for c in (older, door_open.get_config('smoke'), config):
+    evaluation_suite.evaluate_checkpoint(c, None, str(tmp_path), **_ONE_CELL)
+  assert len(calls) == 2
+
+
+def goals_episode(seed, i):
+  """A stand-in episode: only its reset seed is read."""
+  class Episode:
+    reset_seed = 10 * seed + i
+  return Episode()
+
+
 def test_cells_cached_by_version_2_are_found_at_version_3(tmp_path, monkeypatch):
   calls = _stub_evaluations(monkeypatch)
   config, workdir, grid = door_open.get_config('smoke'), str(tmp_path), _ONE_CELL

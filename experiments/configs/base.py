@@ -205,6 +205,10 @@ def get_config() -> ml_collections.ConfigDict:
   # dataset episode starts from, and the goals the data were collected on.
   e.splits = ('held_out', 'train')
   e.seeds = (0,)  # Evaluation seeds of the final evaluation (each: its own episodes and goals).
+  # Seed of the policies' random draws (the planner's candidates); -1: the evaluation seed's.
+  # Another value replays the same episodes with other draws: one policy against itself, the
+  # spread a paired comparison of two policies cannot beat.
+  e.key_seed = -1
   # Environments stepped in lockstep: one jitted policy call per decision for all of them.
   e.batch_size = 50
   # Planner environments per vmap inside that call (jax.lax.map's batch_size; 0: one jitted
