@@ -15,7 +15,8 @@ training seed, the share of decisions that departed from the actor prior's own s
 paired test against the actor prior pooled and per seed (exact McNemar; "behind" is the largest
 number of episodes a seed's planner lost to its actor prior). For a multi-task checkpoint a
 second table gives the same test per task (the JSON's rows_by_task); --tasks=NAME,NAME evaluates
-only those of its tasks.
+only those of its tasks. A variant may set `eval.key_seed` (e.g. `--variant=safe1_key1:...,
+eval.key_seed=1`): the same episodes with other planner draws, the planner against itself.
 """
 
 import json
