@@ -94,7 +94,7 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   chunk = e.plan_chunk if mode in ('plan', 'mppi') else None
   # This process's devices: with several processes, each runs its own evaluation.
   mesh = sharding.make_mesh(jax.local_devices()) if e.data_parallel else None
-  key_seed = seed if e.get('key_seed', -1) < 0 else e.key_seed  # The episodes keep `seed`.
+  key_seed = seed if e.key_seed < 0 else e.key_seed  # The episodes keep `seed`.
   policy = BatchAgentPolicy(config, params, mode, seed=key_seed, chunk=chunk, mesh=mesh)
   eps = episodes(config, split, seed, num_episodes)
   records, info = evaluation.run_episodes(
@@ -139,7 +139,7 @@ def _cache_key(config, step: int, mode: str, split: str, seed: int, num_episodes
                   episodes=num_episodes, noise=obs_noise_std, task=config.task, plan=plan,
                   mppi=config.mppi.to_dict(), data=data_,
                   eval={k: config.eval[k] for k in ('action_repeat', 'max_episode_steps')})
-  if config.eval.get('key_seed', -1) >= 0:  # At its default it leaves every key as it was.
+  if config.eval.key_seed >= 0:  # At its default (-1) it leaves every key as it was.
     relevant['eval']['key_seed'] = config.eval.key_seed
   return hashlib.sha1(_json(relevant).encode()).hexdigest()[:10]
 

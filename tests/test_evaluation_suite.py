@@ -181,10 +181,13 @@ def test_key_seed_draws_other_keys_on_the_same_episodes(tmp_path, monkeypatch):
   config.eval.key_seed = 5
   evaluation_suite.evaluate_policy(config, None, 'plan', 2, seed=3)
   assert seen == dict(key_seed=5, episodes=[30, 31])
-  # The cache: the default is the cell as before the field, another key seed another cell.
+  # The cache: a run saved before the field (read back with it at -1) finds the default's cell,
+  # another key seed is another cell.
   calls = _stub_evaluations(monkeypatch)
   older = door_open.get_config('smoke')
   del older.eval['key_seed']
+  checkpointing.save_config(older, str(tmp_path / 'old_run'))
+  older = checkpointing.load_config(str(tmp_path / 'old_run'))
   for c in (older, door_open.get_config('smoke'), config):
     evaluation_suite.evaluate_checkpoint(c, None, str(tmp_path), **_ONE_CELL)
   assert len(calls) == 2
