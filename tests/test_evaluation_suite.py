@@ -3,6 +3,7 @@ the per-cell cache of `evaluate_checkpoint` (evaluations stubbed, no environment
 
 import math
 import os
+import types
 
 import numpy as np
 import pytest
@@ -174,7 +175,8 @@ def test_key_seed_draws_other_keys_on_the_same_episodes(tmp_path, monkeypatch):
   monkeypatch.setattr(evaluation_suite.evaluation, 'run_episodes', run_episodes)
   monkeypatch.setattr(evaluation_suite.evaluation, 'result', lambda records, info: records)
   monkeypatch.setattr(evaluation_suite, 'episodes',
-                      lambda config, split, seed, n: [goals_episode(seed, i) for i in range(n)])
+                      lambda config, split, seed, n: [types.SimpleNamespace(reset_seed=10 * seed + i)
+                                                      for i in range(n)])
   config = door_open.get_config('smoke')
   evaluation_suite.evaluate_policy(config, None, 'plan', 2, seed=3)
   assert seen == dict(key_seed=3, episodes=[30, 31])
@@ -191,13 +193,6 @@ def test_key_seed_draws_other_keys_on_the_same_episodes(tmp_path, monkeypatch):
   for c in (older, door_open.get_config('smoke'), config):
     evaluation_suite.evaluate_checkpoint(c, None, str(tmp_path), **_ONE_CELL)
   assert len(calls) == 2
-
-
-def goals_episode(seed, i):
-  """A stand-in episode: only its reset seed is read."""
-  class Episode:
-    reset_seed = 10 * seed + i
-  return Episode()
 
 
 def test_cells_cached_by_version_2_are_found_at_version_3(tmp_path, monkeypatch):

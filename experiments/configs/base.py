@@ -96,7 +96,7 @@ def get_config() -> ml_collections.ConfigDict:
   # and on MT10 (docs/results.md). Margin 8 gives push `medium`'s gain back; margin 1 x E[max]
   # stays below the actor prior on MT10 peg-insert-side; margin 2 x E[max]
   # (safe_margin_scaling='expected_max') comes closest: above the actor prior on MT10, push
-  # `medium` and door-open `weak` (three seeds each), reach `medium` (one seed) and over all of
+  # `medium`, door-open `weak` and reach `medium` (three seeds each) and over all of
   # them, but 3 episodes of 50 behind it on one seed twice (door-open `weak` seed 0, fresh MT10
   # episodes seed 1), and the main job (door-open `medium`) was not run with it. The margin 8
   # was chosen on door-open `weak` on training seed 0
