@@ -22,14 +22,20 @@ from experiments import cli
 from ld_mpc_jax import evaluation_suite, multitask_eval, run_files
 
 
-def pool(results: list, names: list) -> dict:
-  """[evaluate JSON dicts], [their names] -> evaluation_suite.summarize of all their records."""
+def named_records(results: list, names: list) -> list:
+  """The records of [evaluate JSON dicts], each file's `run` renamed by its name (NAME:RUN where
+  a file holds several runs), so that episodes of different files or checkpoints never pair."""
   records = []
   for result, name in zip(results, names):
     several = len({str(r.get('run')) for r in result['records']}) > 1
     for r in result['records']:
       records.append({**r, 'run': f"{name}:{r['run']}" if several else name})
-  return evaluation_suite.summarize(records)
+  return records
+
+
+def pool(results: list, names: list) -> dict:
+  """[evaluate JSON dicts], [their names] -> evaluation_suite.summarize of all their records."""
+  return evaluation_suite.summarize(named_records(results, names))
 
 
 def read_json(path: str) -> dict:

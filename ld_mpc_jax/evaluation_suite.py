@@ -279,6 +279,59 @@ def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]
   return rows
 
 
+def behind_by_anchor_time(records: Sequence[dict], anchor: str = 'actor',
+                          edges: Sequence[int] = (70, 90, 110)) -> List[dict]:
+  """Where the policies lose to `anchor`, by how many decisions the anchor took to succeed.
+
+  Pairs each policy's records with the anchor's on the same episodes (stats.episode_key). The
+  anchor's solved episodes are binned by its `first_success`: [0, edges[0]), ..., [edges[-1],
+  inf); one more row holds the episodes it failed. Returns one dict per bin, in that order:
+  `bin` ('lo-hi' decisions, or 'failed'), `episodes` (the anchor's episodes in the bin), and per
+  policy `lost` (anchor solved, policy failed) in the solved bins or `won` (policy solved) in the
+  failed one, each as [count, paired episodes] (a policy not run on every episode of the anchor
+  has fewer).
+  """
+  edges = list(edges)
+  if edges != sorted(set(edges)) or (edges and edges[0] <= 0):
+    raise ValueError(f'edges must be increasing positive decision counts, got {edges}')
+  base = {stats.episode_key(r): r for r in stats.select(records, policy=anchor)}
+  if not base:
+    raise ValueError(f'no records of the anchor policy {anchor!r}')
+  bounds = [0] + edges + [None]
+  names = [f'{lo}-{hi}' if hi else f'{lo}+' for lo, hi in zip(bounds[:-1], bounds[1:])]
+  bin_of = lambda r: (names[int(np.searchsorted(edges, r['first_success'], side='right'))]
+                      if int(r['success']) else 'failed')
+  rows = {name: dict(bin=name, episodes=0) for name in names + ['failed']}
+  for r in base.values():
+    rows[bin_of(r)]['episodes'] += 1
+  policies = [p for p in dict.fromkeys(r['policy'] for r in records) if p != anchor]
+  for row in rows.values():
+    row['won' if row['bin'] == 'failed' else 'lost'] = {p: [0, 0] for p in policies}
+  for r in records:
+    a = base.get(stats.episode_key(r))
+    if r['policy'] == anchor or a is None:
+      continue
+    row = rows[bin_of(a)]
+    won = row['bin'] == 'failed'
+    count = row['won' if won else 'lost'][r['policy']]
+    count[0] += int(r['success']) if won else 1 - int(r['success'])
+    count[1] += 1
+  return list(rows.values())
+
+
+def behind_markdown(rows: Sequence[dict], anchor: str = 'actor') -> str:
+  """A table of `behind_by_anchor_time`: one row per bin, one column per policy."""
+  policies = list(rows[0]['lost'])
+  lines = [f'| {anchor}: decisions to success | {anchor}: episodes | ' + ' | '.join(policies)
+           + ' |', '| --- | --- |' + ' --- |' * len(policies)]
+  for row in rows:
+    counts = row['won'] if row['bin'] == 'failed' else row['lost']
+    verb = 'solved' if row['bin'] == 'failed' else 'lost'
+    cells = [f'{verb} {k}/{n}' for k, n in (counts[p] for p in policies)]
+    lines.append(f'| {row["bin"]} | {row["episodes"]} | ' + ' | '.join(cells) + ' |')
+  return '\n'.join(lines) + '\n'
+
+
 def against_anchor_by_task(records: Sequence[dict], anchor: str = 'actor') -> Dict[str, List[dict]]:
   """{task: `against_anchor` of that task's records}, in the records' task order; {} when the
   records hold fewer than two tasks (a single-task checkpoint: the pooled rows say it all)."""

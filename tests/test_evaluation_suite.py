@@ -275,3 +275,26 @@ def test_table_per_task_pairs_within_each_task():
   # One task (a single-task checkpoint): no per-task table.
   assert evaluation_suite.against_anchor_by_task(records[:12]) == {}
   assert evaluation_suite.by_task_markdown({}) == ''
+
+
+def _timed(policy, outcomes, run='A'):
+  """[(success, first_success)] per episode -> records of one policy on episodes 0.."""
+  return [dict(policy=policy, run=run, split='held_out', eval_seed=0, episode=i, success=s,
+               first_success=t if s else None) for i, (s, t) in enumerate(outcomes)]
+
+
+def test_behind_by_anchor_time_bins_the_anchors_solved_episodes():
+  actor = [(1, 50), (1, 60), (1, 80), (1, 120), (1, 130), (0, None), (0, None)]
+  plan = [(1, 40), (0, None), (1, 70), (0, None), (0, None), (1, 90), (0, None)]
+  # Run B's episode 0 is another episode than run A's: it must not pair with A's actor.
+  records = _timed('actor', actor) + _timed('plan', plan) + _timed('plan', [(0, None)], run='B')
+  rows = evaluation_suite.behind_by_anchor_time(records, 'actor', edges=(70, 110))
+  assert [r['bin'] for r in rows] == ['0-70', '70-110', '110+', 'failed']
+  assert [r['episodes'] for r in rows] == [2, 1, 2, 2]
+  assert [r.get('lost', r.get('won'))['plan'] for r in rows] == [[1, 2], [0, 1], [2, 2], [1, 2]]
+  table = evaluation_suite.behind_markdown(rows)
+  assert '| 110+ | 2 | lost 2/2 |' in table and '| failed | 2 | solved 1/2 |' in table
+  with pytest.raises(ValueError, match='increasing'):
+    evaluation_suite.behind_by_anchor_time(records, 'actor', edges=(110, 70))
+  with pytest.raises(ValueError, match="'prior'"):
+    evaluation_suite.behind_by_anchor_time(records, 'prior')

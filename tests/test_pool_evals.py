@@ -201,3 +201,23 @@ def test_compare_sweeps_takes_the_recorded_training_seed_without_the_workdir(tmp
   sides = [compare_sweeps.read_side(str(tmp_path / f'{n}.json')) for n in 'ab']
   (row,) = compare_sweeps.paired_rows(*sides, ['plan[argmax]'], 'held_out')
   assert (row['episodes'], row['a_only'], row['seeds']) == (1, 1, [5])
+
+
+def test_where_behind_prints_the_bins_and_fails_in_one_line(tmp_path):
+  import os
+  import subprocess
+  import sys
+  rec = lambda p, i, s, t: dict(policy=p, run=0, split='held_out', eval_seed=0, episode=i,
+                                success=s, first_success=t)
+  path = tmp_path / 'sel.json'
+  path.write_text(json.dumps({'records': [rec('actor', 0, 1, 30), rec('actor', 1, 1, 150),
+                                          rec('plan', 0, 1, 20), rec('plan', 1, 0, None)]}))
+  repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+  run = lambda *a: subprocess.run([sys.executable, '-m', 'experiments.where_behind', *a],
+                                  capture_output=True, text=True, timeout=60, cwd=repo)
+  done = run(str(path))
+  assert done.returncode == 0, done.stderr[-2000:]
+  assert '| 0-70 | 1 | lost 0/1 |' in done.stdout and '| 110+ | 1 | lost 1/1 |' in done.stdout
+  bad = run(str(path), '--anchor=prior')
+  lines = [l for l in bad.stderr.splitlines() if l.strip()]
+  assert bad.returncode == 2 and lines == ["error: no records of the anchor policy 'prior'"], lines
