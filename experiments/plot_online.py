@@ -22,6 +22,8 @@ flags.DEFINE_list('runs', [], 'Online run workdirs (each with eval.csv and onlin
 flags.DEFINE_string('anchor', '', 'TD-MPC2 per-seed CSV (step,success,seed); empty: none.')
 flags.DEFINE_string('out', 'online_curves.png', 'Output PNG.')
 flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (environment steps).')
+flags.DEFINE_integer('late_from', 80_000, 'The exploration table averages the waves after this '
+                     'many environment steps.')
 
 
 def read_csv(path):
@@ -77,6 +79,8 @@ def main(argv):
   fig.savefig(FLAGS.out, dpi=100)
   print(f'wrote {FLAGS.out}')
   print(curve_table(FLAGS.runs))
+  print()
+  print(exploration_table(FLAGS.runs, FLAGS.late_from))
 
 
 def curve_table(runs) -> str:
@@ -102,6 +106,52 @@ def curve_table(runs) -> str:
     else:
       pooled = ['-', '-']
     lines.append(f'| {step // 1000}k | ' + ' | '.join(shown + pooled) + ' |')
+  return '\n'.join(lines)
+
+
+CANDIDATE_KINDS = ('proposal', 'actor_prior', 'gaussian', 'refined')
+
+
+def exploration(run: str, late_from: int) -> dict:
+  """One run's exploration diagnostics from its `online.csv` (one row per wave of acting):
+  `first_solved` (the environment steps at the end of the first wave with a solved training
+  episode, None if none), `late_solved` (the share of training episodes solved in the waves
+  after `late_from` steps, weighted by each wave's episodes; None if none), `max_step_reward`
+  (the largest reward of one decision) and `late_won` (per candidate kind, the mean share of the
+  acting decisions it won in those waves; kinds the run did not log are left out)."""
+  waves = read_csv(os.path.join(run, 'online.csv'))
+  first = next((int(r['env_steps']) for r in waves if float(r['episode_success']) > 0), None)
+  solved = episodes = 0.0
+  previous, late = 0, []
+  for r in waves:
+    n, previous = int(r['episodes']) - previous, int(r['episodes'])
+    if int(r['env_steps']) > late_from:
+      solved, episodes = solved + float(r['episode_success']) * n, episodes + n
+      late.append(r)
+  won = {}
+  for kind in CANDIDATE_KINDS:
+    shares = [float(r[f'won_{kind}']) for r in late if r.get(f'won_{kind}') not in (None, '', 'nan')]
+    if shares:
+      won[kind] = sum(shares) / len(shares)
+  return dict(first_solved=first, late_solved=solved / episodes if episodes else None,
+              max_step_reward=max((float(r['max_step_reward']) for r in waves), default=None),
+              late_won=won)
+
+
+def exploration_table(runs, late_from: int) -> str:
+  """Markdown: `exploration` of each run, one row per run."""
+  late = f'{late_from // 1000}k'
+  lines = [f'| run | first solved training episode | training episodes solved after {late} | '
+           f'largest reward of one decision | acting decisions won after {late} |',
+           '| --- | --- | --- | --- | --- |']
+  for run in runs:
+    e = exploration(run, late_from)
+    first = f'{e["first_solved"] / 1000:.1f}k' if e['first_solved'] is not None else 'none'
+    share = f'{e["late_solved"]:.0%}' if e['late_solved'] is not None else '-'
+    reward = f'{e["max_step_reward"]:.1f}' if e['max_step_reward'] is not None else '-'
+    won = ', '.join(f'{k} {v:.0%}' for k, v in e['late_won'].items()) or '-'
+    lines.append(f'| {os.path.basename(os.path.normpath(run))} | {first} | {share} | {reward} | '
+                 f'{won} |')
   return '\n'.join(lines)
 
 

@@ -1,0 +1,49 @@
+"""experiments.plot_online: the tables printed beside the curves, from a run's CSVs."""
+
+import csv
+
+import pytest
+
+from experiments import plot_online
+
+
+def _write(path, rows):
+  with open(path, 'w', newline='') as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+
+
+def _run(tmp_path, name, successes, won_refined):
+  """A run of four waves of 800 environment steps and 4 episodes each."""
+  run = tmp_path / name
+  run.mkdir()
+  _write(run / 'online.csv', [
+      dict(env_steps=800 * (i + 1), episodes=4 * (i + 1), episode_success=s,
+           max_step_reward=2.0 + i, won_proposal=0.5 if i else 'nan',
+           won_refined=w if i else 'nan')
+      for i, (s, w) in enumerate(zip(successes, won_refined))])
+  _write(run / 'eval.csv', [dict(step=1600, episodes=10, success_rate=0.3, ci_lo=0.1, ci_hi=0.6),
+                            dict(step=3200, episodes=50, success_rate=0.5, ci_lo=0.4, ci_hi=0.6)])
+  return str(run)
+
+
+def test_exploration_counts_the_late_waves_and_the_first_success(tmp_path):
+  run = _run(tmp_path, 'a', successes=[0.0, 0.25, 0.0, 0.5], won_refined=[0, 0.2, 0.4, 0.8])
+  e = plot_online.exploration(run, late_from=1600)
+  assert e['first_solved'] == 1600
+  assert e['late_solved'] == 0.25  # (0 * 4 + 0.5 * 4) / 8 episodes after 1600 steps.
+  assert e['max_step_reward'] == 5.0
+  assert e['late_won'] == {'proposal': 0.5, 'refined': pytest.approx(0.6)}
+  never = plot_online.exploration(_run(tmp_path, 'b', [0.0] * 4, [0.0] * 4), late_from=1600)
+  assert never['first_solved'] is None and never['late_solved'] == 0.0
+  table = plot_online.exploration_table([run, str(tmp_path / 'b')], late_from=1600)
+  assert '| a | 1.6k | 25% | 5.0 | proposal 50%, refined 60% |' in table
+  assert '| b | none | 0% |' in table
+
+
+def test_curve_table_pools_the_steps_every_run_reached(tmp_path):
+  runs = [_run(tmp_path, n, [0.0] * 4, [0.0] * 4) for n in ('a', 'b')]
+  table = plot_online.curve_table(runs)
+  assert '| 3k | 25/50 | 25/50 | 50/100 = 0.50 |' in table
+  assert '| 2k | 3/10 | 3/10 | 6/20 = 0.30 |' in table
