@@ -56,13 +56,19 @@ def _plan_act(config, nets):
   return act
 
 
+def _with_noise(action, noise, key):
+  """`action` plus N(0, noise^2), clipped to the bounds; exactly `action` where noise is 0."""
+  noisy = jnp.clip(action + noise * jax.random.normal(key, action.shape), -1.0, 1.0)
+  return jnp.where(noise > 0, noisy, action)
+
+
 def _actor_act(config, nets):
   """The actor prior's mode, held over the horizon; `noise` (acting online with
-  `online.act_mode = 'actor'`) is the std of Gaussian noise on its action, 0 in evaluation."""
+  `online.act_mode = 'actor'`, or `eval.action_noise`) is the std of Gaussian noise on its
+  action, 0 in evaluation by default."""
   def act(params, obs, key, prev, noise):
     a = nets.actor.apply({'params': params['actor']}, _encode(nets, params, obs))
-    noisy = jnp.clip(a + noise * jax.random.normal(key, a.shape), -1.0, 1.0)
-    a = jnp.where(noise > 0, noisy, a)  # Evaluation: exactly the actor's action.
+    a = _with_noise(a, noise, key)
     return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), jnp.asarray(NO_PLAN_INFO,
                                                                               jnp.int32)
   return act
@@ -75,7 +81,7 @@ def _mppi_act(config, nets):
 
   def act(params, obs, key, prev, noise):
     out = mppi_plan(params, _encode(nets, params, obs), key, prev)
-    return out.action, out.mean, jnp.asarray(NO_PLAN_INFO, jnp.int32)
+    return _with_noise(out.action, noise, jax.random.fold_in(key, 7)), out.mean, jnp.asarray(NO_PLAN_INFO, jnp.int32)
   return act
 
 
@@ -87,7 +93,8 @@ def _proposal_act(config, nets):
     seq = jnp.clip(propose(params, _encode(nets, params, obs), key, 1)[0], -1.0, 1.0)
     if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
       seq = jnp.repeat(seq, config.horizon, axis=0)
-    return seq[0], seq, jnp.asarray(NO_PLAN_INFO, jnp.int32)
+    return (_with_noise(seq[0], noise, jax.random.fold_in(key, 7)), seq,
+            jnp.asarray(NO_PLAN_INFO, jnp.int32))
   return act
 
 

@@ -15,7 +15,7 @@ CONFIG_FILE = 'config.json'
 # Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
 _EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
                       baselines=('actor', 'proposal'), data_parallel=False,
-                      key_seed=-1)
+                      key_seed=-1, action_noise=0.0)
 # Planner settings of experiments/configs/base.py for configs saved before they existed; the
 # values mean what those runs did (no pessimism before `plan.pessimism` existed, no search).
 _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,

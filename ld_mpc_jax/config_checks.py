@@ -104,6 +104,8 @@ def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
     for name, least in (('batch_size', 1), ('plan_chunk', 0), ('key_seed', -1)):
       if name in e and (not isinstance(e[name], int) or e[name] < least):
         raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
+    if 'action_noise' in e and not 0.0 <= float(e.action_noise) < float('inf'):
+      raise ValueError(f'config.eval.action_noise must be a std >= 0, got {e.action_noise!r}')
   if 'data' in config:
     from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
     sources.SOURCES.check(config.data.source)

@@ -96,6 +96,7 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   mesh = sharding.make_mesh(jax.local_devices()) if e.data_parallel else None
   key_seed = seed if e.key_seed < 0 else e.key_seed  # The episodes keep `seed`.
   policy = BatchAgentPolicy(config, params, mode, seed=key_seed, chunk=chunk, mesh=mesh)
+  policy.action_noise = float(e.action_noise)  # 0: exactly the policy's action.
   eps = episodes(config, split, seed, num_episodes)
   records, info = evaluation.run_episodes(
       policy, eps, config.task, batch_size=batch, action_repeat=e.action_repeat,
@@ -141,6 +142,8 @@ def _cache_key(config, step: int, mode: str, split: str, seed: int, num_episodes
                   eval={k: config.eval[k] for k in ('action_repeat', 'max_episode_steps')})
   if config.eval.key_seed >= 0:  # At its default (-1) it leaves every key as it was.
     relevant['eval']['key_seed'] = config.eval.key_seed
+  if config.eval.action_noise > 0:  # Likewise at its default (0).
+    relevant['eval']['action_noise'] = float(config.eval.action_noise)
   return hashlib.sha1(_json(relevant).encode()).hexdigest()[:10]
 
 

@@ -42,6 +42,21 @@ def test_actor_acting_noise_only_when_asked(smoke_config, smoke_params):
   assert 0.2 < np.std(noisy[:, inside] - plain[inside]) < 0.4
 
 
+def test_proposal_gets_the_evaluation_action_noise_only_when_asked(smoke_config, smoke_params):
+  """`eval.action_noise` perturbs the proposal's executed action as the actor prior's; at 0 it
+  is exactly the proposal's sample."""
+  act = make_act(smoke_config, 'proposal')
+  obs = np.linspace(-1, 1, 39).astype(np.float32)
+  key = jax.random.key(0)
+  plain = np.stack([np.asarray(act(smoke_params, obs, key, t, None, 0.0)[0]) for t in range(64)])
+  again = np.stack([np.asarray(act(smoke_params, obs, key, t, None, 0.0)[0]) for t in range(2)])
+  np.testing.assert_array_equal(plain[:2], again)
+  noisy = np.stack([np.asarray(act(smoke_params, obs, key, t, None, 0.3)[0]) for t in range(64)])
+  assert np.all(np.abs(noisy) <= 1.0)
+  inside = np.abs(plain) < 0.9
+  assert 0.2 < np.std((noisy - plain)[inside]) < 0.4
+
+
 def test_warm_started_policy_is_reproducible(smoke_config, smoke_params):
   smoke_config.plan.warm_start_steps = 1
   obs = [np.full(39, v) for v in (0.1, 0.2, 0.3)]

@@ -101,3 +101,15 @@ def test_log_std_map_is_checked():
   with pytest.raises(ValueError, match=r"^config.critic.log_std_map must be one of \('clip', "
                                        r"'tanh'\), got 'softplus'$"):
     config_checks.validate_config(c)
+
+
+@pytest.mark.parametrize('field,value,words', [
+    ('key_seed', -2, 'config.eval.key_seed must be an integer >= -1'),
+    ('action_noise', -0.1, 'config.eval.action_noise must be a std >= 0'),
+    ('action_noise', float('nan'), 'config.eval.action_noise must be a std >= 0'),
+])
+def test_bad_evaluation_draws_fail_naming_the_field(field, value, words):
+  config = door_open_online.get_config('smoke')
+  config.eval[field] = value
+  with pytest.raises(ValueError, match=words):
+    config_checks.validate_config(config)

@@ -298,3 +298,31 @@ def test_behind_by_anchor_time_bins_the_anchors_solved_episodes():
     evaluation_suite.behind_by_anchor_time(records, 'actor', edges=(110, 70))
   with pytest.raises(ValueError, match="'prior'"):
     evaluation_suite.behind_by_anchor_time(records, 'prior')
+
+
+def test_action_noise_reaches_the_policy_and_is_its_own_cell(tmp_path, monkeypatch):
+  seen = {}
+  class Policy:
+    def __init__(self, config, params, mode, seed, chunk, mesh):
+      pass
+  def run_episodes(policy, eps, *args, **kwargs):
+    seen['noise'] = policy.action_noise
+    return [dict(success=1)], {}
+  monkeypatch.setattr(evaluation_suite, 'BatchAgentPolicy', Policy)
+  monkeypatch.setattr(evaluation_suite.evaluation, 'run_episodes', run_episodes)
+  monkeypatch.setattr(evaluation_suite.evaluation, 'result', lambda records, info: records)
+  monkeypatch.setattr(evaluation_suite, 'episodes', lambda config, split, seed, n: [])
+  config = door_open.get_config('smoke')
+  evaluation_suite.evaluate_policy(config, None, 'actor', 2, seed=0)
+  assert seen['noise'] == 0.0
+  config.eval.action_noise = 0.05
+  evaluation_suite.evaluate_policy(config, None, 'actor', 2, seed=0)
+  assert seen['noise'] == 0.05
+  calls = _stub_evaluations(monkeypatch)
+  older = door_open.get_config('smoke')
+  del older.eval['action_noise']  # A run saved before the field: read back at 0, the same cell.
+  checkpointing.save_config(older, str(tmp_path / 'old_run'))
+  older = checkpointing.load_config(str(tmp_path / 'old_run'))
+  for c in (older, door_open.get_config('smoke'), config):
+    evaluation_suite.evaluate_checkpoint(c, None, str(tmp_path), **_ONE_CELL)
+  assert len(calls) == 2

@@ -209,6 +209,10 @@ def get_config() -> ml_collections.ConfigDict:
   # Another value replays the same episodes with other draws: one policy against itself, the
   # spread a paired comparison of two policies cannot beat.
   e.key_seed = -1
+  # Std of Gaussian noise on the executed action of every policy in evaluation (clipped to the
+  # action bounds); 0, the Meta-World protocol. A robustness probe: how many of a deterministic
+  # policy's successes survive a small perturbation of what it does.
+  e.action_noise = 0.0
   # Environments stepped in lockstep: one jitted policy call per decision for all of them.
   e.batch_size = 50
   # Planner environments per vmap inside that call (jax.lax.map's batch_size; 0: one jitted
