@@ -17,6 +17,10 @@ number of episodes a seed's planner lost to its actor prior). For a multi-task c
 second table gives the same test per task (the JSON's rows_by_task); --tasks=NAME,NAME evaluates
 only those of its tasks. A variant may set `eval.key_seed` (e.g. `--variant=safe1_key1:...,
 eval.key_seed=1`): the same episodes with other planner draws, the planner against itself.
+`--actor_variant=NAME:field=value,...` evaluates the actor prior with overrides as well, as
+'actor[NAME]' (e.g. `--actor_variant=noise05:eval.action_noise=0.05`: how many of the
+deterministic actor prior's successes survive noise on its actions); the anchor of the paired
+tests stays the actor prior as trained.
 """
 
 import json
@@ -30,6 +34,8 @@ _WORKDIRS = flags.DEFINE_list('workdirs', None, 'Training run directories (one p
 _VARIANTS = flags.DEFINE_multi_string('variant', ['argmax:'],
                                       'NAME:field=value,field=value planner settings.')
 _BASELINES = flags.DEFINE_list('baselines', ['actor', 'proposal'], 'Other policies.')
+_ACTOR_VARIANTS = flags.DEFINE_multi_string('actor_variant', [],
+                                            'NAME:field=value,... actor-prior settings.')
 _EPISODES = flags.DEFINE_integer('episodes', 50, 'Held-out episodes per seed (and task).')
 _SEED = flags.DEFINE_integer('seed', 0, 'Evaluation seed.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output; the table goes beside it (.md).')
@@ -40,9 +46,10 @@ flags.mark_flags_as_required(['workdirs', 'out'])
 
 
 def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
-                 only_tasks=None) -> list:
-  """Records of every variant ('plan[NAME]') and baseline on one checkpoint's held-out episodes
-  (of the tasks in `only_tasks` alone, for a multi-task checkpoint, if given)."""
+                 only_tasks=None, actor_variants=()) -> list:
+  """Records of every variant ('plan[NAME]'), baseline and actor variant ('actor[NAME]') on one
+  checkpoint's held-out episodes (of the tasks in `only_tasks` alone, for a multi-task
+  checkpoint, if given)."""
   import functools
   from ld_mpc_jax import checkpointing, multitask_eval
   from ld_mpc_jax.config_checks import validate_config
@@ -50,6 +57,8 @@ def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
   records = []
   runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items)) for name, items in variants]
   runs += [(mode, mode, config) for mode in baselines]
+  runs += [(f'actor[{name}]', 'actor', overrides.with_overrides(config, items))
+           for name, items in actor_variants]
   for policy, mode, cfg in runs:
     validate_config(cfg)
     _, evaluate = multitask_eval.grid(cfg, ('held_out',))
@@ -71,8 +80,10 @@ def main(argv):
   with cli.one_line_errors():
     cli.check_new_output(_OUT.value, _OVERWRITE.value)
     variants = [overrides.parse_variant(v) for v in _VARIANTS.value]
-    if len({name for name, _ in variants}) != len(variants):
-      raise ValueError('--variant names must be distinct')
+    actor_variants = [overrides.parse_variant(v) for v in _ACTOR_VARIANTS.value]
+    for flag, parsed in (('--variant', variants), ('--actor_variant', actor_variants)):
+      if len({name for name, _ in parsed}) != len(parsed):
+        raise ValueError(f'{flag} names must be distinct')
     missing = [w for w in _WORKDIRS.value if not os.path.isdir(w)]
     if missing:
       raise FileNotFoundError(f'no run directory {missing[0]}')
@@ -87,7 +98,7 @@ def main(argv):
   records = []
   for workdir in _WORKDIRS.value:
     records.extend(evaluate_run(workdir, variants, _BASELINES.value, _EPISODES.value,
-                                _SEED.value, _TASKS.value))
+                                _SEED.value, _TASKS.value, actor_variants))
   anchor = 'actor' if 'actor' in _BASELINES.value else records[0]['policy']
   rows = evaluation_suite.against_anchor(records, anchor)
   by_task = evaluation_suite.against_anchor_by_task(records, anchor)
@@ -96,6 +107,7 @@ def main(argv):
     md += '\n' + evaluation_suite.by_task_markdown(by_task, anchor)
   print(md)
   out = dict(workdirs=_WORKDIRS.value, variants=_VARIANTS.value, baselines=_BASELINES.value,
+             actor_variants=_ACTOR_VARIANTS.value,
              episodes=_EPISODES.value, seed=_SEED.value, git_commit=git_commit(), rows=rows,
              rows_by_task=by_task, records=records)
   os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)

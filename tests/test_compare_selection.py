@@ -1,0 +1,23 @@
+"""experiments.compare_selection: which policies and settings one checkpoint is evaluated with
+(evaluations stubbed; the tables themselves: test_evaluation_suite.py)."""
+
+from experiments import compare_selection, overrides
+from experiments.configs import door_open
+from ld_mpc_jax import checkpointing, multitask_eval
+
+
+def test_every_variant_and_actor_variant_runs_with_its_own_settings(monkeypatch):
+  config = door_open.get_config('smoke')
+  monkeypatch.setattr(checkpointing, 'load_for_evaluation', lambda workdir: (config, 'P', 7))
+  seen = []
+  def evaluate(cfg, params, workdir, step, modes, splits, seeds, episodes, run):
+    seen.append((modes[0], cfg.plan.safe_selection, cfg.eval.action_noise))
+    return [dict(success=1, episode=i) for i in range(episodes)]
+  monkeypatch.setattr(multitask_eval, 'grid', lambda cfg, splits: (None, evaluate))
+  records = compare_selection.evaluate_run(
+      'runs/x', [overrides.parse_variant('safe:plan.safe_selection=True')], ['actor'],
+      episodes=2, seed=0, actor_variants=[overrides.parse_variant('noisy:eval.action_noise=0.05')])
+  assert seen == [('plan', True, 0.0), ('actor', False, 0.0), ('actor', False, 0.05)]
+  assert [r['policy'] for r in records] == ['plan[safe]'] * 2 + ['actor'] * 2 + ['actor[noisy]'] * 2
+  assert {r['train_seed'] for r in records} == {config.seed}
+  assert config.eval.action_noise == 0.0  # The variants changed copies.
