@@ -29,6 +29,7 @@ import os
 from absl import app, flags, logging
 
 from experiments import cli, overrides
+from experiments.selection_runs import evaluate_run
 
 _WORKDIRS = flags.DEFINE_list('workdirs', None, 'Training run directories (one per seed).')
 _VARIANTS = flags.DEFINE_multi_string('variant', ['argmax:'],
@@ -43,33 +44,6 @@ _OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out fi
 _TASKS = flags.DEFINE_list('tasks', None, 'Multi-task checkpoints: only these tasks (all by '
                            'default).')
 flags.mark_flags_as_required(['workdirs', 'out'])
-
-
-def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
-                 only_tasks=None, actor_variants=()) -> list:
-  """Records of every variant ('plan[NAME]'), baseline and actor variant ('actor[NAME]') on one
-  checkpoint's held-out episodes (of the tasks in `only_tasks` alone, for a multi-task
-  checkpoint, if given)."""
-  import functools
-  from ld_mpc_jax import checkpointing, multitask_eval
-  from ld_mpc_jax.config_checks import validate_config
-  config, params, step = checkpointing.load_for_evaluation(workdir)  # --tasks checked in main.
-  records = []
-  runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items)) for name, items in variants]
-  runs += [(mode, mode, config) for mode in baselines]
-  runs += [(f'actor[{name}]', 'actor', overrides.with_overrides(config, items))
-           for name, items in actor_variants]
-  for policy, mode, cfg in runs:
-    validate_config(cfg)
-    _, evaluate = multitask_eval.grid(cfg, ('held_out',))
-    if only_tasks:
-      evaluate = functools.partial(evaluate, only=tuple(only_tasks))
-    recs = evaluate(cfg, params, workdir, step, (mode,), ('held_out',), (seed,), episodes,
-                    run=workdir)
-    for r in recs:  # The training seed lets compare_sweeps pair two configs' checkpoints.
-      r.update(policy=policy, train_seed=int(config.seed))
-    records.extend(recs)
-  return records
 
 
 def main(argv):

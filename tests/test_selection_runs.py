@@ -1,7 +1,7 @@
-"""experiments.compare_selection: which policies and settings one checkpoint is evaluated with
+"""experiments.selection_runs (compare_selection's evaluation): which policies and settings one checkpoint is evaluated with
 (evaluations stubbed; the tables themselves: test_evaluation_suite.py)."""
 
-from experiments import compare_selection, overrides
+from experiments import overrides, selection_runs
 from experiments.configs import door_open
 from ld_mpc_jax import checkpointing, multitask_eval
 
@@ -14,7 +14,7 @@ def test_every_variant_and_actor_variant_runs_with_its_own_settings(monkeypatch)
     seen.append((modes[0], cfg.plan.safe_selection, cfg.eval.action_noise))
     return [dict(success=1, episode=i) for i in range(episodes)]
   monkeypatch.setattr(multitask_eval, 'grid', lambda cfg, splits: (None, evaluate))
-  records = compare_selection.evaluate_run(
+  records = selection_runs.evaluate_run(
       'runs/x', [overrides.parse_variant('safe:plan.safe_selection=True')], ['actor'],
       episodes=2, seed=0, actor_variants=[overrides.parse_variant('noisy:eval.action_noise=0.05')])
   assert seen == [('plan', True, 0.0), ('actor', False, 0.0), ('actor', False, 0.05)]
