@@ -130,7 +130,8 @@ def exploration(run: str, late_from: int) -> dict:
       late.append(r)
   won = {}
   for kind in CANDIDATE_KINDS:
-    shares = [float(r[f'won_{kind}']) for r in late if r.get(f'won_{kind}') not in (None, '', 'nan')]
+    shares = [float(r[f'won_{kind}']) for r in late
+              if r.get(f'won_{kind}') not in (None, '', 'nan')]
     if shares:
       won[kind] = sum(shares) / len(shares)
   return dict(first_solved=first, late_solved=solved / episodes if episodes else None,

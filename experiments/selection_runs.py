@@ -15,7 +15,8 @@ def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
   from ld_mpc_jax.config_checks import validate_config
   config, params, step = checkpointing.load_for_evaluation(workdir)  # --tasks checked in main.
   records = []
-  runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items)) for name, items in variants]
+  runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items))
+          for name, items in variants]
   runs += [(mode, mode, config) for mode in baselines]
   runs += [(f'actor[{name}]', 'actor', overrides.with_overrides(config, items))
            for name, items in actor_variants]

@@ -81,7 +81,8 @@ def _mppi_act(config, nets):
 
   def act(params, obs, key, prev, noise):
     out = mppi_plan(params, _encode(nets, params, obs), key, prev)
-    return _with_noise(out.action, noise, jax.random.fold_in(key, 7)), out.mean, jnp.asarray(NO_PLAN_INFO, jnp.int32)
+    return (_with_noise(out.action, noise, jax.random.fold_in(key, 7)), out.mean,
+            jnp.asarray(NO_PLAN_INFO, jnp.int32))
   return act
 
 

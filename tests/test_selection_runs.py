@@ -1,5 +1,5 @@
-"""experiments.selection_runs (compare_selection's evaluation): which policies and settings one checkpoint is evaluated with
-(evaluations stubbed; the tables themselves: test_evaluation_suite.py)."""
+"""experiments.selection_runs (compare_selection's evaluation): which policies and settings one
+checkpoint is evaluated with (evaluations stubbed; the tables: test_evaluation_suite.py)."""
 
 from experiments import overrides, selection_runs
 from experiments.configs import door_open
