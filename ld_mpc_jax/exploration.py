@@ -10,7 +10,8 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   """A copy of config for the planner while acting: `config.online`'s exploration noise on its
   candidates, its acting pessimism (`online.act_pessimism`; evaluation keeps `plan.pessimism`):
   unfamiliar states are model error offline, opportunity online; and its acting selection
-  (`online.act_safe_selection`; evaluation keeps `plan.safe_selection`), and its search
+  (`online.act_safe_selection`; evaluation keeps `plan.safe_selection`; `plan.safe_confirm`
+  applies while acting only with it), and its search
   (`online.act_num_gaussian`, `online.act_iterations`; evaluation keeps `plan.num_gaussian`
   and `plan.iterations`)."""
   c = ml_collections.ConfigDict(config.to_dict())
@@ -18,6 +19,7 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   c.plan.prior_noise_std = config.online.prior_noise_std
   c.plan.pessimism = config.online.act_pessimism
   c.plan.safe_selection = config.online.act_safe_selection
+  c.plan.safe_confirm = config.plan.safe_confirm and config.online.act_safe_selection
   c.plan.num_gaussian = config.online.act_num_gaussian
   c.plan.iterations = config.online.act_iterations
   return c

@@ -26,7 +26,7 @@ from ld_mpc_jax import config_cache, diffusion, dynamics, proposals
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.models import Networks, build_networks
 from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_scores, make_score
-from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, effective_margin,
+from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, confirm, effective_margin,
                                first_round_counts, refine, select, validate_search)
 
 __all__ = ['CANDIDATE_KINDS', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
@@ -291,6 +291,9 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   kinds, num_first = _first_kinds(config), sum(n for _, n in first_round_counts(config))
   anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
   margin = effective_margin(config)  # plan.safe_margin, scaled by K if asked.
+  # plan.safe_confirm: fixed sequences (the executed one and the actor prior's) rolled again.
+  confirm_rollout = (make_rollout(_with_plan(config, num_prior_candidates=0), nets)
+                     if p.safe_confirm else None)
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
     if z.shape != (d,):
@@ -308,6 +311,13 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     sequence, index, departed, _ = select(pool.actions, pool.scores, pool.members, anchor,
                                           p.safe_selection, margin, p.selection,
                                           p.num_elites, p.temperature, unique)
+    if confirm_rollout is not None:  # The departure again, on fresh dynamics draws.
+      pair = jnp.stack([sequence, pool.actions[anchor]])
+      _, _, fresh = score_draws(params, z, pair, jax.random.fold_in(dyn_key, 20_000),
+                                confirm_rollout)
+      keep = departed & confirm(fresh, p.pessimism, p.safe_margin)
+      sequence = jnp.where(keep, sequence, pool.actions[anchor])
+      index, departed = jnp.where(keep, index, anchor), keep
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
     action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)
     return PlanOutput(action=action, sequence=sequence, scores=pool.scores,

@@ -20,6 +20,13 @@ support a change) and of uncertainty-penalised planning (MOPO, FOWM). With
 the winner is the maximum of n noisy scores, so its expected optimism is about E[max of n
 standard normals] (`expected_max(n)`, about sqrt(2 ln n)) score-noise units, and the threshold is
 safe_margin x expected_max(n) x the spread (`effective_margin`).
+
+Confirmation (`plan.safe_confirm`, with safe selection): a departure must also pass on a second,
+independent rollout of the executed sequence and the actor prior's (`confirm`). The winner was
+chosen on the first rollout's draws, so its score there carries the selection's optimism; scored
+again on fresh draws it does not (the double estimator of van Hasselt 2010, "Double Q-learning":
+select with one estimate, evaluate with another). The second test uses `plan.safe_margin`
+unscaled, as no candidate was selected on it.
 """
 
 import dataclasses
@@ -209,6 +216,15 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
   return sequence, jnp.where(depart, best, anchor), depart, weights
 
 
+def confirm(members: jnp.ndarray, pessimism: float, margin: float) -> jnp.ndarray:
+  """Whether a departure survives fresh draws: members [M, 2] J of the executed sequence
+  (column 0) and of the actor prior's own (column 1) on a second rollout. True iff the executed
+  sequence's combined score (mean - pessimism x std) beats the actor prior's by more than
+  margin x std over members of their difference."""
+  mean = jnp.mean(members, axis=0) - pessimism * jnp.std(members, axis=0)
+  return mean[0] - mean[1] > margin * jnp.std(members[:, 0] - members[:, 1])
+
+
 def expected_max(n: int) -> float:
   """E[max of n independent standard normals]: 0 for n = 1, 1/sqrt(pi) for n = 2, about
   sqrt(2 ln n) for large n. Numerical integral of x n phi(x) Phi(x)^(n-1) (build time, NumPy)."""
@@ -260,6 +276,9 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
                      'candidate: set config.plan.num_prior_candidates >= 1')
   if p.safe_margin < 0:
     raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
+  if p.safe_confirm and not p.safe_selection:
+    raise ValueError('config.plan.safe_confirm confirms safe selection\'s departures: set '
+                     'config.plan.safe_selection=True as well')
   scaling = p.safe_margin_scaling
   if scaling not in MARGIN_SCALINGS:
     raise ValueError(f'config.plan.safe_margin_scaling must be one of {MARGIN_SCALINGS}, '

@@ -272,3 +272,48 @@ def test_plan_uses_the_scaled_margin(smoke_config, smoke_params, z):
     assert bool(a.departed) == bool(b.departed)
     departed.append(bool(a.departed))
   assert 0 < sum(departed) < len(departed)  # The gate decides both ways here.
+
+
+def rollout_noise_members(params, latents, actions):
+  """[M = 5, K]: J that is pure rollout noise (a function of the final latent alone, which the
+  dynamics draws change) plus member noise of std 0.1: no candidate is really better."""
+  luck = 10.0 * jnp.sin(1e3 * jnp.sum(latents[:, -1], axis=-1))
+  noise = 0.1 * jax.random.normal(jax.random.key(42), (5, actions.shape[0]))
+  return luck[None] + noise
+
+
+def test_confirmation_rejects_gains_that_fresh_draws_do_not_repeat(smoke_config, smoke_params,
+                                                                   z):
+  c = safe_config(smoke_config, 0.0)
+  plain = make_plan(c, rollout_noise_members)
+  c = ml_collections.ConfigDict(c.to_dict())
+  c.plan.safe_confirm = True
+  confirmed = make_plan(c, rollout_noise_members)
+  plain_dep, conf_dep = [], []
+  for seed in range(24):
+    a, b = (f(smoke_params, z, jax.random.key(seed)) for f in (plain, confirmed))
+    plain_dep.append(bool(a.departed))
+    conf_dep.append(bool(b.departed))
+    assert (not conf_dep[-1]) or plain_dep[-1]  # Confirmation only ever takes departures away.
+    if not conf_dep[-1]:
+      np.testing.assert_array_equal(b.sequence, b.candidates[4])  # The actor prior's own.
+  # The first round's winner is the luckiest of six draws; a fresh pair of draws is a coin flip.
+  assert sum(plain_dep) >= 16 and sum(conf_dep) <= 0.75 * sum(plain_dep)
+
+
+def test_confirmation_keeps_real_gains(smoke_config, smoke_params, z):
+  c = safe_config(smoke_config, 0.5)
+  plain = make_plan(c, noisy_members)
+  c = ml_collections.ConfigDict(c.to_dict())
+  c.plan.safe_confirm = True
+  confirmed = make_plan(c, noisy_members)
+  for seed in range(6):  # The toy J does not depend on the rollout: a real gain repeats.
+    a, b = (f(smoke_params, z, jax.random.key(seed)) for f in (plain, confirmed))
+    np.testing.assert_array_equal(a.action, b.action)
+    assert bool(a.departed) == bool(b.departed)
+
+
+def test_confirmation_needs_safe_selection(smoke_config):
+  smoke_config.plan.safe_confirm = True
+  with pytest.raises(ValueError, match='safe_confirm confirms safe selection'):
+    make_plan(smoke_config)

@@ -111,6 +111,11 @@ def get_config() -> ml_collections.ConfigDict:
   # a gain at large K (the winner's curse of argmax over noisy estimates; Smith and Winkler 2006,
   # "The optimizer's curse"). 'none': margin x spread whatever K.
   p.safe_margin_scaling = 'none'
+  # Confirmation: a departure must also beat the actor prior on a second, independent rollout
+  # of both sequences, by safe_margin (unscaled) x the spread (ld_mpc_jax.search.confirm). The
+  # winner's first score carries the selection's optimism, a fresh one does not: the double
+  # estimator (van Hasselt 2010, "Double Q-learning"). Costs two more rollouts per call.
+  p.safe_confirm = False
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
