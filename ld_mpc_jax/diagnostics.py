@@ -135,3 +135,81 @@ def markdown(report: dict) -> str:
   lines += ['', f'Winning candidate kinds (K = {report["k"]}, planning from the windows\' start '
             f'states): {wins}.', '']
   return '\n'.join(lines)
+
+
+class _Recorder:
+  """An environment of `envs.make_env` that keeps each step's reward and scalar `info` terms
+  in `self.steps` (a new list per reset, also appended to `log`)."""
+
+  def __init__(self, log: list, **kwargs):
+    from ld_mpc_jax import envs  # pylint: disable=g-import-not-at-top
+    self.env, self.log, self.steps = envs.make_env(**kwargs), log, []
+
+  def reset(self, **kwargs):
+    self.steps = []
+    self.log.append(self.steps)
+    return self.env.reset(**kwargs)
+
+  def step(self, action):
+    obs, reward, terminated, truncated, info = self.env.step(action)
+    terms = {k: float(v) for k, v in info.items()
+             if np.isscalar(v) and not isinstance(v, (str, bool))}
+    self.steps.append(dict(terms, reward=float(reward)))
+    return obs, reward, terminated, truncated, info
+
+  def render(self):
+    return self.env.render()
+
+
+def summarize_trace(steps, last: int = 50) -> dict:
+  """One episode's per-decision dicts (reward and info terms) -> decisions, return, largest
+  reward, mean reward of the last `last` decisions, and per info term its last and largest
+  value (`TERM_last`, `TERM_max`)."""
+  if not steps:
+    raise ValueError('summarize_trace needs at least one step')
+  reward = np.array([s['reward'] for s in steps])
+  out = dict(decisions=len(steps), ret=float(reward.sum()), max_reward=float(reward.max()),
+             mean_reward_last=float(reward[-last:].mean()))
+  for term in sorted(k for k in steps[0] if k not in ('reward', 'success', 'env_steps')):
+    values = np.array([s.get(term, np.nan) for s in steps])
+    out[f'{term}_last'], out[f'{term}_max'] = float(values[-1]), float(np.nanmax(values))
+  return out
+
+
+def trace_episodes(config, params, mode: str, indices, seed: int, num_episodes: int,
+                   policy_name: str) -> list:
+  """Rows of `summarize_trace` (with success, first_success, episode, policy) for episodes
+  `indices` of the held-out list of evaluation seed `seed`, run by `mode` in lockstep."""
+  from ld_mpc_jax import evaluation  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.agent import BatchAgentPolicy  # pylint: disable=g-import-not-at-top
+  e = config.eval
+  everything = evaluation_suite.episodes(config, 'held_out', seed, num_episodes)
+  chosen = [everything[i] for i in indices]
+  key_seed = seed if e.key_seed < 0 else e.key_seed
+  policy = BatchAgentPolicy(config, params, mode, seed=key_seed,
+                            chunk=e.plan_chunk if mode == 'plan' else None)
+  log = []
+  records, _ = evaluation.run_episodes(
+      policy, chosen, config.task, batch_size=len(chosen), action_repeat=e.action_repeat,
+      max_episode_steps=e.max_episode_steps,
+      env_factory=lambda **kw: _Recorder(log, **kw), progress=False)
+  return [dict(policy=policy_name, episode=i, success=int(r['success']),
+               first_success=r['first_success'], **summarize_trace(steps))
+          for i, r, steps in zip(indices, records, log[-len(chosen):])]
+
+
+def trace_markdown(rows) -> str:
+  """One table row per policy and episode: success, decisions and the reward terms."""
+  if not rows:
+    return ''
+  terms = [k for k in rows[0] if k.endswith('_last') and k != 'mean_reward_last']
+  head = (['episode', 'policy', 'success (decision)', 'decisions', 'return', 'largest reward',
+           'mean reward, last 50'] + [f'{t[:-5]}: last / largest' for t in terms])
+  lines = ['| ' + ' | '.join(head) + ' |', '|' + ' --- |' * len(head)]
+  for r in sorted(rows, key=lambda r: (r['episode'], r['policy'])):
+    success = f"yes ({r['first_success']})" if r['success'] else 'no'
+    cells = [str(r['episode']), r['policy'], success, str(r['decisions']), f"{r['ret']:.0f}",
+             f"{r['max_reward']:.2f}", f"{r['mean_reward_last']:.2f}"]
+    cells += [f"{r[t]:.2f} / {r[t[:-5] + '_max']:.2f}" for t in terms]
+    lines.append('| ' + ' | '.join(cells) + ' |')
+  return '\n'.join(lines) + '\n'

@@ -110,3 +110,18 @@ def test_candidate_kinds_counted_over_start_states(monkeypatch, smoke_config):
   assert list(wins) == list(planner.CANDIDATE_KINDS)
   assert wins[planner.CANDIDATE_KINDS[0]] == 0.5 and wins[planner.CANDIDATE_KINDS[1]] == 0.5
   assert sum(wins.values()) == 1.0
+
+
+def test_summarize_trace_reads_last_and_largest_terms():
+  from ld_mpc_jax.diagnostics import summarize_trace, trace_markdown
+  steps = [dict(reward=r, in_place_reward=p, success=0.0) for r, p in
+           [(1.0, 0.1), (4.0, 0.8), (2.0, 0.3)]]
+  s = summarize_trace(steps, last=2)
+  assert s['decisions'] == 3 and s['ret'] == 7.0 and s['max_reward'] == 4.0
+  assert s['mean_reward_last'] == 3.0
+  assert s['in_place_reward_last'] == 0.3 and s['in_place_reward_max'] == 0.8
+  assert 'success_last' not in s  # The outcome is the record's, not a reward term.
+  md = trace_markdown([dict(policy='actor', episode=3, success=0, first_success=None, **s)])
+  assert '| 3 | actor | no | 3 | 7 | 4.00 | 3.00 | 0.30 / 0.80 |' in md
+  with pytest.raises(ValueError, match='at least one step'):
+    summarize_trace([])
