@@ -180,22 +180,13 @@ def trace_episodes(config, params, mode: str, indices, seed: int, num_episodes: 
                    policy_name: str) -> list:
   """Rows of `summarize_trace` (with success, first_success, episode, policy) for episodes
   `indices` of the held-out list of evaluation seed `seed`, run by `mode` in lockstep."""
-  from ld_mpc_jax import evaluation  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.agent import BatchAgentPolicy  # pylint: disable=g-import-not-at-top
-  e = config.eval
-  everything = evaluation_suite.episodes(config, 'held_out', seed, num_episodes)
-  chosen = [everything[i] for i in indices]
-  key_seed = seed if e.key_seed < 0 else e.key_seed
-  policy = BatchAgentPolicy(config, params, mode, seed=key_seed,
-                            chunk=e.plan_chunk if mode == 'plan' else None)
   log = []
-  records, _ = evaluation.run_episodes(
-      policy, chosen, config.task, batch_size=len(chosen), action_repeat=e.action_repeat,
-      max_episode_steps=e.max_episode_steps,
-      env_factory=lambda **kw: _Recorder(log, **kw), progress=False)
+  records = evaluation_suite.evaluate_policy(
+      config, params, mode, num_episodes, seed, batch_size=len(indices), only=indices,
+      env_factory=lambda **kw: _Recorder(log, **kw))['records']
   return [dict(policy=policy_name, episode=i, success=int(r['success']),
                first_success=r['first_success'], **summarize_trace(steps))
-          for i, r, steps in zip(indices, records, log[-len(chosen):])]
+          for i, r, steps in zip(indices, records, log[-len(indices):])]
 
 
 def trace_markdown(rows) -> str:

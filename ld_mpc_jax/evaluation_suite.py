@@ -12,7 +12,7 @@ import hashlib
 import itertools
 import json
 import os
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import jax
 import ml_collections
@@ -81,8 +81,10 @@ def episodes(config: ml_collections.ConfigDict, split: str, seed: int,
 def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_episodes: int,
                     seed: int, split: str = 'held_out', obs_noise_std: float = 0.0,
                     video_path: Optional[str] = None, batch_size: Optional[int] = None,
-                    progress: bool = False) -> Dict[str, Any]:
-  """`mode` ('plan', 'actor', 'proposal', 'mppi') on `num_episodes` episodes of one split.
+                    progress: bool = False, only: Optional[Sequence[int]] = None,
+                    env_factory: Optional[Callable[..., Any]] = None) -> Dict[str, Any]:
+  """`mode` ('plan', 'actor', 'proposal', 'mppi') on `num_episodes` episodes of one split
+  (`only`: those indices of them; `env_factory` replaces `envs.make_env`).
 
   Environments run in lockstep, `config.eval.batch_size` at a time (one jitted call per
   decision for all of them; the planner maps `config.eval.plan_chunk` environments per vmap;
@@ -98,11 +100,13 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   policy = BatchAgentPolicy(config, params, mode, seed=key_seed, chunk=chunk, mesh=mesh)
   policy.action_noise = float(e.action_noise)  # 0: exactly the policy's action.
   eps = episodes(config, split, seed, num_episodes)
+  if only is not None:
+    eps = [eps[i] for i in only]
   records, info = evaluation.run_episodes(
       policy, eps, config.task, batch_size=batch, action_repeat=e.action_repeat,
       max_episode_steps=e.max_episode_steps, obs_noise_std=obs_noise_std,
-      video_path=video_path, video_episodes=len(eps), progress=progress,
-      desc=f'{mode} {split} seed {seed}')
+      env_factory=env_factory, video_path=video_path, video_episodes=len(eps),
+      progress=progress, desc=f'{mode} {split} seed {seed}')
   for r in records:
     r['policy'] = mode
   return evaluation.result(records, info)
