@@ -26,7 +26,7 @@ from ld_mpc_jax import config_cache, diffusion, dynamics, proposals
 from ld_mpc_jax.config_checks import validate_config
 from ld_mpc_jax.models import Networks, build_networks
 from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_scores, make_score
-from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, confirm, effective_margin,
+from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, beats, effective_margin,
                                first_round_counts, refine, select, validate_search)
 
 __all__ = ['CANDIDATE_KINDS', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
@@ -205,8 +205,8 @@ def _first_kinds(config: ml_collections.ConfigDict) -> jnp.ndarray:
       + [jnp.full(config.plan.num_prior_candidates, CANDIDATES.index('actor_prior'), jnp.int32)])
 
 
-def _make_refine(config: ml_collections.ConfigDict, nets: Networks, score_draws: Callable
-                 ) -> Optional[Callable]:
+def _make_refine(config: ml_collections.ConfigDict, score_draws: Callable,
+                 plain_rollout: Callable) -> Optional[Callable]:
   """`plan.iterations` refinement rounds (ld_mpc_jax.search.refine), or None without:
   refine(params, z, key, first: Pool) -> the first round's pool with the rounds' elites
   appended, and `unique` [K'] bool (elites kept from the first round appear twice: once only in
@@ -214,9 +214,6 @@ def _make_refine(config: ml_collections.ConfigDict, nets: Networks, score_draws:
   p = ml_collections.ConfigDict(config.plan.to_dict())
   if not p.iterations:
     return None
-  # Refined samples are fixed sequences: no actor-prior rollouts among them.
-  plain_rollout = make_rollout(_with_plan(config, num_prior_candidates=0), nets)
-
   def refine_pool(params, z, key, first):
     def score_samples(samples, k):  # (scores [N], members): as the first round's.
       return score_draws(params, z, samples, k, plain_rollout)[1:]
@@ -287,13 +284,13 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   first_round = _make_first_round(config, nets)
   rollout = make_rollout(config, nets)
   score_draws = _make_score_draws(member_fn, p.dynamics_draws, p.pessimism)
-  refine_pool = _make_refine(config, nets, score_draws)
+  # Fixed sequences, no actor-prior rollouts among them: refined samples, and the pair that
+  # plan.safe_confirm rolls again.
+  plain_rollout = make_rollout(_with_plan(config, num_prior_candidates=0), nets)
+  refine_pool = _make_refine(config, score_draws, plain_rollout)
   kinds, num_first = _first_kinds(config), sum(n for _, n in first_round_counts(config))
   anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
   margin = effective_margin(config)  # plan.safe_margin, scaled by K if asked.
-  # plan.safe_confirm: fixed sequences (the executed one and the actor prior's) rolled again.
-  confirm_rollout = (make_rollout(_with_plan(config, num_prior_candidates=0), nets)
-                     if p.safe_confirm else None)
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
     if z.shape != (d,):
@@ -311,11 +308,11 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     sequence, index, departed, _ = select(pool.actions, pool.scores, pool.members, anchor,
                                           p.safe_selection, margin, p.selection,
                                           p.num_elites, p.temperature, unique)
-    if confirm_rollout is not None:  # The departure again, on fresh dynamics draws.
+    if p.safe_confirm:  # The departure again, on fresh dynamics draws.
       pair = jnp.stack([sequence, pool.actions[anchor]])
-      _, _, fresh = score_draws(params, z, pair, jax.random.fold_in(dyn_key, 20_000),
-                                confirm_rollout)
-      keep = departed & confirm(fresh, p.pessimism, p.safe_margin)
+      _, fresh, fresh_members = score_draws(params, z, pair,
+                                            jax.random.fold_in(dyn_key, 20_000), plain_rollout)
+      keep = departed & beats(fresh, fresh_members, 0, 1, p.safe_margin)
       sequence = jnp.where(keep, sequence, pool.actions[anchor])
       index, departed = jnp.where(keep, index, anchor), keep
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))

@@ -22,7 +22,7 @@ standard normals] (`expected_max(n)`, about sqrt(2 ln n)) score-noise units, and
 safe_margin x expected_max(n) x the spread (`effective_margin`).
 
 Confirmation (`plan.safe_confirm`, with safe selection): a departure must also pass on a second,
-independent rollout of the executed sequence and the actor prior's (`confirm`). The winner was
+independent rollout of the executed sequence and the actor prior's (`beats` on fresh scores). The winner was
 chosen on the first rollout's draws, so its score there carries the selection's optimism; scored
 again on fresh draws it does not (the double estimator of van Hasselt 2010, "Double Q-learning":
 select with one estimate, evaluate with another). The second test uses `plan.safe_margin`
@@ -206,8 +206,7 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
     diff = jnp.sum(members * weights, axis=-1) - members[:, anchor]  # Exact sums on GPU too.
     depart = jnp.sum(scores * weights) - scores[anchor] > margin * jnp.std(diff)
   elif safe:
-    diff = members[:, best] - members[:, anchor]
-    depart = scores[best] - scores[anchor] > margin * jnp.std(diff)
+    depart = beats(scores, members, best, anchor, margin)
   else:
     depart = best != anchor if selection == 'argmax' else jnp.asarray(True)
   sequence = jnp.where(depart, chosen, actions[anchor])
@@ -216,13 +215,10 @@ def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anch
   return sequence, jnp.where(depart, best, anchor), depart, weights
 
 
-def confirm(members: jnp.ndarray, pessimism: float, margin: float) -> jnp.ndarray:
-  """Whether a departure survives fresh draws: members [M, 2] J of the executed sequence
-  (column 0) and of the actor prior's own (column 1) on a second rollout. True iff the executed
-  sequence's combined score (mean - pessimism x std) beats the actor prior's by more than
-  margin x std over members of their difference."""
-  mean = jnp.mean(members, axis=0) - pessimism * jnp.std(members, axis=0)
-  return mean[0] - mean[1] > margin * jnp.std(members[:, 0] - members[:, 1])
+def beats(scores: jnp.ndarray, members: jnp.ndarray, i, j, margin: float) -> jnp.ndarray:
+  """The safe gate: candidate i's score beats candidate j's by more than margin x the std over
+  members of their difference (scores [K], members [M, K]; a paired comparison)."""
+  return scores[i] - scores[j] > margin * jnp.std(members[:, i] - members[:, j])
 
 
 def expected_max(n: int) -> float:
