@@ -5,6 +5,9 @@
   objective_correlation Spearman of J (dynamics rollout; encoder latents) against those returns;
   candidate_wins        share of plans won by each candidate kind;
   success_by_k          planner success on held-out goals for each K, paired with the largest K.
+  trace_episodes        the environment's reward terms per decision in chosen held-out episodes;
+  departure_gains       what each departure from the actor prior gains in J, split into the
+                        horizon's rewards and the terminal value, in chosen held-out episodes.
 """
 
 import jax
@@ -13,7 +16,8 @@ import ml_collections
 import numpy as np
 from scipy import stats as sps
 
-from ld_mpc_jax import data, evaluation_suite, models, objective, planner, stats
+from ld_mpc_jax import data, evaluation, evaluation_suite, models, objective, planner, stats
+from ld_mpc_jax.ops import two_hot_decode
 
 
 def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
@@ -203,4 +207,115 @@ def trace_markdown(rows) -> str:
              f"{r['max_reward']:.2f}", f"{r['mean_reward_last']:.2f}"]
     cells += [f"{r[t]:.2f} / {r[t[:-5] + '_max']:.2f}" for t in terms]
     lines.append('| ' + ' | '.join(cells) + ' |')
+  return '\n'.join(lines) + '\n'
+
+
+def gain_parts(config, nets, draws: int = 8):
+  """parts(params, z [D], sequence [H, A], key) -> (rewards [2], values [2]): for the executed
+  sequence (0) and the actor prior acting along its own rollout (1), the discounted reward sum
+  over the horizon, sum_i gamma^i r_i, and gamma^H times the value members' mean at z_H, each
+  averaged over `draws` fresh dynamics rollouts. rewards + values is J at pessimism 0."""
+  m, gamma, h = config.model, config.gamma, config.horizon
+  roll = planner.make_rollout(_with_plan(config, num_prior_candidates=1), nets)
+  members = objective.get(config).make_members(config, nets)
+
+  def one(params, z, sequence, key):
+    acts, lats = roll(params, z, sequence[None], key)  # [2, H, A], [2, H+1, D].
+    r_logits, v_logits = nets.objective.apply({'params': params['objective']}, lats, acts)
+    rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [2, H]
+    reward_part = jnp.sum(rewards * gamma ** jnp.arange(h, dtype=rewards.dtype), axis=-1)
+    value_part = gamma ** h * jnp.mean(members(params, lats, v_logits), axis=0)
+    return reward_part, value_part
+
+  def parts(params, z, sequence, key):
+    r, v = jax.vmap(lambda k: one(params, z, sequence, k))(jax.random.split(key, draws))
+    return r.mean(0), v.mean(0)
+
+  return parts
+
+
+class _GainPolicy:
+  """The planner on one episode at a time (the per-environment key schedule of
+  agent.BatchAgentPolicy, so the decisions are the evaluation's), recording the gain parts of
+  each decision that departs from the actor prior."""
+
+  def __init__(self, config, params, key_seed: int, draws: int):
+    from ld_mpc_jax import agent  # pylint: disable=g-import-not-at-top
+    nets = models.build_networks(config)
+    self.params, self.key_seed = params, key_seed
+    self.act, self.warm = agent.make_act(config, 'plan'), agent.uses_prev(config, 'plan')
+    self.parts = jax.jit(gain_parts(config, nets, draws))
+    self.episode_keys, self.rows = agent.episode_keys, []
+
+  def start(self, episodes):
+    self.key = self.episode_keys(self.key_seed, [episodes[0].reset_seed])[0]
+    self.prev = None
+
+  def __call__(self, obs, t, active):
+    obs = jnp.asarray(obs[0], jnp.float32)
+    action, sequence, info = self.act(self.params, obs, self.key, t, self.prev)
+    self.prev = sequence if self.warm else None
+    row = dict(t=int(t), departed=bool(np.asarray(info)[2]))
+    if row['departed']:
+      r, v = self.parts(self.params, models.encode(self.params, obs), sequence,
+                        jax.random.fold_in(jax.random.fold_in(self.key, t), 77_001))
+      row.update(reward_gain=float(r[0] - r[1]), value_gain=float(v[0] - v[1]),
+                 j_prior=float(r[1] + v[1]))
+    self.rows.append(row)
+    return np.asarray(action)[None]
+
+
+def departure_gains(config, params, indices, seed: int, num_episodes: int,
+                    draws: int = 8) -> list:
+  """For episodes `indices` of the held-out list of evaluation seed `seed`, run by the planner of
+  `config`: one dict per decision (t, departed, the environment's reward and info terms, and for
+  departures reward_gain, value_gain: the executed sequence's parts of J minus the actor
+  prior's, `gain_parts`, and j_prior), grouped as [dict(episode, success, first_success,
+  decisions=[...])]."""
+  e = config.eval
+  policy = _GainPolicy(config, params, seed if e.key_seed < 0 else e.key_seed, draws)
+  eps = evaluation_suite.episodes(config, 'held_out', seed, num_episodes)
+  out = []
+  for i in indices:
+    log, policy.rows = [], []
+    records, _ = evaluation.run_episodes(
+        policy, [eps[i]], config.task, batch_size=1, action_repeat=e.action_repeat,
+        max_episode_steps=e.max_episode_steps, env_factory=lambda **kw: _Recorder(log, **kw),
+        progress=False)
+    steps = log[-1]
+    decisions = [dict(row, **steps[row['t']]) for row in policy.rows]
+    out.append(dict(episode=i, success=int(records[0]['success']),
+                    first_success=records[0]['first_success'], decisions=decisions))
+  return out
+
+
+def summarize_gains(episode: dict) -> dict:
+  """One `departure_gains` episode -> decisions, departure share, and over its departures: the
+  mean reward and value gains, the share of departures whose value gain exceeds their reward
+  gain, and the median gain relative to the actor prior's J (NaN without departures)."""
+  rows = episode['decisions']
+  dep = [r for r in rows if r['departed']]
+  out = dict(episode=episode['episode'], success=episode['success'],
+             first_success=episode['first_success'], decisions=len(rows),
+             departure_share=len(dep) / max(len(rows), 1))
+  if not dep:
+    return dict(out, reward_gain=float('nan'), value_gain=float('nan'),
+                value_led=float('nan'), relative_gain=float('nan'))
+  r = np.array([d['reward_gain'] for d in dep])
+  v = np.array([d['value_gain'] for d in dep])
+  rel = (r + v) / np.maximum(np.abs([d['j_prior'] for d in dep]), 1e-6)
+  return dict(out, reward_gain=float(r.mean()), value_gain=float(v.mean()),
+              value_led=float(np.mean(v > r)), relative_gain=float(np.median(rel)))
+
+
+def gains_markdown(summaries) -> str:
+  """One table row per `summarize_gains` summary."""
+  head = ['episode', 'success (decision)', 'decisions', 'departing', 'mean reward gain',
+          'mean value gain', 'departures led by the value', 'median gain / J of the actor prior']
+  lines = ['| ' + ' | '.join(head) + ' |', '|' + ' --- |' * len(head)]
+  for s in summaries:
+    success = f"yes ({s['first_success']})" if s['success'] else 'no'
+    lines.append(f"| {s['episode']} | {success} | {s['decisions']} | "
+                 f"{s['departure_share']:.2f} | {s['reward_gain']:.2f} | {s['value_gain']:.2f} | "
+                 f"{s['value_led']:.2f} | {s['relative_gain']:.4f} |")
   return '\n'.join(lines) + '\n'

@@ -125,3 +125,53 @@ def test_summarize_trace_reads_last_and_largest_terms():
   assert '| 3 | actor | no | 3 | 7 | 4.00 | 3.00 | 0.30 / 0.80 |' in md
   with pytest.raises(ValueError, match='at least one step'):
     summarize_trace([])
+
+
+def test_gain_parts_add_up_to_the_objective(smoke_config, smoke_params):
+  """The reward part plus the value part is J at pessimism 0 of the same rollout, for the
+  executed sequence and the actor prior acting along its own rollout."""
+  from ld_mpc_jax import models, objective, planner
+  nets = models.build_networks(smoke_config)
+  z = models.encode(smoke_params, np.zeros(39, np.float32))
+  seq = jax.random.uniform(jax.random.key(3), (smoke_config.horizon, smoke_config.action_dim),
+                           minval=-1, maxval=1)
+  key = jax.random.key(5)
+  r, v = diagnostics.gain_parts(smoke_config, nets, draws=1)(smoke_params, z, seq, key)
+  roll = planner.make_rollout(diagnostics._with_plan(smoke_config, num_prior_candidates=1), nets)
+  acts, lats = roll(smoke_params, z, seq[None], jax.random.split(key, 1)[0])
+  j = objective.make_member_scores(smoke_config, nets)(smoke_params, lats, acts).mean(0)
+  np.testing.assert_allclose(r + v, j, rtol=1e-5, atol=1e-4)
+  np.testing.assert_allclose(acts[0], seq)  # The executed sequence is rolled as given.
+  assert not np.allclose(r, 0.0)
+
+
+def test_summarize_gains_from_hand_built_decisions():
+  from ld_mpc_jax.diagnostics import gains_markdown, summarize_gains
+  dec = [dict(t=0, departed=False),
+         dict(t=1, departed=True, reward_gain=1.0, value_gain=3.0, j_prior=100.0),
+         dict(t=2, departed=True, reward_gain=2.0, value_gain=-1.0, j_prior=-50.0),
+         dict(t=3, departed=False)]
+  s = summarize_gains(dict(episode=7, success=0, first_success=None, decisions=dec))
+  assert s['decisions'] == 4 and s['departure_share'] == 0.5
+  assert s['reward_gain'] == 1.5 and s['value_gain'] == 1.0 and s['value_led'] == 0.5
+  assert s['relative_gain'] == pytest.approx(np.median([4 / 100, 1 / 50]))
+  assert '| 7 | no | 4 | 0.50 | 1.50 | 1.00 | 0.50 | 0.0300 |' in gains_markdown([s])
+  none = summarize_gains(dict(episode=1, success=1, first_success=9, decisions=dec[:1]))
+  assert none['departure_share'] == 0.0 and np.isnan(none['value_gain'])
+
+
+def test_departure_gains_runs_the_evaluation_episodes(smoke_config, smoke_params):
+  """Three decisions of held-out episode 1: one row per decision with the environment's terms,
+  and the gain parts on exactly the decisions that departed."""
+  smoke_config.eval.max_episode_steps = 6  # Three decisions at action repeat 2.
+  out = diagnostics.departure_gains(smoke_config, smoke_params, [1], seed=0, num_episodes=2,
+                                    draws=2)
+  assert len(out) == 1 and out[0]['episode'] == 1
+  rows = out[0]['decisions']
+  assert [r['t'] for r in rows] == [0, 1, 2]
+  assert all('in_place_reward' in r and 'reward' in r for r in rows)
+  assert all(('value_gain' in r) == r['departed'] for r in rows)
+  assert any(r['departed'] for r in rows)  # The untrained argmax leaves the actor prior.
+  records = evaluation_suite.evaluate_policy(smoke_config, smoke_params, 'plan', 2, 0,
+                                             only=[1])['records']
+  assert records[0]['length'] == 3 and out[0]['success'] == records[0]['success']
