@@ -284,6 +284,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   first_round = _make_first_round(config, nets)
   rollout = make_rollout(config, nets)
   score_draws = _make_score_draws(member_fn, p.dynamics_draws, p.pessimism)
+  confirm_draws = _make_score_draws(member_fn, p.confirm_draws, p.pessimism)
   # Fixed sequences, no actor-prior rollouts among them: refined samples, and the pair that
   # plan.safe_confirm rolls again.
   plain_rollout = make_rollout(_with_plan(config, num_prior_candidates=0), nets)
@@ -310,8 +311,8 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
                                           p.num_elites, p.temperature, unique)
     if p.safe_confirm:  # The departure again, on fresh dynamics draws.
       pair = jnp.stack([sequence, pool.actions[anchor]])
-      _, fresh, fresh_members = score_draws(params, z, pair,
-                                            jax.random.fold_in(dyn_key, 20_000), plain_rollout)
+      _, fresh, fresh_members = confirm_draws(params, z, pair,
+                                              jax.random.fold_in(dyn_key, 20_000), plain_rollout)
       keep = departed & beats(fresh, fresh_members, 0, 1, p.safe_margin)
       sequence = jnp.where(keep, sequence, pool.actions[anchor])
       index, departed = jnp.where(keep, index, anchor), keep

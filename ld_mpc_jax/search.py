@@ -26,7 +26,9 @@ independent rollout of the executed sequence and the actor prior's (`beats` on f
 chosen on the first rollout's draws, so its score there carries the selection's optimism; scored
 again on fresh draws it does not (the double estimator of van Hasselt 2010, "Double Q-learning":
 select with one estimate, evaluate with another). The second test uses `plan.safe_margin`
-unscaled, as no candidate was selected on it.
+unscaled, as no candidate was selected on it. With `plan.confirm_draws` = n > 1 the pair is
+rolled out n times: the gain is its mean over the rollouts and the spread is taken over members
+and rollouts together, so the dynamics' draw-to-draw noise, shared by the members, counts too.
 """
 
 import dataclasses
@@ -272,6 +274,8 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
                      'candidate: set config.plan.num_prior_candidates >= 1')
   if p.safe_margin < 0:
     raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
+  if p.confirm_draws < 1:
+    raise ValueError(f'config.plan.confirm_draws must be >= 1, got {p.confirm_draws}')
   if p.safe_confirm and not p.safe_selection:
     raise ValueError('config.plan.safe_confirm confirms safe selection\'s departures: set '
                      'config.plan.safe_selection=True as well')

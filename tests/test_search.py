@@ -313,6 +313,39 @@ def test_confirmation_keeps_real_gains(smoke_config, smoke_params, z):
     assert bool(a.departed) == bool(b.departed)
 
 
+def test_confirmation_over_draws_counts_the_rollout_noise(smoke_config, smoke_params, z):
+  """J that is pure rollout noise, members that agree: on one fresh rollout the members' spread
+  is tiny and half of the departures pass; over 8 rollouts the spread includes the draws' noise
+  and almost none does."""
+  c = safe_config(smoke_config, 1.0)
+  c.plan.safe_confirm = True
+  passed = {}
+  for draws in (1, 8):
+    c = ml_collections.ConfigDict(c.to_dict())
+    c.plan.confirm_draws = draws
+    plan = make_plan(c, rollout_noise_members)
+    passed[draws] = sum(bool(plan(smoke_params, z, jax.random.key(s)).departed)
+                        for s in range(24))
+  assert passed[1] >= 6 and passed[8] <= 2, passed
+
+
+def test_confirmation_over_draws_keeps_real_gains(smoke_config, smoke_params, z):
+  c = safe_config(smoke_config, 0.5)
+  plain = make_plan(c, noisy_members)
+  c = ml_collections.ConfigDict(c.to_dict())
+  c.plan.safe_confirm, c.plan.confirm_draws = True, 4
+  confirmed = make_plan(c, noisy_members)
+  for seed in range(4):
+    a, b = (f(smoke_params, z, jax.random.key(seed)) for f in (plain, confirmed))
+    np.testing.assert_array_equal(a.action, b.action)
+
+
+def test_confirm_draws_must_be_positive(smoke_config):
+  smoke_config.plan.confirm_draws = 0
+  with pytest.raises(ValueError, match='confirm_draws must be >= 1'):
+    make_plan(smoke_config)
+
+
 def test_confirmation_needs_safe_selection(smoke_config):
   smoke_config.plan.safe_confirm = True
   with pytest.raises(ValueError, match='safe_confirm confirms safe selection'):

@@ -116,6 +116,11 @@ def get_config() -> ml_collections.ConfigDict:
   # winner's first score carries the selection's optimism, a fresh one does not: the double
   # estimator (van Hasselt 2010, "Double Q-learning"). Costs two more rollouts per call.
   p.safe_confirm = False
+  # Fresh rollouts of the pair that confirmation scores: the gain must hold on their mean, by
+  # safe_margin x the spread over members and rollouts together, so that it counts the dynamics'
+  # draw-to-draw noise, which the members share and their spread alone misses. 1: one rollout,
+  # the spread over members only. Costs 2 x confirm_draws rollouts per call, not K x.
+  p.confirm_draws = 1
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
