@@ -39,6 +39,10 @@ _DDIM_8X2 = {'plan.action_steps': 8, 'plan.dynamics_steps': 2, 'plan.action_eta'
              'plan.dynamics_eta': 0.0}
 _DDIM_4X1 = {'plan.action_steps': 4, 'plan.dynamics_steps': 1, 'plan.action_eta': 0.0,
              'plan.dynamics_eta': 0.0}
+_FAST_WARM = {**_DDIM_4X1, 'plan.num_prior_candidates': 16, 'plan.warm_start_steps': 2,
+              'plan.warm_start_t': 0.5}
+_SAFE = {'plan.safe_selection': True, 'plan.safe_margin': 2.0,
+         'plan.safe_margin_scaling': 'expected_max'}
 _CHEAP_OBJECTIVE = {'model.objective_blocks': lambda c: max(1, c.model.objective_blocks // 5)}
 VARIANTS = {
     'reference': {},
@@ -53,9 +57,14 @@ VARIANTS = {
     'fast': {**_DDIM_4X1, 'plan.num_prior_candidates': 16},
     # `fast` warm-started (the :cpu preset's planner now): the shifted previous plan re-noised
     # to t = 0.5, 2 proposal steps.
-    'fast_warm': {**_DDIM_4X1, 'plan.num_prior_candidates': 16, 'plan.warm_start_steps': 2,
-                  'plan.warm_start_t': 0.5},
+    'fast_warm': _FAST_WARM,
     'fast_k32_cheap_obj': {**_DDIM_4X1, 'plan.num_candidates': 32, **_CHEAP_OBJECTIVE},
+    # `fast_warm` with safe selection (margin 2 x E[max]), with one confirmation rollout of the
+    # pair, and with eight (plan.confirm_draws): what the safe gate costs per call.
+    'fast_warm_safe': {**_FAST_WARM, **_SAFE},
+    'fast_warm_confirm': {**_FAST_WARM, **_SAFE, 'plan.safe_confirm': True},
+    'fast_warm_confirm8': {**_FAST_WARM, **_SAFE, 'plan.safe_confirm': True,
+                           'plan.confirm_draws': 8},
     'mppi': None,  # The baseline; runs once, independent of the width.
 }
 WIDTHS = {'ref': None, 'cpu': 'cpu'}  # width name -> preset of the config file.

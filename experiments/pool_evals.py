@@ -2,6 +2,7 @@
 
   python -m experiments.pool_evals runs/a/evaluation.json runs/b/evaluation.json ...
   python -m experiments.pool_evals runs/online/ft_seed{0,1,2}/episodes.csv
+  python -m experiments.pool_evals runs/seed0_first.json+runs/seed0_more.json runs/seed1.json
 
 A file is an `experiments.evaluate --out` JSON, an `experiments.compare_selection --out` JSON or
 a run's own `episodes.csv` (training or online fine-tuning). Each file's records count once. A
@@ -12,6 +13,11 @@ interval and the rate of each file, then exact McNemar tests between policies on
 episodes. Multi-task evaluations (records with a `task`) first get the per-task table of
 `multitask_eval`, pooled over the files; single-task files given with them (to pool several
 settings into one test) join the pooled table, not the per-task one.
+
+A+B (paths joined by '+') is one file made of both: evaluations of the same checkpoints by two
+commands (a policy added later on the same episodes), so that their policies pair. A policy's
+episode in both (the deterministic actor prior, say) counts once, and must have the same outcome
+in both.
 """
 
 import json
@@ -68,6 +74,27 @@ def read_records(path: str) -> list:
   return rows
 
 
+def _key(r: dict) -> tuple:
+  return tuple(str(r.get(k)) for k in ('run', 'task', 'policy', 'split', 'eval_seed', 'episode'))
+
+
+def read_joined(arg: str) -> list:
+  """The records of one path, or of paths joined by '+' as one file: an episode of a policy in
+  several keeps the first, and differing outcomes end the program with one line."""
+  records, seen = [], {}
+  for path in arg.split('+'):
+    for r in read_records(path):
+      k = _key(r)
+      if k in seen:
+        if int(seen[k]['success']) != int(r['success']):
+          cli.fail(f'{arg}: episode {r.get("episode")} of {r.get("policy")} is a success in '
+                   f'one file and not in another; these are not the same checkpoints')
+        continue
+      seen[k] = r
+      records.append(r)
+  return records
+
+
 def main(paths: list) -> None:
   if any(p in ('-h', '--help', '-help') for p in paths):
     print(__doc__.strip())
@@ -77,7 +104,7 @@ def main(paths: list) -> None:
     cli.fail(f'pool_evals takes file paths only, not options: {" ".join(options)} (see --help)')
   if not paths:
     cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json ...')
-  results = [{'records': read_records(path)} for path in paths]
+  results = [{'records': read_joined(path)} for path in paths]
   records = [r for res in results for r in res['records']]
   multi = [r for r in records if r.get('task') is not None]
   if multi:

@@ -221,3 +221,27 @@ def test_where_behind_prints_the_bins_and_fails_in_one_line(tmp_path):
   bad = run(str(path), '--anchor=prior')
   lines = [l for l in bad.stderr.splitlines() if l.strip()]
   assert bad.returncode == 2 and lines == ["error: no records of the anchor policy 'prior'"], lines
+
+
+def test_joined_files_are_one_run_whose_policies_pair(tmp_path, capsys):
+  # The same checkpoint evaluated twice: 'safe' and the actor prior first, 'more' later; the
+  # actor prior is in both and counts once.
+  first = _result({'safe': [1, 1, 0, 0], 'actor': [1, 0, 0, 1]})
+  later = _result({'more': [1, 1, 1, 0], 'actor': [1, 0, 0, 1]})
+  paths = []
+  for name, res in (('first', first), ('later', later)):
+    paths.append(str(tmp_path / f'{name}.json'))
+    with open(paths[-1], 'w') as f:
+      json.dump(res, f)
+  records = pool_evals.read_joined('+'.join(paths))
+  assert len(records) == 12
+  s = pool_evals.pool([{'records': records}], ['joined'])['held_out']
+  assert s['policies']['actor']['successes'] == 2
+  t = s['paired']['safe vs more']
+  assert (t['n'], t['a_only'], t['b_only']) == (4, 0, 1)
+  later['records'][-1]['success'] = 0  # The actor prior's last episode now differs.
+  with open(paths[1], 'w') as f:
+    json.dump(later, f)
+  with pytest.raises(SystemExit):
+    pool_evals.read_joined('+'.join(paths))
+  assert 'not the same checkpoints' in capsys.readouterr().err
