@@ -3,6 +3,7 @@
   python -m experiments.departure_gains --workdir=runs/obj/door_open_weak/seed0 \\
       --episodes=11,29,39,0,1 [--variant=safe2x:plan.safe_selection=True,...] [--seed=0] \\
       [--draws=8] [--out=runs/gains.json]
+  python -m experiments.departure_gains --summarize=runs/gains.json   # the table again
 
 The planner (as trained, or one --variant as compare_selection takes it) runs the given
 held-out episodes (indices into the 50-episode list of evaluation seed --seed, with the
@@ -13,8 +14,9 @@ J is split into its two parts: the discounted rewards over the horizon and gamma
 value members' mean at the horizon's end. Each episode's row: success, the share of decisions
 that departed, the mean reward gain and value gain of its departures, the share of departures
 led by the value (value gain above reward gain) and the median gain relative to the actor
-prior's J. The JSON keeps every decision with the environment's reward terms (Meta-World's
-near_object, in_place_reward, ...), to line the departures up with what happened.
+prior's J, and the share of departures whose gain is negative on the fresh rollouts. The JSON
+keeps every decision with the environment's reward terms (Meta-World's near_object,
+in_place_reward, ...), to line the departures up with what happened.
 """
 
 import json
@@ -32,14 +34,22 @@ _SEED = flags.DEFINE_integer('seed', 0, 'Evaluation seed (the episodes).')
 _NUM_EPISODES = flags.DEFINE_integer('num_episodes', 50, 'Length of the held-out list.')
 _DRAWS = flags.DEFINE_integer('draws', 8, 'Fresh dynamics rollouts per departure.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output (optional).')
-flags.mark_flags_as_required(['workdir', 'episodes'])
+_SUMMARIZE = flags.DEFINE_string('summarize', None, 'Print the table of an --out JSON instead.')
 
 
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax import checkpointing, diagnostics
+  if _SUMMARIZE.value:
+    with cli.one_line_errors():
+      with open(_SUMMARIZE.value) as f:
+        episodes = json.load(f)['episodes']
+    print(diagnostics.gains_markdown([diagnostics.summarize_gains(e) for e in episodes]), end='')
+    return
   with cli.one_line_errors():
+    if not _WORKDIR.value or not _EPISODES.value:
+      raise ValueError('give --workdir and --episodes (or --summarize=JSON)')
     indices = [int(i) for i in _EPISODES.value]
     if not indices or min(indices) < 0 or max(indices) >= _NUM_EPISODES.value:
       raise ValueError(f'--episodes must be indices in [0, {_NUM_EPISODES.value}), '

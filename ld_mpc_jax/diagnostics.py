@@ -292,7 +292,8 @@ def departure_gains(config, params, indices, seed: int, num_episodes: int,
 def summarize_gains(episode: dict) -> dict:
   """One `departure_gains` episode -> decisions, departure share, and over its departures: the
   mean reward and value gains, the share of departures whose value gain exceeds their reward
-  gain, and the median gain relative to the actor prior's J (NaN without departures)."""
+  gain, the median gain relative to the actor prior's J, and the share of departures whose gain
+  is negative on the fresh rollouts (`reversed`; NaN without departures)."""
   rows = episode['decisions']
   dep = [r for r in rows if r['departed']]
   out = dict(episode=episode['episode'], success=episode['success'],
@@ -300,22 +301,24 @@ def summarize_gains(episode: dict) -> dict:
              departure_share=len(dep) / max(len(rows), 1))
   if not dep:
     return dict(out, reward_gain=float('nan'), value_gain=float('nan'),
-                value_led=float('nan'), relative_gain=float('nan'))
+                value_led=float('nan'), relative_gain=float('nan'), reversed=float('nan'))
   r = np.array([d['reward_gain'] for d in dep])
   v = np.array([d['value_gain'] for d in dep])
   rel = (r + v) / np.maximum(np.abs([d['j_prior'] for d in dep]), 1e-6)
   return dict(out, reward_gain=float(r.mean()), value_gain=float(v.mean()),
-              value_led=float(np.mean(v > r)), relative_gain=float(np.median(rel)))
+              value_led=float(np.mean(v > r)), relative_gain=float(np.median(rel)),
+              reversed=float(np.mean(r + v < 0)))
 
 
 def gains_markdown(summaries) -> str:
   """One table row per `summarize_gains` summary."""
   head = ['episode', 'success (decision)', 'decisions', 'departing', 'mean reward gain',
-          'mean value gain', 'departures led by the value', 'median gain / J of the actor prior']
+          'mean value gain', 'departures led by the value', 'median gain / J of the actor prior',
+          'departures reversed on fresh rollouts']
   lines = ['| ' + ' | '.join(head) + ' |', '|' + ' --- |' * len(head)]
   for s in summaries:
     success = f"yes ({s['first_success']})" if s['success'] else 'no'
     lines.append(f"| {s['episode']} | {success} | {s['decisions']} | "
                  f"{s['departure_share']:.2f} | {s['reward_gain']:.2f} | {s['value_gain']:.2f} | "
-                 f"{s['value_led']:.2f} | {s['relative_gain']:.4f} |")
+                 f"{s['value_led']:.2f} | {s['relative_gain']:.4f} | {s['reversed']:.2f} |")
   return '\n'.join(lines) + '\n'

@@ -155,7 +155,11 @@ def test_summarize_gains_from_hand_built_decisions():
   assert s['decisions'] == 4 and s['departure_share'] == 0.5
   assert s['reward_gain'] == 1.5 and s['value_gain'] == 1.0 and s['value_led'] == 0.5
   assert s['relative_gain'] == pytest.approx(np.median([4 / 100, 1 / 50]))
-  assert '| 7 | no | 4 | 0.50 | 1.50 | 1.00 | 0.50 | 0.0300 |' in gains_markdown([s])
+  assert s['reversed'] == 0.0
+  assert '| 7 | no | 4 | 0.50 | 1.50 | 1.00 | 0.50 | 0.0300 | 0.00 |' in gains_markdown([s])
+  dec[2]['value_gain'] = -3.0  # Its gain, 2 - 3, is now negative.
+  assert summarize_gains(dict(episode=7, success=0, first_success=None,
+                              decisions=dec))['reversed'] == 0.5
   none = summarize_gains(dict(episode=1, success=1, first_success=9, decisions=dec[:1]))
   assert none['departure_share'] == 0.0 and np.isnan(none['value_gain'])
 
@@ -175,3 +179,21 @@ def test_departure_gains_runs_the_evaluation_episodes(smoke_config, smoke_params
   records = evaluation_suite.evaluate_policy(smoke_config, smoke_params, 'plan', 2, 0,
                                              only=[1])['records']
   assert records[0]['length'] == 3 and out[0]['success'] == records[0]['success']
+
+
+def test_departure_gains_cli_summarizes_a_saved_file_and_fails_in_one_line(tmp_path):
+  import json
+  import subprocess
+  import sys
+  dec = [dict(t=0, departed=True, reward_gain=1.0, value_gain=-2.0, j_prior=10.0)]
+  path = tmp_path / 'gains.json'
+  path.write_text(json.dumps(dict(episodes=[dict(episode=4, success=1, first_success=1,
+                                                 decisions=dec)])))
+  run = lambda *args: subprocess.run([sys.executable, '-m', 'experiments.departure_gains', *args],
+                                     capture_output=True, text=True, timeout=120)
+  out = run(f'--summarize={path}')
+  assert out.returncode == 0, out.stderr[-1000:]
+  assert '| 4 | yes (1) | 1 | 1.00 | 1.00 | -2.00 | 0.00 | -0.1000 | 1.00 |' in out.stdout
+  bad = run('--episodes=1')
+  assert bad.returncode != 0 and 'give --workdir and --episodes' in bad.stderr
+  assert len(bad.stderr.strip().splitlines()) == 1
