@@ -17,7 +17,7 @@ import numpy as np
 from scipy import stats as sps
 
 from ld_mpc_jax import data, evaluation, evaluation_suite, models, objective, planner, stats
-from ld_mpc_jax.ops import two_hot_decode
+from ld_mpc_jax.ops import discounted_return, two_hot_decode
 
 
 def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
@@ -223,7 +223,7 @@ def gain_parts(config, nets, draws: int = 8):
     acts, lats = roll(params, z, sequence[None], key)  # [2, H, A], [2, H+1, D].
     r_logits, v_logits = nets.objective.apply({'params': params['objective']}, lats, acts)
     rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [2, H]
-    reward_part = jnp.sum(rewards * gamma ** jnp.arange(h, dtype=rewards.dtype), axis=-1)
+    reward_part = discounted_return(rewards, jnp.zeros(rewards.shape[:-1]), gamma)
     value_part = gamma ** h * jnp.mean(members(params, lats, v_logits), axis=0)
     return reward_part, value_part
 
