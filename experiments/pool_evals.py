@@ -81,6 +81,8 @@ def _key(r: dict) -> tuple:
 def read_joined(arg: str) -> list:
   """The records of one path, or of paths joined by '+' as one file: an episode of a policy in
   several keeps the first, and differing outcomes end the program with one line."""
+  if '+' not in arg:
+    return read_records(arg)
   records, seen = [], {}
   for path in arg.split('+'):
     for r in read_records(path):
