@@ -183,14 +183,16 @@ def test_departure_gains_runs_the_evaluation_episodes(smoke_config, smoke_params
 
 def test_departure_gains_cli_summarizes_a_saved_file_and_fails_in_one_line(tmp_path):
   import json
+  import os
   import subprocess
   import sys
   dec = [dict(t=0, departed=True, reward_gain=1.0, value_gain=-2.0, j_prior=10.0)]
   path = tmp_path / 'gains.json'
   path.write_text(json.dumps(dict(episodes=[dict(episode=4, success=1, first_success=1,
                                                  decisions=dec)])))
+  repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
   run = lambda *args: subprocess.run([sys.executable, '-m', 'experiments.departure_gains', *args],
-                                     capture_output=True, text=True, timeout=120)
+                                     capture_output=True, text=True, timeout=120, cwd=repo)
   out = run(f'--summarize={path}')
   assert out.returncode == 0, out.stderr[-1000:]
   assert '| 4 | yes (1) | 1 | 1.00 | 1.00 | -2.00 | 0.00 | -0.1000 | 1.00 |' in out.stdout
