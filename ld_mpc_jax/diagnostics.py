@@ -16,7 +16,8 @@ import ml_collections
 import numpy as np
 from scipy import stats as sps
 
-from ld_mpc_jax import data, evaluation, evaluation_suite, models, objective, planner, stats
+from ld_mpc_jax import (agent, data, evaluation, evaluation_suite, models, objective, planner,
+                        stats)
 from ld_mpc_jax.ops import discounted_return, two_hot_decode
 
 
@@ -240,15 +241,14 @@ class _GainPolicy:
   each decision that departs from the actor prior."""
 
   def __init__(self, config, params, key_seed: int, draws: int):
-    from ld_mpc_jax import agent  # pylint: disable=g-import-not-at-top
     nets = models.build_networks(config)
     self.params, self.key_seed = params, key_seed
     self.act, self.warm = agent.make_act(config, 'plan'), agent.uses_prev(config, 'plan')
     self.parts = jax.jit(gain_parts(config, nets, draws))
-    self.episode_keys, self.rows = agent.episode_keys, []
+    self.rows = []
 
   def start(self, episodes):
-    self.key = self.episode_keys(self.key_seed, [episodes[0].reset_seed])[0]
+    self.key = agent.episode_keys(self.key_seed, [episodes[0].reset_seed])[0]
     self.prev = None
 
   def __call__(self, obs, t, active):
