@@ -1,0 +1,97 @@
+# Trains single-task offline settings (door_open.py:cpu with another task and data preset) on
+# several training seeds side by side on one GPU, and packs each run into $OUT as NAME_seedN.tgz
+# for evaluation elsewhere (experiments.compare_selection on the unpacked workdir). The same steps
+# as mt10.sh: datasets unpacked from DATA_XZ (collect them where MuJoCo runs: the Meta-World wheel
+# carried without its textures trains but cannot simulate), one `experiments.train` per setting
+# and seed with --config.eval.episodes=0, each latest checkpoint saved again with its EMA
+# parameters only (it evaluates exactly as trained and does not resume training).
+# From the repository root:
+#   OUT=/tmp/out SETTINGS="push_medium:push-v3:medium reach_medium:reach-v3:medium" \
+#     DATA_XZ=.gpu/data bash experiments/gpu/offline.sh
+#   SEEDS="0 1 2" (default), CONFIG=experiments/configs/door_open.py:cpu (default),
+#   TRAIN_T=SECONDS stops training at that many seconds (SIGINT; the latest checkpoint is packed).
+#   EVAL_FILE=PATH: after training, each line `TAG ARGS...` runs `experiments.compare_selection
+#   ARGS --workdirs=RUN --out=RUN/selection_TAG.json` on every run, the lines in order and the
+#   runs side by side, all stopped EVAL_T seconds (default 300) after they start; the per-policy
+#   caches (RUN/evals/) and the JSONs travel in the packed run, so that compare_selection here
+#   pools the seeds without evaluating again.
+#   BENCH="ARGS": then `experiments.benchmark_planning ARGS` alone on the machine (at most
+#   BENCH_T seconds, default 120); its files and every log go into $OUT/logs.tgz.
+set -u
+: "${OUT:?set OUT to the folder the packed runs go to}"
+: "${SETTINGS:?set SETTINGS to NAME:TASK:PRESET items}"
+export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
+SEEDS=${SEEDS:-0 1 2}
+CONFIG=${CONFIG:-experiments/configs/door_open.py:cpu}
+RUNS=${RUNS:-runs/gpu_offline}
+rm -rf "$RUNS"; mkdir -p "$RUNS" "$OUT" data_cache
+nvidia-smi -L 2>/dev/null; git rev-parse HEAD 2>/dev/null || echo 'not a git checkout: record the commit by hand'
+python3 -c "import jax, flax; print('jax', jax.__version__, 'flax', flax.__version__, jax.devices())"
+start=$(date +%s)
+if [ -n "${DATA_XZ:-}" ]; then
+  python3 -c "import glob, lzma, os, shutil, sys
+for p in glob.glob(sys.argv[1] + '/*.npz.xz'):
+  with lzma.open(p) as f, open('data_cache/' + os.path.basename(p)[:-3], 'wb') as g: shutil.copyfileobj(f, g)
+print(os.listdir('data_cache'))" "$DATA_XZ"
+fi
+names=()
+for item in $SETTINGS; do
+  IFS=: read -r name task preset <<<"$item"
+  for s in $SEEDS; do
+    names+=("${name}_seed$s")
+    timeout -s INT -k 30 "${TRAIN_T:-0}" python3 -m experiments.train --config="$CONFIG" \
+      --config.task="$task" --config.data.preset="$preset" --config.eval.splits=held_out \
+      --config.eval.episodes=0 --config.seed="$s" --workdir="$RUNS/${name}_seed$s" \
+      >"$RUNS/${name}_seed$s.log" 2>&1 &
+  done
+done
+sleep 60; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv 2>/dev/null
+wait
+echo "trained at $(( $(date +%s) - start )) s"
+for n in "${names[@]}"; do echo "== $n"; tr '\r' '\n' <"$RUNS/$n.log" | grep -v '^$' | tail -n 2; done
+if [ -n "${EVAL_FILE:-}" ]; then
+  end=$(( $(date +%s) + ${EVAL_T:-300} ))
+  for n in "${names[@]}"; do
+    while read -r tag args; do
+      [ -z "$tag" ] && continue
+      left=$(( end - $(date +%s) )); [ "$left" -le 5 ] && break
+      # shellcheck disable=SC2086
+      timeout -s INT -k 20 "$left" python3 -m experiments.compare_selection $args \
+        --workdirs="$RUNS/$n" --out="$RUNS/$n/selection_$tag.json" >>"$RUNS/${n}_eval.log" 2>&1
+    done <"$EVAL_FILE" &
+  done
+  wait
+  echo "evaluated at $(( $(date +%s) - start )) s"
+  for n in "${names[@]}"; do echo "== $n"; ls "$RUNS/$n" | grep selection_ || tail -n 3 "$RUNS/${n}_eval.log"; done
+fi
+python3 - "$RUNS" "${names[@]}" <<'PY'
+import os, shutil, sys, tarfile
+import jax, jax.numpy as jnp
+import orbax.checkpoint as ocp
+from ld_mpc_jax import checkpointing
+runs, names, out = sys.argv[1], sys.argv[2:], os.environ['OUT']
+for n in names:
+  src, dst = f'{runs}/{n}', f'{runs}/ema_only/{n}'
+  config = checkpointing.load_config(src)
+  manager = checkpointing.checkpoint_manager(src)
+  step, state = manager.latest_step(), checkpointing.restore_latest(manager, config)
+  if state is None:
+    print(f'{n}: no checkpoint'); continue
+  shutil.copytree(src, dst, ignore=shutil.ignore_patterns('checkpoints'))
+  zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)
+  state = state.replace(params=zero(state.params), opt_state=zero(state.opt_state))
+  m = checkpointing.checkpoint_manager(dst)
+  m.save(step, args=ocp.args.StandardSave(state)); m.wait_until_finished()
+  path = f'{out}/{n}.tgz'
+  with tarfile.open(path, 'w:gz') as t: t.add(dst, arcname=n)
+  print(f'{n}: step {step}, {os.path.getsize(path) / 2**20:.1f} MiB')
+PY
+echo "packed at $(( $(date +%s) - start )) s"
+if [ -n "${BENCH:-}" ]; then
+  # shellcheck disable=SC2086
+  timeout -s INT -k 20 "${BENCH_T:-120}" python3 -m experiments.benchmark_planning $BENCH \
+    --out="$RUNS/benchmark_planning.json" >"$RUNS/benchmark.log" 2>&1
+  tail -n 12 "$RUNS/benchmark.log"
+fi
+tar czf "$OUT/logs.tgz" -C "$RUNS" --exclude=ema_only $(cd "$RUNS" && ls -d *.log *.json *.md 2>/dev/null)
+ls -la "$OUT"
