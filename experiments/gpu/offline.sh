@@ -9,7 +9,8 @@
 #   OUT=/tmp/out SETTINGS="push_medium:push-v3:medium reach_medium:reach-v3:medium" \
 #     DATA_XZ=.gpu/data bash experiments/gpu/offline.sh
 #   SEEDS="0 1 2" (default), CONFIG=experiments/configs/door_open.py:cpu (default),
-#   TRAIN_T=SECONDS stops training at that many seconds (SIGINT; the latest checkpoint is packed).
+#   TRAIN_T=SECONDS stops training that many seconds after the start (SIGINT; the latest
+#   checkpoint is packed).
 #   EVAL_FILE=PATH: after training, each line `TAG ARGS...` runs `experiments.compare_selection
 #   ARGS --workdirs=RUN --out=RUN/selection_TAG.json` on every run, the lines in order and the
 #   runs side by side, all stopped EVAL_T seconds (default 300) after they start; the per-policy
@@ -34,18 +35,34 @@ for p in glob.glob(sys.argv[1] + '/*.npz.xz'):
   with lzma.open(p) as f, open('data_cache/' + os.path.basename(p)[:-3], 'wb') as g: shutil.copyfileobj(f, g)
 print(os.listdir('data_cache'))" "$DATA_XZ"
 fi
+# Compiling the training step takes about a minute alone on an H100 and several with six
+# compiling at once, so the first seed of each setting compiles first and writes JAX's persistent
+# cache; the other seeds start once those have logged a training step, and read it.
+export JAX_COMPILATION_CACHE_DIR=${JAX_COMPILATION_CACHE_DIR:-$(cd "$RUNS" && pwd)/jax_cache}
+export JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS=0
+deadline=$(( start + ${TRAIN_T:-100000} ))
 names=()
-for item in $SETTINGS; do
-  IFS=: read -r name task preset <<<"$item"
-  for s in $SEEDS; do
-    names+=("${name}_seed$s")
-    timeout -s INT -k 30 "${TRAIN_T:-0}" python3 -m experiments.train --config="$CONFIG" \
-      --config.task="$task" --config.data.preset="$preset" --config.eval.splits=held_out \
-      --config.eval.episodes=0 --config.seed="$s" --workdir="$RUNS/${name}_seed$s" \
-      >"$RUNS/${name}_seed$s.log" 2>&1 &
+train() {  # NAME TASK PRESET SEED
+  local n="${1}_seed$4"; names+=("$n")
+  timeout -s INT -k 30 "$(( deadline - $(date +%s) ))" python3 -m experiments.train \
+    --config="$CONFIG" --config.task="$2" --config.data.preset="$3" \
+    --config.eval.splits=held_out --config.eval.episodes=0 --config.seed="$4" \
+    --workdir="$RUNS/$n" >"$RUNS/$n.log" 2>&1 &
+}
+set -- $SEEDS; first=$1; shift; rest="$*"
+for item in $SETTINGS; do IFS=: read -r name task preset <<<"$item"; train "$name" "$task" "$preset" "$first"; done
+while [ "$(date +%s)" -lt "$deadline" ]; do
+  ready=1
+  for n in "${names[@]}"; do
+    tr '\r' '\n' <"$RUNS/$n.log" | grep -qE ' [1-9][0-9]*/[0-9]+ \[' || ready=0
   done
+  [ $ready = 1 ] || [ -z "$(jobs -r)" ] && break; sleep 2
 done
-sleep 60; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv 2>/dev/null
+echo "first seeds compiled at $(( $(date +%s) - start )) s"
+for s in $rest; do
+  for item in $SETTINGS; do IFS=: read -r name task preset <<<"$item"; train "$name" "$task" "$preset" "$s"; done
+done
+sleep 20; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv 2>/dev/null
 wait
 echo "trained at $(( $(date +%s) - start )) s"
 for n in "${names[@]}"; do echo "== $n"; tr '\r' '\n' <"$RUNS/$n.log" | grep -v '^$' | tail -n 2; done
