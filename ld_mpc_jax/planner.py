@@ -181,18 +181,20 @@ def _make_first_round(config: ml_collections.ConfigDict, nets: Networks) -> Call
 def _make_score_draws(member_fn: Callable, draws: int, pessimism: float) -> Callable:
   """score(params, z, proposals, key, roll) -> (actions [N, H, A], scores [N], members
   [draws x M, N]): J per draw combined over the value members, averaged over `draws` rollouts
-  of the same candidates."""
+  of the same candidates. Draw i rolls with fold_in(key, i); the draws run as one batch (vmap
+  over their keys: the same draws as one after another, in one pass of the rollout's
+  sequential steps)."""
   def score_draws(params, z, proposals_, key, roll):
     def one(i):
       acts, lats = roll(params, z, proposals_, jax.random.fold_in(key, i))
       return acts, member_fn(params, lats, acts)
-    actions, members = one(0)
     if draws == 1:
+      actions, members = one(0)
       return actions, combine(members, pessimism), members
-    more = jax.lax.map(lambda i: one(i)[1], jnp.arange(1, draws))  # [draws - 1, M, N]
-    everything = jnp.concatenate([members[None], more])
+    all_actions, everything = jax.vmap(one)(jnp.arange(draws))  # [draws, N, H, A], [draws, M, N]
+    actions = all_actions[0]  # Draw 0's: actor-prior candidates act along their own rollout.
     scores = jnp.mean(jax.vmap(lambda m: combine(m, pessimism))(everything), axis=0)
-    return actions, scores, everything.reshape((-1,) + members.shape[1:])
+    return actions, scores, everything.reshape((-1,) + everything.shape[2:])
 
   return score_draws
 

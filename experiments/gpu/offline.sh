@@ -8,7 +8,8 @@
 # From the repository root:
 #   OUT=/tmp/out SETTINGS="push_medium:push-v3:medium reach_medium:reach-v3:medium" \
 #     DATA_XZ=.gpu/data bash experiments/gpu/offline.sh
-#   SEEDS="0 1 2" (default), CONFIG=experiments/configs/door_open.py:cpu (default),
+#   SEEDS="0 1 2" (default), CONFIG=experiments/configs/door_open.py:cpu (default), RUNS (default
+#   runs/gpu_offline), DATA (config.data.dir, default data_cache), PY (default python3),
 #   TRAIN_T=SECONDS stops training that many seconds after the start (SIGINT; the latest
 #   checkpoint is packed).
 #   EVAL_FILE=PATH: after training, each line `TAG ARGS...` runs `experiments.compare_selection
@@ -25,15 +26,17 @@ export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
 SEEDS=${SEEDS:-0 1 2}
 CONFIG=${CONFIG:-experiments/configs/door_open.py:cpu}
 RUNS=${RUNS:-runs/gpu_offline}
-rm -rf "$RUNS"; mkdir -p "$RUNS" "$OUT" data_cache
+DATA=${DATA:-data_cache}  # config.data.dir: where datasets are unpacked, collected or read.
+PY=${PY:-python3}
+rm -rf "$RUNS"; mkdir -p "$RUNS" "$OUT" "$DATA"
 nvidia-smi -L 2>/dev/null; git rev-parse HEAD 2>/dev/null || echo 'not a git checkout: record the commit by hand'
-python3 -c "import jax, flax; print('jax', jax.__version__, 'flax', flax.__version__, jax.devices())"
+"$PY" -c "import jax, flax; print('jax', jax.__version__, 'flax', flax.__version__, jax.devices())"
 start=$(date +%s)
 if [ -n "${DATA_XZ:-}" ]; then
-  python3 -c "import glob, lzma, os, shutil, sys
+  "$PY" -c "import glob, lzma, os, shutil, sys
 for p in glob.glob(sys.argv[1] + '/*.npz.xz'):
-  with lzma.open(p) as f, open('data_cache/' + os.path.basename(p)[:-3], 'wb') as g: shutil.copyfileobj(f, g)
-print(os.listdir('data_cache'))" "$DATA_XZ"
+  with lzma.open(p) as f, open(os.path.join(sys.argv[2], os.path.basename(p)[:-3]), 'wb') as g: shutil.copyfileobj(f, g)
+print(os.listdir(sys.argv[2]))" "$DATA_XZ" "$DATA"
 fi
 # Compiling the training step takes about a minute alone on an H100 and several with six
 # compiling at once, so the first seed of each setting compiles first and writes JAX's persistent
@@ -44,9 +47,9 @@ deadline=$(( start + ${TRAIN_T:-100000} ))
 names=()
 train() {  # NAME TASK PRESET SEED
   local n="${1}_seed$4"; names+=("$n")
-  timeout -s INT -k 30 "$(( deadline - $(date +%s) ))" python3 -m experiments.train \
+  timeout -s INT -k 30 "$(( deadline - $(date +%s) ))" "$PY" -m experiments.train \
     --config="$CONFIG" --config.task="$2" --config.data.preset="$3" \
-    --config.eval.splits=held_out --config.eval.episodes=0 --config.seed="$4" \
+    --config.eval.splits=held_out --config.eval.episodes=0 --config.seed="$4" --config.data.dir="$DATA" \
     --workdir="$RUNS/$n" >"$RUNS/$n.log" 2>&1 &
 }
 set -- $SEEDS; first=$1; shift; rest="$*"
@@ -73,7 +76,7 @@ if [ -n "${EVAL_FILE:-}" ]; then
       [ -z "$tag" ] && continue
       left=$(( end - $(date +%s) )); [ "$left" -le 5 ] && break
       # shellcheck disable=SC2086
-      timeout -s INT -k 20 "$left" python3 -m experiments.compare_selection $args \
+      timeout -s INT -k 20 "$left" "$PY" -m experiments.compare_selection $args \
         --workdirs="$RUNS/$n" --out="$RUNS/$n/selection_$tag.json" >>"$RUNS/${n}_eval.log" 2>&1
     done <"$EVAL_FILE" &
   done
@@ -81,7 +84,7 @@ if [ -n "${EVAL_FILE:-}" ]; then
   echo "evaluated at $(( $(date +%s) - start )) s"
   for n in "${names[@]}"; do echo "== $n"; ls "$RUNS/$n" | grep selection_ || tail -n 3 "$RUNS/${n}_eval.log"; done
 fi
-python3 - "$RUNS" "${names[@]}" <<'PY'
+"$PY" - "$RUNS" "${names[@]}" <<'PY'
 import os, shutil, sys, tarfile
 import jax, jax.numpy as jnp
 import orbax.checkpoint as ocp
@@ -106,7 +109,7 @@ PY
 echo "packed at $(( $(date +%s) - start )) s"
 if [ -n "${BENCH:-}" ]; then
   # shellcheck disable=SC2086
-  timeout -s INT -k 20 "${BENCH_T:-120}" python3 -m experiments.benchmark_planning $BENCH \
+  timeout -s INT -k 20 "${BENCH_T:-120}" "$PY" -m experiments.benchmark_planning $BENCH \
     --out="$RUNS/benchmark_planning.json" >"$RUNS/benchmark.log" 2>&1
   tail -n 12 "$RUNS/benchmark.log"
 fi
