@@ -154,3 +154,28 @@ def test_same_seed_trains_bit_identical_parameters(unevaluated_runs):
   diffs = jax.tree_util.tree_map(lambda x, y: float(np.max(np.abs(np.asarray(x) - np.asarray(y)))),
                                  *params)
   assert max(jax.tree_util.tree_leaves(diffs)) == 0.0
+
+
+def test_packed_run_evaluates_as_trained_and_holds_no_training_state(unevaluated_runs, tmp_path):
+  import tarfile
+  import jax
+  from experiments import pack_runs
+  workdir, _ = unevaluated_runs['a']
+  path = pack_runs.pack(workdir, str(tmp_path / 'out'))
+  assert os.path.basename(path) == 'a.tgz'
+  with tarfile.open(path) as t:
+    t.extractall(tmp_path / 'unpacked')
+  packed = str(tmp_path / 'unpacked' / 'a')
+  config, ema, step = checkpointing.load_for_evaluation(packed)
+  _, original, original_step = checkpointing.load_for_evaluation(workdir)
+  assert step == original_step == 4 and config.seed == 0
+  for x, y in zip(jax.tree.leaves(ema), jax.tree.leaves(original)):
+    np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+  assert np.any(np.asarray(jax.tree.leaves(ema)[0]))
+  state = checkpointing.restore_latest(checkpointing.checkpoint_manager(packed), config)
+  assert not any(np.any(np.asarray(x)) for x in jax.tree.leaves(state.params))
+  empty = tmp_path / 'empty'
+  os.makedirs(empty / 'checkpoints')
+  with open(empty / 'config.json', 'w') as f:
+    f.write(open(os.path.join(workdir, 'config.json')).read())
+  assert pack_runs.pack(str(empty), str(tmp_path / 'out')) is None

@@ -61,26 +61,5 @@ sleep 60; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv 2>/dev
 wait
 echo "trained at $(( $(date +%s) - start )) s"
 for s in $SEEDS; do echo "== seed $s"; tr '\r' '\n' <"$RUNS/train_seed$s.log" | grep -v '^$' | tail -n 3; done
-python3 - "$RUNS" $SEEDS <<'PY'
-import os, shutil, sys, tarfile
-import jax, jax.numpy as jnp
-import orbax.checkpoint as ocp
-from ld_mpc_jax import checkpointing
-runs, seeds, out = sys.argv[1], sys.argv[2:], os.environ['OUT']
-for s in seeds:
-  src, dst = f'{runs}/seed{s}', f'{runs}/ema_only/seed{s}'
-  config = checkpointing.load_config(src)
-  manager = checkpointing.checkpoint_manager(src)
-  step, state = manager.latest_step(), checkpointing.restore_latest(manager, config)
-  if state is None:
-    print(f'seed {s}: no checkpoint'); continue
-  shutil.copytree(src, dst, ignore=shutil.ignore_patterns('checkpoints'))
-  zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)
-  state = state.replace(params=zero(state.params), opt_state=zero(state.opt_state))
-  m = checkpointing.checkpoint_manager(dst)
-  m.save(step, args=ocp.args.StandardSave(state)); m.wait_until_finished()
-  path = f'{out}/seed{s}.tgz'
-  with tarfile.open(path, 'w:gz') as t: t.add(dst, arcname=f'seed{s}')
-  print(f'seed {s}: step {step}, {os.path.getsize(path) / 2**20:.1f} MiB')
-PY
+python3 -m experiments.pack_runs --out="$OUT" $(for s in $SEEDS; do echo "$RUNS/seed$s"; done)
 echo "packed at $(( $(date +%s) - start )) s"; ls -la "$OUT"

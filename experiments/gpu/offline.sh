@@ -84,28 +84,7 @@ if [ -n "${EVAL_FILE:-}" ]; then
   echo "evaluated at $(( $(date +%s) - start )) s"
   for n in "${names[@]}"; do echo "== $n"; ls "$RUNS/$n" | grep selection_ || tail -n 3 "$RUNS/${n}_eval.log"; done
 fi
-"$PY" - "$RUNS" "${names[@]}" <<'PY'
-import os, shutil, sys, tarfile
-import jax, jax.numpy as jnp
-import orbax.checkpoint as ocp
-from ld_mpc_jax import checkpointing
-runs, names, out = sys.argv[1], sys.argv[2:], os.environ['OUT']
-for n in names:
-  src, dst = f'{runs}/{n}', f'{runs}/ema_only/{n}'
-  config = checkpointing.load_config(src)
-  manager = checkpointing.checkpoint_manager(src)
-  step, state = manager.latest_step(), checkpointing.restore_latest(manager, config)
-  if state is None:
-    print(f'{n}: no checkpoint'); continue
-  shutil.copytree(src, dst, ignore=shutil.ignore_patterns('checkpoints'))
-  zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)
-  state = state.replace(params=zero(state.params), opt_state=zero(state.opt_state))
-  m = checkpointing.checkpoint_manager(dst)
-  m.save(step, args=ocp.args.StandardSave(state)); m.wait_until_finished()
-  path = f'{out}/{n}.tgz'
-  with tarfile.open(path, 'w:gz') as t: t.add(dst, arcname=n)
-  print(f'{n}: step {step}, {os.path.getsize(path) / 2**20:.1f} MiB')
-PY
+"$PY" -m experiments.pack_runs --out="$OUT" "${names[@]/#/$RUNS/}"
 echo "packed at $(( $(date +%s) - start )) s"
 if [ -n "${BENCH:-}" ]; then
   # shellcheck disable=SC2086
@@ -113,5 +92,5 @@ if [ -n "${BENCH:-}" ]; then
     --out="$RUNS/benchmark_planning.json" >"$RUNS/benchmark.log" 2>&1
   tail -n 12 "$RUNS/benchmark.log"
 fi
-tar czf "$OUT/logs.tgz" -C "$RUNS" --exclude=ema_only $(cd "$RUNS" && ls -d *.log *.json *.md 2>/dev/null)
+tar czf "$OUT/logs.tgz" -C "$RUNS" $(cd "$RUNS" && ls -d *.log *.json *.md 2>/dev/null)
 ls -la "$OUT"

@@ -1,0 +1,67 @@
+"""Packs training runs for evaluation elsewhere: each run's latest checkpoint saved again with its
+EMA parameters alone, the rest of the run directory beside it, as OUT/NAME.tgz.
+
+  python -m experiments.pack_runs --out=DIR runs/gpu_offline/push_medium_seed0 ...
+
+`params` and the optimizer state are zeroed (they compress to almost nothing), so such a
+checkpoint evaluates exactly as the original and does not resume training. The GPU launchers
+(experiments/gpu/mt10.sh, offline.sh) pack their runs with it, since the device tool returns at
+most 64 MiB.
+"""
+
+import os
+import shutil
+import tarfile
+import tempfile
+
+from absl import app, flags
+
+_OUT = flags.DEFINE_string('out', None, 'Folder for NAME.tgz, one per run.')
+flags.mark_flags_as_required(['out'])
+
+
+def pack(workdir: str, out: str) -> str | None:
+  """OUT/NAME.tgz of run `workdir` with EMA parameters only (NAME: its folder name), or None
+  when it holds no checkpoint."""
+  import jax
+  import jax.numpy as jnp
+  import orbax.checkpoint as ocp
+  from ld_mpc_jax import checkpointing
+  workdir = os.path.normpath(workdir)
+  name = os.path.basename(workdir)
+  config = checkpointing.load_config(workdir)
+  manager = checkpointing.checkpoint_manager(workdir)
+  step, state = manager.latest_step(), checkpointing.restore_latest(manager, config)
+  if state is None:
+    return None
+  tmp = tempfile.mkdtemp()
+  staging = os.path.join(tmp, name)
+  shutil.copytree(workdir, staging, ignore=shutil.ignore_patterns('checkpoints'))
+  zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)
+  state = state.replace(params=zero(state.params), opt_state=zero(state.opt_state))
+  staged = checkpointing.checkpoint_manager(staging)
+  staged.save(step, args=ocp.args.StandardSave(state))
+  staged.wait_until_finished()
+  os.makedirs(out, exist_ok=True)
+  path = os.path.join(out, f'{name}.tgz')
+  with tarfile.open(path, 'w:gz') as t:
+    t.add(staging, arcname=name)
+  shutil.rmtree(tmp)
+  print(f'{name}: step {step}, {os.path.getsize(path) / 2**20:.1f} MiB', flush=True)
+  return path
+
+
+def main(argv):
+  from experiments import cli
+  with cli.one_line_errors():
+    missing = [w for w in argv[1:] if not os.path.isdir(w)]
+    if not argv[1:] or missing:
+      raise FileNotFoundError(f'no run directory {missing[0]}' if missing else
+                              'name the run directories to pack')
+  for workdir in argv[1:]:
+    if pack(workdir, _OUT.value) is None:
+      print(f'{os.path.basename(os.path.normpath(workdir))}: no checkpoint')
+
+
+if __name__ == '__main__':
+  app.run(main)
