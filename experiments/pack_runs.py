@@ -16,8 +16,6 @@ import tempfile
 
 from absl import app, flags
 
-_OUT = flags.DEFINE_string('out', None, 'Folder for NAME.tgz, one per run.')
-flags.mark_flags_as_required(['out'])
 
 
 def pack(workdir: str, out: str) -> str | None:
@@ -59,9 +57,11 @@ def main(argv):
       raise FileNotFoundError(f'no run directory {missing[0]}' if missing else
                               'name the run directories to pack')
   for workdir in argv[1:]:
-    if pack(workdir, _OUT.value) is None:
+    if pack(workdir, flags.FLAGS.out) is None:
       print(f'{os.path.basename(os.path.normpath(workdir))}: no checkpoint')
 
 
-if __name__ == '__main__':
+if __name__ == '__main__':  # Flags only here: tests import `pack` beside other modules' flags.
+  flags.DEFINE_string('out', None, 'Folder for NAME.tgz, one per run.')
+  flags.mark_flags_as_required(['out'])
   app.run(main)
