@@ -17,7 +17,6 @@ import tempfile
 from absl import app, flags
 
 
-
 def pack(workdir: str, out: str) -> str | None:
   """OUT/NAME.tgz of run `workdir` with EMA parameters only (NAME: its folder name), or None
   when it holds no checkpoint."""
