@@ -294,6 +294,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   kinds, num_first = _first_kinds(config), sum(n for _, n in first_round_counts(config))
   anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
   margin = effective_margin(config)  # plan.safe_margin, scaled by K if asked.
+  confirm_margin = p.safe_margin if p.confirm_margin < 0 else p.confirm_margin
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
     if z.shape != (d,):
@@ -315,7 +316,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
       pair = jnp.stack([sequence, pool.actions[anchor]])
       _, fresh, fresh_members = confirm_draws(params, z, pair,
                                               jax.random.fold_in(dyn_key, 20_000), plain_rollout)
-      keep = departed & beats(fresh, fresh_members, 0, 1, p.safe_margin)
+      keep = departed & beats(fresh, fresh_members, 0, 1, confirm_margin)
       sequence = jnp.where(keep, sequence, pool.actions[anchor])
       index, departed = jnp.where(keep, index, anchor), keep
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))

@@ -25,10 +25,11 @@ Confirmation (`plan.safe_confirm`, with safe selection): a departure must also p
 independent rollout of the executed sequence and the actor prior's (`beats` on fresh scores).
 The winner was chosen on the first rollout's draws, so its score there carries the selection's
 optimism; scored again on fresh draws it does not (the double estimator of van Hasselt 2010, "Double Q-learning":
-select with one estimate, evaluate with another). The second test uses `plan.safe_margin`
-unscaled, as no candidate was selected on it. With `plan.confirm_draws` = n > 1 the pair is
-rolled out n times: the gain is its mean over the rollouts and the spread is taken over members
-and rollouts together, so the dynamics' draw-to-draw noise, shared by the members, counts too.
+select with one estimate, evaluate with another). The second test uses `plan.confirm_margin`,
+or where that is negative `plan.safe_margin` unscaled, as no candidate was selected on it. With
+`plan.confirm_draws` = n > 1 the pair is rolled out n times: the gain is its mean over the
+rollouts and the spread is taken over members and rollouts together, so the dynamics'
+draw-to-draw noise, shared by the members, counts too.
 """
 
 import dataclasses

@@ -340,6 +340,26 @@ def test_confirmation_over_draws_keeps_real_gains(smoke_config, smoke_params, z)
     np.testing.assert_array_equal(a.action, b.action)
 
 
+def test_confirm_margin_sets_the_confirmation_threshold(smoke_config, smoke_params, z):
+  """Negative: the confirmation uses plan.safe_margin; a huge one confirms no departure; zero
+  confirms every departure whose fresh mean gain is positive, more than margin 1 does."""
+  c = safe_config(smoke_config, 1.0)
+  c.plan.safe_confirm, c.plan.confirm_draws = True, 8
+  plans = {}
+  for margin in (-1.0, 1.0, 0.0, 1e6):
+    c = ml_collections.ConfigDict(c.to_dict())
+    c.plan.confirm_margin = margin
+    plans[margin] = make_plan(c, rollout_noise_members)
+  passed = {m: 0 for m in plans}
+  for seed in range(24):
+    out = {m: f(smoke_params, z, jax.random.key(seed)) for m, f in plans.items()}
+    np.testing.assert_array_equal(out[-1.0].action, out[1.0].action)
+    for m in plans:
+      passed[m] += bool(out[m].departed)
+  assert passed[-1.0] == passed[1.0] and passed[1e6] == 0, passed
+  assert passed[0.0] >= passed[1.0] + 4, passed
+
+
 def test_confirm_draws_must_be_positive(smoke_config):
   smoke_config.plan.confirm_draws = 0
   with pytest.raises(ValueError, match='confirm_draws must be >= 1'):

@@ -112,15 +112,20 @@ def get_config() -> ml_collections.ConfigDict:
   # "The optimizer's curse"). 'none': margin x spread whatever K.
   p.safe_margin_scaling = 'none'
   # Confirmation: a departure must also beat the actor prior on a second, independent rollout
-  # of both sequences, by safe_margin (unscaled) x the spread (ld_mpc_jax.search.confirm). The
+  # of both sequences, by confirm_margin x the spread (ld_mpc_jax.planner, search.beats). The
   # winner's first score carries the selection's optimism, a fresh one does not: the double
   # estimator (van Hasselt 2010, "Double Q-learning"). Costs two more rollouts per call.
   p.safe_confirm = False
   # Fresh rollouts of the pair that confirmation scores: the gain must hold on their mean, by
-  # safe_margin x the spread over members and rollouts together, so that it counts the dynamics'
-  # draw-to-draw noise, which the members share and their spread alone misses. 1: one rollout,
-  # the spread over members only. Costs 2 x confirm_draws rollouts per call, not K x.
+  # confirm_margin x the spread over members and rollouts together, so that it counts the
+  # dynamics' draw-to-draw noise, which the members share and their spread alone misses. 1: one
+  # rollout, the spread over members only. Costs 2 x confirm_draws rollouts per call, not K x.
   p.confirm_draws = 1
+  # The confirmation's own margin: the fresh rollouts' mean gain must exceed confirm_margin x
+  # their spread. Negative: plan.safe_margin (unscaled), as before this field existed. A smaller
+  # one keeps more of the departures the first test passed: push `medium` loses part of its gain
+  # at 2 with eight rollouts (README).
+  p.confirm_margin = -1.0
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
