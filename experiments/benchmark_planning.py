@@ -10,9 +10,11 @@ Every LD-MPC variant is a set of config overrides of the same model, run at the 
 the rest of the config (plan settings included) comes from --config. `mppi` is the TD-MPC2-style
 baseline (ld_mpc_jax.mppi) with a TD-MPC2-sized MLP world model. Parameters are random (latency
 does not depend on their values). Writes a JSON list of entries to --out and a markdown table
-next to it (.md). Method: docs/benchmark.md.
+next to it (.md), again after every configuration, so that a run cut short (a device lease's time
+limit, say) keeps the configurations it measured. Method: docs/benchmark.md.
 """
 
+import copy
 import dataclasses
 import importlib.util
 import os
@@ -185,6 +187,13 @@ def finish(entries: list, peak_gflops: float, device: dict) -> list:
   return entries
 
 
+def write_partial(out: str, entries: list, peak_gflops: float, device: dict) -> list:
+  """Writes the configurations measured so far (finished copies; `entries` is left as it is)."""
+  done = finish(copy.deepcopy(entries), peak_gflops, device)
+  bench.write_results(out, done, markdown(done))
+  return done
+
+
 def markdown(entries: list) -> str:
   dev = entries[0]['device']
   lines = [f"Device: {dev['name']} ({dev['platform']}), JAX {dev['jax']}; peak "
@@ -230,6 +239,7 @@ def main(argv):
     print(f"{entry['name']}: median {np.median(entry['latencies_ms']) * 1e3:.1f} ms, compile "
           f"{entry['compile_s']:.1f} s, {entry['gflop']:.2f} GFLOP (XLA {entry['gflop_xla']:.2f})",
           flush=True)
+    write_partial(_OUT.value, entries, peak, device)  # A run cut short keeps what it measured.
 
   for name in _VARIANTS.value:
     if name == 'mppi':
