@@ -14,7 +14,6 @@ next to it (.md), again after every configuration, so that a run cut short (a de
 limit, say) keeps the configurations it measured. Method: docs/benchmark.md.
 """
 
-import copy
 import dataclasses
 import importlib.util
 import os
@@ -32,6 +31,7 @@ from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
 import benchmarks as bench
+from benchmarks import planning
 from benchmarks.hardware import device_info, measure_peak  # Shared with benchmark_training.
 
 
@@ -172,45 +172,6 @@ def run_mppi(repeats: int, warmup: int) -> dict:
               gflop_xla_uncorrected=xla['plan_once'] / 1e9)
 
 
-def finish(entries: list, peak_gflops: float, device: dict) -> list:
-  """Adds latency stats, peak, bound ratio and the ratio to MPPI's median latency."""
-  for e in entries:
-    lat = np.asarray(e.pop('latencies_ms')) * 1e3
-    e['latency_ms'] = dict(median=float(np.median(lat)), min=float(lat.min()),
-                           max=float(lat.max()), n=int(lat.size))
-    e['peak_gflops'] = peak_gflops
-    e['bound_ratio'] = e['latency_ms']['median'] / 1e3 / (e['gflop'] / peak_gflops)
-    e['device'] = device
-  mppi_ms = next((e['latency_ms']['median'] for e in entries if e['variant'] == 'mppi'), None)
-  for e in entries:
-    e['latency_vs_mppi'] = e['latency_ms']['median'] / mppi_ms if mppi_ms else None
-  return entries
-
-
-def write_partial(out: str, entries: list, peak_gflops: float, device: dict) -> list:
-  """Writes the configurations measured so far (finished copies; `entries` is left as it is)."""
-  done = finish(copy.deepcopy(entries), peak_gflops, device)
-  bench.write_results(out, done, markdown(done))
-  return done
-
-
-def markdown(entries: list) -> str:
-  dev = entries[0]['device']
-  lines = [f"Device: {dev['name']} ({dev['platform']}), JAX {dev['jax']}; peak "
-           f"{entries[0]['peak_gflops']:.1f} GFLOP/s (float32 matmul); 1-min load average at "
-           f"start {dev['loadavg_1min_at_start']:.2f}.", '',
-           '| configuration | params | K | steps | compile s | median ms | min ms | max ms '
-           '| GFLOP (hand) | GFLOP (XLA) | bound ratio | / MPPI |',
-           '| --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |']
-  for e in entries:
-    l, vs = e['latency_ms'], e['latency_vs_mppi']
-    lines.append(f"| {e['name']} | {e['num_params'] / 1e6:.2f}M | {e['num_candidates']} | "
-                 f"{e['steps']} | {e['compile_s']:.1f} | {l['median']:.1f} | {l['min']:.1f} | "
-                 f"{l['max']:.1f} | {e['gflop']:.2f} | {e['gflop_xla']:.2f} | "
-                 f"{e['bound_ratio']:.2f} | {'-' if vs is None else f'{vs:.2f}'} |")
-  return '\n'.join(lines) + '\n'
-
-
 def load_preset(preset):
   """get_config(preset) of the file --config names."""
   path = config_flags.get_config_filename(flags.FLAGS['config']).partition(':')[0]
@@ -239,7 +200,7 @@ def main(argv):
     print(f"{entry['name']}: median {np.median(entry['latencies_ms']) * 1e3:.1f} ms, compile "
           f"{entry['compile_s']:.1f} s, {entry['gflop']:.2f} GFLOP (XLA {entry['gflop_xla']:.2f})",
           flush=True)
-    write_partial(_OUT.value, entries, peak, device)  # A run cut short keeps what it measured.
+    planning.write_partial(_OUT.value, entries, peak, device)  # A cut run keeps these.
 
   for name in _VARIANTS.value:
     if name == 'mppi':
@@ -253,8 +214,8 @@ def main(argv):
       add(run_ldmpc(name, width, config, resolved, _REPEATS.value, _WARMUP.value))
   peak_end = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak at the end: {peak_end:.1f} GFLOP/s')
-  entries = finish(entries, max(peak, peak_end), device)
-  table = markdown(entries)
+  entries = planning.finish(entries, max(peak, peak_end), device)
+  table = planning.markdown(entries)
   print(table)
   bench.write_results(_OUT.value, entries, table)
 

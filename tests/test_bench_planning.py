@@ -2,7 +2,7 @@
 
 import json
 
-from experiments import benchmark_planning
+from benchmarks import planning as benchmark_planning
 
 
 def _entry(name, variant, latencies_s):
