@@ -30,7 +30,6 @@ import numpy as np
 from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
-import benchmarks as bench
 from benchmarks import planning
 from benchmarks.hardware import device_info, measure_peak  # Shared with benchmark_training.
 
@@ -214,10 +213,7 @@ def main(argv):
       add(run_ldmpc(name, width, config, resolved, _REPEATS.value, _WARMUP.value))
   peak_end = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak at the end: {peak_end:.1f} GFLOP/s')
-  entries = planning.finish(entries, max(peak, peak_end), device)
-  table = planning.markdown(entries)
-  print(table)
-  bench.write_results(_OUT.value, entries, table)
+  print(planning.markdown(planning.write_partial(_OUT.value, entries, max(peak, peak_end), device)))
 
 
 if __name__ == '__main__':
