@@ -14,6 +14,7 @@ import numpy as np
 
 from ld_mpc_jax import envs
 
+METRICS_CSV = 'metrics.csv'  # An offline run's losses, every `train.log_every` update steps.
 ONLINE_CSV = 'online.csv'  # One row per wave of an online run (ld_mpc_jax.online).
 LOSSES_CSV = 'losses.csv'  # An online run's losses, the last update of each wave.
 
@@ -123,7 +124,7 @@ def write_plots(workdir: str) -> None:
   if not primary():
     return
   plt = _pyplot()
-  rows = read_csv(os.path.join(workdir, 'metrics.csv'))
+  rows = read_csv(os.path.join(workdir, METRICS_CSV))
   if rows:
     fig, ax = plt.subplots(figsize=(7, 4))
     steps = [int(r['step']) for r in rows]

@@ -26,8 +26,8 @@ PROGRESS_FILE = 'progress.json'
 EVAL_CSV = 'eval.csv'
 # Logs with one row per step and the column that holds it (checkpoint steps: training steps
 # offline, environment steps online). A resumed run drops their rows past its checkpoint.
-STEP_LOGS = ((EVAL_CSV, 'step'), (run_files.ONLINE_CSV, 'env_steps'),
-             (run_files.LOSSES_CSV, 'env_steps'))
+STEP_LOGS = ((EVAL_CSV, 'step'), (run_files.METRICS_CSV, 'step'),
+             (run_files.ONLINE_CSV, 'env_steps'), (run_files.LOSSES_CSV, 'env_steps'))
 
 
 def window_length(config: ml_collections.ConfigDict) -> int:

@@ -116,7 +116,7 @@ class OfflineJob:
                          eta_min=f'{eta / 60:.1f}')
     row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
            'steps_per_s': self.timer.steps_per_s}
-    run_files.append_csv(os.path.join(self.run.workdir, 'metrics.csv'), row)
+    run_files.append_csv(os.path.join(self.run.workdir, run_files.METRICS_CSV), row)
     self.run.log_scalars('train', {k: v for k, v in row.items() if k != 'step'}, done)
 
   def checkpoint(self) -> None:

@@ -72,13 +72,14 @@ def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, mon
   run = runs.Run(door_open.get_config('smoke'), workdir)
   for step in (40, 80, 120):  # A run killed at 120, its last checkpoint at 80.
     run_files.append_csv(os.path.join(workdir, runs.EVAL_CSV), dict(step=step, success_rate=0.5))
+    run_files.append_csv(os.path.join(workdir, run_files.METRICS_CSV), dict(step=step, loss=1.0))
     run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=step))
     run_files.append_csv(os.path.join(workdir, run_files.LOSSES_CSV), dict(env_steps=step))
   monkeypatch.setattr(checkpointing, 'restore_latest', lambda manager, config: 'state')
   monkeypatch.setattr(run.manager, 'latest_step', lambda: 80)
   assert run.restore() == 'state'
-  assert [r['step'] for r in run_files.read_csv(os.path.join(workdir, runs.EVAL_CSV))] == [
-      '40', '80']
+  for name in (runs.EVAL_CSV, run_files.METRICS_CSV):
+    assert [r['step'] for r in run_files.read_csv(os.path.join(workdir, name))] == ['40', '80']
   for name in (run_files.ONLINE_CSV, run_files.LOSSES_CSV):
     assert [r['env_steps'] for r in run_files.read_csv(os.path.join(workdir, name))] == [
         '40', '80']

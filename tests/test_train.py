@@ -1,5 +1,6 @@
-"""The offline job at smoke size: train, checkpoint, evaluate, report; faults. (SIGKILL and resume:
-tests/e2e/test_train_resume.py.)"""
+"""The offline job at smoke size: train, checkpoint, evaluate, report; faults; a crash and its
+resume in-process. (SIGKILL and resume through the launcher, in subprocesses:
+tests/e2e/test_train_resume.py, marked long.)"""
 
 import json
 import os
@@ -85,6 +86,35 @@ def test_non_finite_loss_stops_and_keeps_last_good_checkpoint(tmp_path, data_dir
   manager = checkpointing.checkpoint_manager(workdir)
   assert manager.latest_step() == 2
   assert not os.path.exists(os.path.join(workdir, 'report.json'))
+
+
+class _Crash(Exception):
+  """Stands in for a crash in the middle of training."""
+
+
+def test_a_crashed_run_resumes_from_its_last_checkpoint_to_the_final_step(tmp_path, data_dir,
+                                                                           monkeypatch):
+  original = replay.ReplayBuffer.sample
+  calls = [0]
+  def crashing(self, batch_size):
+    calls[0] += 1
+    if calls[0] == 13:  # Checkpoints at 5 and 10; the crash comes in the middle of step 13.
+      raise _Crash
+    return original(self, batch_size)
+  monkeypatch.setattr(replay.ReplayBuffer, 'sample', crashing)
+  c = smoke(data_dir, num_steps=15, checkpoint_every=5, log_every=1, eval_every=1000)
+  c.eval.episodes = 0  # Resuming is tested here; evaluation elsewhere.
+  workdir = str(tmp_path / 'run')
+  with pytest.raises(_Crash):
+    train.train_and_evaluate(c, workdir)
+  assert checkpointing.checkpoint_manager(workdir).latest_step() == 10
+  assert not os.path.exists(os.path.join(workdir, 'report.json'))
+  monkeypatch.setattr(replay.ReplayBuffer, 'sample', original)
+  report = train.train_and_evaluate(c, workdir)
+  assert report['steps'] == 15
+  assert checkpointing.load_for_evaluation(workdir)[2] == 15
+  steps = [int(r['step']) for r in run_files.read_csv(os.path.join(workdir, 'metrics.csv'))]
+  assert steps == list(range(1, 16))  # Rows 11 and 12 of the crashed run are not kept twice.
 
 
 @pytest.mark.parametrize('field,value,match', [

@@ -20,7 +20,9 @@ def data_dir(tmp_path_factory):
   return str(tmp_path_factory.mktemp('data'))
 
 
-# Not marked long: the one end-to-end check of resuming after a crash in the default run.
+# Long (74 s of the default run's budget on a quiet 2-core machine): the default run checks a
+# crash and its resume in-process (tests/test_train.py).
+@pytest.mark.long
 def test_kill_and_resume_reaches_the_same_step(tmp_path, data_dir):
   workdir = str(tmp_path / 'run')
   cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open.py:smoke',
