@@ -87,6 +87,10 @@ class OfflineJob:
       self.batch_size = sharding.local_batch_size(t.batch_size, mesh)
       self.put = lambda batch: sharding.shard_batch(batch, mesh)
       state = sharding.replicate(state, mesh)
+    else:
+      # Committed to the device as a restored state is: a fresh and a resumed run then compile
+      # the same update program (one entry in JAX's persistent cache, not two).
+      state = jax.device_put(state, jax.local_devices()[0])
     self.state, self.metrics = state, None
     # A resumed run draws fresh windows rather than replaying the first run's; so does every
     # process of a multi-process run (process 0 draws what a single-process run draws).
