@@ -30,6 +30,16 @@ STEP_LOGS = ((EVAL_CSV, 'step'), (run_files.METRICS_CSV, 'step'),
              (run_files.ONLINE_CSV, 'env_steps'), (run_files.LOSSES_CSV, 'env_steps'))
 
 
+def _uncommitted(x):
+  """`x` on the default device, uncommitted (a host round trip; keys through their data)."""
+  if not isinstance(x, jax.Array) or not x.committed:
+    return x
+  if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
+    return jax.random.wrap_key_data(np.asarray(jax.random.key_data(x)),
+                                    impl=jax.random.key_impl(x))
+  return jnp.asarray(np.asarray(x))
+
+
 def window_length(config: ml_collections.ConfigDict) -> int:
   """Observations per training window: T = H + 1, plus one for the value bootstrap."""
   return config.horizon + 2
@@ -105,6 +115,10 @@ class Run:
     """The latest checkpoint's TrainState, or None; the logs lose rows written after it."""
     state = checkpointing.restore_latest(self.manager, self.config)
     if state is not None:
+      # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which
+      # lowers to another program): a resumed run then compiles the update a fresh run compiled
+      # (one entry in JAX's persistent cache, not two).
+      state = jax.tree.map(_uncommitted, state)
       for name, column in STEP_LOGS:
         run_files.drop_rows_after(os.path.join(self.workdir, name), column,
                                   self.manager.latest_step())

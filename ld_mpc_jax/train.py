@@ -9,7 +9,6 @@ import time
 from typing import Any, Dict
 
 import jax
-import jax.numpy as jnp
 import ml_collections
 import numpy as np
 import tqdm
@@ -56,16 +55,6 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   return run.write_report(report, _summary_md(report), records)
 
 
-def _uncommitted(x):
-  """`x` on the default device, uncommitted (a host round trip; keys through their data)."""
-  if not isinstance(x, jax.Array) or not x.committed:
-    return x
-  if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
-    return jax.random.wrap_key_data(np.asarray(jax.random.key_data(x)),
-                                    impl=jax.random.key_impl(x))
-  return jnp.asarray(np.asarray(x))
-
-
 class _Timer:
   """Update steps per second between log points; the first interval (compilation) is not timed."""
 
@@ -98,11 +87,6 @@ class OfflineJob:
       self.batch_size = sharding.local_batch_size(t.batch_size, mesh)
       self.put = lambda batch: sharding.shard_batch(batch, mesh)
       state = sharding.replicate(state, mesh)
-    else:
-      # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which
-      # lowers to another program): a resumed run then compiles the update a fresh run compiled
-      # (one entry in JAX's persistent cache, not two).
-      state = jax.tree.map(_uncommitted, state)
     self.state, self.metrics = state, None
     # A resumed run draws fresh windows rather than replaying the first run's; so does every
     # process of a multi-process run (process 0 draws what a single-process run draws).
