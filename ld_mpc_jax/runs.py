@@ -31,12 +31,9 @@ STEP_LOGS = ((EVAL_CSV, 'step'), (run_files.METRICS_CSV, 'step'),
 
 
 def _uncommitted(x):
-  """`x` on the default device, uncommitted (a host round trip; keys through their data)."""
+  """`x` on the default device, uncommitted (a host round trip; a TrainState holds no keys)."""
   if not isinstance(x, jax.Array) or not x.committed:
     return x
-  if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
-    return jax.random.wrap_key_data(np.asarray(jax.random.key_data(x)),
-                                    impl=jax.random.key_impl(x))
   return jnp.asarray(np.asarray(x))
 
 
