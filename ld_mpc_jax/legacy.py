@@ -22,7 +22,8 @@ LEGACY_CRITIC = dict(value='behaviour', actor='bc', latent_rollout=False, num_va
 MODEL_FIELDS = {
     'model': dict(proposal_type='diffusion_seq', dynamics_type='diffusion_ar',
                   normalize_obs=False, normalize_dynamics=False, task_dim=96),
-    'critic': dict(td_target='one_step', entropy_coef=1e-4, log_std_map='clip'),
+    'critic': dict(td_target='one_step', entropy_coef=1e-4, log_std_map='clip',
+                   rollout_unroll=True),
     'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0),
 }
 TASK_DIM = MODEL_FIELDS['model']['task_dim']  # Before it was a field (TD-MPC2's width).

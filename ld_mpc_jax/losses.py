@@ -59,7 +59,8 @@ def weighted_sum(terms: Dict[str, jnp.ndarray], weights: ml_collections.ConfigDi
 
 def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   """rollout(params, z0 [B, D], actions [B, H, A], key) -> latents [B, H+1, D] of the dynamics
-  model, `critic.rollout_steps` deterministic DDIM steps per transition."""
+  model, `critic.rollout_steps` deterministic DDIM steps per transition, a scan over H unrolled
+  or not (`critic.rollout_unroll`)."""
   transition = dynamics.make_transition(config, nets.dynamics,
                                         steps=config.critic.rollout_steps, eta=0.0)
 
@@ -68,10 +69,8 @@ def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Cal
       a, i = inputs
       z_next = transition(params, z_cur, a, jax.random.fold_in(key, i))
       return z_next, z_next
-    # Unrolled: H is small, and one flat program trains about 10% faster on XLA:CPU than a
-    # while loop and its backward pass (docs/scaling.md).
-    _, zs = jax.lax.scan(step, z0, (jnp.swapaxes(actions, 0, 1),
-                                    jnp.arange(actions.shape[1])), unroll=True)
+    _, zs = jax.lax.scan(step, z0, (jnp.swapaxes(actions, 0, 1), jnp.arange(actions.shape[1])),
+                         unroll=bool(config.critic.rollout_unroll))
     return jnp.concatenate([z0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
 
   return rollout

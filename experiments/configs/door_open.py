@@ -95,6 +95,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.model.actor_hidden = (16,)
     c.critic.hidden = (16,)
     c.critic.num_values = 3
+    c.critic.rollout_unroll = False  # The update compiles in about a third less time.
     c.model.num_bins = 11
     c.plan.num_candidates = 4
     c.plan.action_steps = 2
