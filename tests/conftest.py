@@ -14,6 +14,7 @@ The XLA settings are environment variables, so a user's own settings win.
 
 import atexit
 import ctypes.util
+import fcntl
 from importlib import metadata
 import os
 import shutil
@@ -52,6 +53,30 @@ def smoke_config():
 def smoke_params(smoke_config):
   from ld_mpc_jax import init_params
   return init_params(smoke_config, jax.random.key(0))
+
+
+@pytest.fixture(scope='session')
+def build_once(tmp_path_factory):
+  """build_once(name, build) -> path: runs build(path) once in this test session, whichever
+  pytest-xdist worker asks first; the others wait for it and share the result. (A module-scoped
+  fixture runs once per worker that runs a test of the module, so with --dist worksteal two
+  workers each trained the same runs.)"""
+  base = tmp_path_factory.getbasetemp()
+  # Under xdist, the session's folder (every worker's basetemp is a folder in it).
+  root = base.parent if os.environ.get('PYTEST_XDIST_WORKER') else base
+
+  def once(name, build):
+    path = root / f'shared_{name}'
+    with open(root / f'shared_{name}.lock', 'w') as lock:
+      fcntl.flock(lock, fcntl.LOCK_EX)  # Released when the file closes, also on a failure.
+      if not (path / '.built').exists():  # Else another worker built it.
+        shutil.rmtree(path, ignore_errors=True)
+        path.mkdir()
+        build(path)
+        (path / '.built').touch()
+    return path
+
+  return once
 
 
 def pytest_collection_modifyitems(items):

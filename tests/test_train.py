@@ -141,16 +141,19 @@ def test_bad_config_fails_before_compilation(tmp_path, data_dir, monkeypatch, fi
 
 
 @pytest.fixture(scope='module')
-def unevaluated_runs(tmp_path_factory, data_dir):
+def unevaluated_runs(build_once, data_dir):
   """Two runs of one config and seed with `eval.episodes = 0`: {name: (workdir, report)}.
-  Shared by the two tests below, so the suite trains them once."""
-  runs_dir = tmp_path_factory.mktemp('unevaluated')
+  Shared by the tests below (and the xdist workers), so the suite trains them once."""
+  def build(root):
+    for name in ('a', 'b'):
+      c = smoke(data_dir)
+      c.eval.episodes = 0
+      train.train_and_evaluate(c, str(root / name))
+  root = build_once('unevaluated_runs', build)
   out = {}
   for name in ('a', 'b'):
-    c = smoke(data_dir)
-    c.eval.episodes = 0
-    workdir = str(runs_dir / name)
-    out[name] = (workdir, train.train_and_evaluate(c, workdir))
+    with open(root / name / 'report.json') as f:
+      out[name] = (str(root / name), json.load(f))
   return out
 
 
