@@ -70,7 +70,7 @@ def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Cal
       z_next = transition(params, z_cur, a, jax.random.fold_in(key, i))
       return z_next, z_next
     _, zs = jax.lax.scan(step, z0, (jnp.swapaxes(actions, 0, 1), jnp.arange(actions.shape[1])),
-                         unroll=bool(config.critic.rollout_unroll))
+                         unroll=config.critic.rollout_unroll)
     return jnp.concatenate([z0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
 
   return rollout
