@@ -25,12 +25,20 @@ def test_ema_update_hand_values():
   np.testing.assert_allclose(ema['w'], [1.2, 1.6], rtol=1e-6)
 
 
-def test_update_lowers_loss_on_fixed_batch(smoke_config):
+@pytest.fixture
+def fit_config(smoke_config):
+  """The smoke config with a step size that fits a fixed batch in a few dozen updates. Every
+  update test here uses this one config, so its update is compiled once per test session (the
+  persistent compilation cache serves the rest)."""
   smoke_config.train.learning_rate = 3e-3
   smoke_config.model.dropout = 0.0
-  state = create_train_state(smoke_config, jax.random.key(0))
-  update = make_update(smoke_config)
-  batch, key = make_batch(smoke_config), jax.random.key(1)  # Same noise every step.
+  return smoke_config
+
+
+def test_update_lowers_loss_on_fixed_batch(fit_config):
+  state = create_train_state(fit_config, jax.random.key(0))
+  update = make_update(fit_config)
+  batch, key = make_batch(fit_config), jax.random.key(1)  # Same noise every step.
   losses = []
   for _ in range(40):
     state, metrics = update(state, batch, key)
@@ -40,13 +48,13 @@ def test_update_lowers_loss_on_fixed_batch(smoke_config):
   assert int(state.step) == 40
 
 
-def test_update_applies_ema_of_new_params(smoke_config):
-  state = create_train_state(smoke_config, jax.random.key(0))
+def test_update_applies_ema_of_new_params(fit_config):
+  state = create_train_state(fit_config, jax.random.key(0))
   old_ema = jax.tree_util.tree_map(np.array, state.ema_params)  # Copies: the update donates.
-  update = make_update(smoke_config)
-  state, _ = update(state, make_batch(smoke_config), jax.random.key(1))
+  update = make_update(fit_config)
+  state, _ = update(state, make_batch(fit_config), jax.random.key(1))
   params, ema = jax.device_get((state.params, state.ema_params))  # NumPy from here on.
-  decay = smoke_config.train.ema_decay
+  decay = fit_config.train.ema_decay
   expected = jax.tree_util.tree_map(lambda e, p: decay * e + (1 - decay) * p, old_ema, params)
   jax.tree_util.tree_map(lambda a, b: np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-7),
                          ema, expected)
@@ -56,19 +64,19 @@ def test_update_applies_ema_of_new_params(smoke_config):
   assert max(moved) > 0
 
 
-def test_update_rejects_wrong_batch_shape(smoke_config):
-  state = create_train_state(smoke_config, jax.random.key(0))
-  batch = make_batch(smoke_config)
+def test_update_rejects_wrong_batch_shape(fit_config):
+  state = create_train_state(fit_config, jax.random.key(0))
+  batch = make_batch(fit_config)
   batch['obs'] = batch['obs'][:, :-1]
   with pytest.raises(ValueError, match="batch\\['obs'\\]"):
-    make_update(smoke_config)(state, batch, jax.random.key(0))
+    make_update(fit_config)(state, batch, jax.random.key(0))
 
 
-def test_update_does_not_recompile(smoke_config):
-  state = create_train_state(smoke_config, jax.random.key(0))
-  update = make_update(smoke_config)  # Shared by every test of this config (config_cache).
+def test_update_does_not_recompile(fit_config):
+  state = create_train_state(fit_config, jax.random.key(0))
+  update = make_update(fit_config)  # Shared by every test of this config (config_cache).
   sizes = []
   for i in range(3):
-    state, _ = update(state, make_batch(smoke_config, seed=i), jax.random.key(i))
+    state, _ = update(state, make_batch(fit_config, seed=i), jax.random.key(i))
     sizes.append(update._cache_size())
   assert sizes[0] == sizes[-1] >= 1
