@@ -31,8 +31,10 @@ from ld_mpc_jax.registry import Registry
 NO_PLAN_INFO = (-1, 0, 0)
 
 # Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise []) ->
-# (action [A], sequence [H, A], info [3]) is built by make_act(config, nets), not jitted;
-# `uses_prev(config)`: whether it acts on the previous decision's sequence.
+# (action [A], carry, info [3]) is built by make_act(config, nets), not jitted; `carry` is what
+# the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
+# MPPI's mean; the planner with `plan.fallback_drop` adds its planner.Guard);
+# `uses_prev(config)`: whether it acts on the previous decision's carry.
 POLICY_MODES = Registry('policy mode', 'mode')
 
 
@@ -46,13 +48,21 @@ def _encode(nets, params, obs):
 
 
 def _plan_act(config, nets):
-  """The planner (ld_mpc_jax.planner); info is (kind, iteration, departed)."""
+  """The planner (ld_mpc_jax.planner); info is (kind, iteration, departed). With
+  `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
+  previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
   plan = make_plan(config)
+  guarded, warm = config.plan.fallback_drop > 0, config.plan.warm_start_steps > 0
 
   def act(params, obs, key, prev, noise):
-    out = plan(params, _encode(nets, params, obs), key, prev, noise)
+    if guarded:  # The sequence travels only to warm-start, as without the guard.
+      sequence, guard = prev if prev is not None else (None, None)
+      sequence = sequence if warm else None
+    else:
+      sequence, guard = prev, None
+    out = plan(params, _encode(nets, params, obs), key, sequence, noise, guard)
     info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32)])
-    return out.action, out.sequence, info
+    return out.action, (out.sequence, out.guard) if guarded else out.sequence, info
   return act
 
 
@@ -99,8 +109,8 @@ def _proposal_act(config, nets):
   return act
 
 
-POLICY_MODES.register('plan', PolicyMode(_plan_act,
-                                         lambda config: config.plan.warm_start_steps > 0))
+POLICY_MODES.register('plan', PolicyMode(
+    _plan_act, lambda config: config.plan.warm_start_steps > 0 or config.plan.fallback_drop > 0))
 POLICY_MODES.register('actor', PolicyMode(_actor_act))
 POLICY_MODES.register('proposal', PolicyMode(_proposal_act))
 POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda config: True))
@@ -122,11 +132,13 @@ def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0) -> (action [A],
-  sequence [H, A], info [3] int32: NO_PLAN_INFO's fields).
+  carry, info [3] int32: NO_PLAN_INFO's fields).
 
-  The decision's key is fold_in(key, t). `prev` is the previous decision's sequence (or None at
-  the start of an episode); only the planner with `plan.warm_start_steps` > 0 and MPPI (its
-  Gaussian mean) use it. `sequence` is what to pass as the next `prev`.
+  The decision's key is fold_in(key, t). `prev` is the previous decision's carry (or None at
+  the start of an episode); only the planner with `plan.warm_start_steps` > 0 or
+  `plan.fallback_drop` > 0 and MPPI (its Gaussian mean) use it. `carry` is what to pass as the
+  next `prev`: the sequence [H, A], or for the planner with `plan.fallback_drop` > 0 the pair
+  (sequence, planner.Guard).
   """
   act = _make_act_fn(config, mode)
   jitted = jax.jit(lambda params, obs, key, t, prev, noise: act(
@@ -172,12 +184,14 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
     noise = jnp.asarray(noise, jnp.float32)
     n = obs.shape[0]
     has_prev = prev is not None
-    prev = prev if has_prev else jnp.zeros((n, config.horizon, config.action_dim))
+    if not has_prev:  # Placeholders of the carry's shapes (the first decision ignores them).
+      carry = jax.eval_shape(lambda: act(params, obs[0], keys[0], None, noise)[1])
+      prev = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape, x.dtype), carry)
     if mesh is None:
       return local_act(has_prev, params, obs, keys, t, prev, active, noise)
     pad = -n % mesh.size  # Inactive rows, so that every device gets the same share.
     grow = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
-    obs, keys, prev = grow(obs), grow(keys), grow(prev)
+    obs, keys, prev = grow(obs), grow(keys), jax.tree_util.tree_map(grow, prev)
     active = jnp.concatenate([active, jnp.zeros(pad, bool)])
     split, whole = PartitionSpec(sharding.BATCH_AXIS), PartitionSpec()
     # check_vma off: the replication check of shard_map does not follow the lax.cond above.

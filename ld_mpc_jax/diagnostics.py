@@ -253,8 +253,9 @@ class _GainPolicy:
 
   def __call__(self, obs, t, active):
     obs = jnp.asarray(obs[0], jnp.float32)
-    action, sequence, info = self.act(self.params, obs, self.key, t, self.prev)
-    self.prev = sequence if self.warm else None
+    action, carry, info = self.act(self.params, obs, self.key, t, self.prev)
+    self.prev = carry if self.warm else None
+    sequence = carry[0] if isinstance(carry, tuple) else carry  # (sequence, Guard) with one.
     row = dict(t=int(t), departed=bool(np.asarray(info)[2]))
     if row['departed']:
       r, v = self.parts(self.params, models.encode(self.params, obs), sequence,

@@ -29,8 +29,30 @@ from ld_mpc_jax.objective import ScoreFn, as_members, combine, make_member_score
 from ld_mpc_jax.search import (CANDIDATE_KINDS, CANDIDATES, Pool, beats, effective_margin,
                                first_round_counts, refine, select, validate_search)
 
-__all__ = ['CANDIDATE_KINDS', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
+__all__ = ['CANDIDATE_KINDS', 'Guard', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
            'make_rollout', 'make_member_scores', 'shift_sequence']
+
+
+@flax.struct.dataclass
+class Guard:
+  """One episode's state of the fallback to the actor prior (`plan.fallback_drop`), carried from
+  one decision to the next; `initial_guard()` at the start of an episode."""
+  peak: jnp.ndarray  # [] the highest J of the actor prior's own sequence so far this episode.
+  fallen: jnp.ndarray  # [] bool: the planner executes the actor prior's sequence from now on.
+
+
+def initial_guard() -> Guard:
+  """The fallback's state at the start of an episode: no peak yet, not fallen back."""
+  return Guard(peak=jnp.asarray(-jnp.inf, jnp.float32), fallen=jnp.asarray(False))
+
+
+def advance_guard(guard: Guard, prior_score: jnp.ndarray, drop: float) -> Guard:
+  """The state after a decision whose actor prior's own sequence scores `prior_score`: the
+  planner falls back (for the rest of the episode) once that score is more than drop x |peak|
+  below the episode's peak so far; drop = 0 never falls back."""
+  peak = jnp.maximum(guard.peak, prior_score)
+  fell = (drop > 0) & (prior_score < peak - drop * jnp.abs(peak))
+  return Guard(peak=peak, fallen=guard.fallen | fell)
 
 
 @flax.struct.dataclass
@@ -44,6 +66,8 @@ class PlanOutput:
   kind: jnp.ndarray  # [] which kind of candidate won: an index into CANDIDATES.names().
   iteration: jnp.ndarray  # [] after which refinement round it was found (0: the first round).
   departed: jnp.ndarray  # [] bool: the executed sequence is not the actor prior's own.
+  prior_score: jnp.ndarray  # [] J of the actor prior's own sequence (NaN without one).
+  guard: Guard  # The fallback's state after this decision: pass it to the next call.
 
 
 def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
@@ -250,13 +274,15 @@ def make_plan(config: ml_collections.ConfigDict,
       (params, latents [K, H+1, D], actions [K, H, A]) -> J [K] or J per member [M, K]; for
       tests and custom objectives.
   Returns:
-    plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0) -> PlanOutput, one
-    jitted pure function, the same one for every config of the same value in this process
-    (ld_mpc_jax.config_cache; a `score_fn` always builds a new one). With
-    `plan.warm_start_steps` > 0, passing the previous call's
-    `sequence` as `prev_sequence` warm-starts the proposal (and centres the Gaussian set) on it,
+    plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0, guard=None) ->
+    PlanOutput, one jitted pure function, the same one for every config of the same value in
+    this process (ld_mpc_jax.config_cache; a `score_fn` always builds a new one). With
+    `plan.warm_start_steps` > 0, passing the previous call's `sequence` as `prev_sequence` warm-starts the proposal (and centres the Gaussian set) on it,
     shifted by one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
     the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
+    `guard` is the previous call's `PlanOutput.guard` in the same episode (None at its start):
+    with `plan.fallback_drop` > 0 the planner executes the actor prior's own sequence once the
+    objective's value of the state has fallen that far below the episode's peak (`Guard`).
 
   The first round holds the kinds of `plan.first_round` (search.CANDIDATES: by default the
   proposal's K - P, then `plan.num_gaussian` broad Gaussian sequences, TD-MPC2's first MPPI
@@ -296,7 +322,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   margin = effective_margin(config)  # plan.safe_margin, scaled by K if asked.
   confirm_margin = p.safe_margin if p.confirm_margin < 0 else p.confirm_margin
 
-  def plan(params, z, key, prev_sequence=None, action_noise=0.0) -> PlanOutput:
+  def plan(params, z, key, prev_sequence=None, action_noise=0.0, guard=None) -> PlanOutput:
     if z.shape != (d,):
       raise ValueError(f'plan expects one latent of shape ({d},), got {z.shape}; '
                        'use encode(params, obs) first, and jax.vmap for a batch')
@@ -319,10 +345,21 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
       keep = departed & beats(fresh, fresh_members, 0, 1, confirm_margin)
       sequence = jnp.where(keep, sequence, pool.actions[anchor])
       index, departed = jnp.where(keep, index, anchor), keep
+    guard = initial_guard() if guard is None else guard
+    if anchor >= 0:
+      prior_score = pool.scores[anchor]
+      guard = advance_guard(guard, prior_score, p.fallback_drop)
+      if p.fallback_drop:  # Fallen back: the actor prior's own sequence, whatever won.
+        sequence = jnp.where(guard.fallen, pool.actions[anchor], sequence)
+        index = jnp.where(guard.fallen, anchor, index)
+        departed = departed & ~guard.fallen
+    else:
+      prior_score = jnp.asarray(jnp.nan, jnp.float32)
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
     action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)
     return PlanOutput(action=action, sequence=sequence, scores=pool.scores,
                       candidates=pool.actions, index=index, kind=pool.kind[index],
-                      iteration=pool.iteration[index], departed=departed)
+                      iteration=pool.iteration[index], departed=departed,
+                      prior_score=prior_score, guard=guard)
 
   return jax.jit(plan)

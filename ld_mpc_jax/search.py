@@ -280,6 +280,11 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
   if p.safe_confirm and not p.safe_selection:
     raise ValueError('config.plan.safe_confirm confirms safe selection\'s departures: set '
                      'config.plan.safe_selection=True as well')
+  if not 0.0 <= p.fallback_drop < 1.0:
+    raise ValueError(f'config.plan.fallback_drop must be in [0, 1), got {p.fallback_drop}')
+  if p.fallback_drop and p.num_prior_candidates < 1:
+    raise ValueError('config.plan.fallback_drop falls back to the actor prior\'s own sequence: '
+                     'set config.plan.num_prior_candidates >= 1')
   scaling = p.safe_margin_scaling
   if scaling not in MARGIN_SCALINGS:
     raise ValueError(f'config.plan.safe_margin_scaling must be one of {MARGIN_SCALINGS}, '

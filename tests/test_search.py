@@ -390,3 +390,75 @@ def test_score_draws_batch_the_same_draws_as_one_after_another():
                              rtol=1e-6)
   np.testing.assert_allclose(actions, loop[0][0])
   assert float(jnp.std(expected[:, 0, 0])) > 0.1  # The draws differ.
+
+
+def _levelled(params, latents, actions):
+  """The toy J shifted by params['level']: the state's value, moved by the test."""
+  return toy_score(params, latents, actions) + params['level']
+
+
+def test_fallback_keeps_the_actor_prior_once_the_value_drops(smoke_config, smoke_params, z):
+  """plan.fallback_drop: after the actor prior's J falls more than 10% below the episode's
+  peak, the actor prior's sequence runs for the rest of the episode, even once J recovers."""
+  c = safe_config(smoke_config, 0.0)
+  c.plan.fallback_drop = 0.1
+  guarded = make_plan(c, _levelled)
+  c = ml_collections.ConfigDict(c.to_dict())
+  c.plan.fallback_drop = 0.0
+  free = make_plan(c, _levelled)
+  guard, free_guard = None, None
+  for t, level in enumerate([100.0, 95.0, 80.0, 100.0]):  # 95: 5% below; 80: 20% below.
+    params = dict(smoke_params, level=jnp.float32(level))
+    seq, out = actor_sequence(lambda *a: guarded(*a, guard=guard), params, z, jax.random.key(t))
+    free_out = free(params, z, jax.random.key(t), guard=free_guard)
+    guard, free_guard = out.guard, free_out.guard
+    assert float(out.prior_score) == pytest.approx(float(_levelled(params, None, seq[None])[0]))
+    assert bool(free_out.departed) and not bool(free_out.guard.fallen)
+    if level > 90.0 and t < 2:  # Before the drop: the same decision as without the guard.
+      np.testing.assert_array_equal(out.action, free_out.action)
+      assert bool(out.departed) and not bool(out.guard.fallen)
+    else:  # The drop and after: the actor prior's own sequence.
+      np.testing.assert_array_equal(out.sequence, seq)
+      assert bool(out.guard.fallen) and not bool(out.departed)
+      assert CANDIDATE_KINDS[int(out.kind)] == 'actor_prior'
+  assert float(guard.peak) == pytest.approx(float(free_guard.peak))
+
+
+def test_advance_guard_falls_at_the_drop_and_stays():
+  from ld_mpc_jax.planner import advance_guard, initial_guard
+  g = initial_guard()
+  for score, fallen in [(-50.0, False), (-40.0, False), (-43.0, False), (-45.0, True),
+                        (-10.0, True)]:  # Negative values: the drop is relative to |peak|.
+    g = advance_guard(g, jnp.float32(score), 0.1)
+    assert bool(g.fallen) == fallen
+  assert float(g.peak) == -10.0
+  g = initial_guard()
+  for score in [100.0, 1.0]:
+    g = advance_guard(g, jnp.float32(score), 0.0)
+  assert not bool(g.fallen)
+
+
+def test_batch_policy_carries_the_guard_between_decisions(smoke_config, smoke_params):
+  from ld_mpc_jax import agent
+  c = smoke_config
+  c.plan.fallback_drop, c.plan.num_prior_candidates = 0.5, 1
+  act = agent.make_batch_act(c, 'plan')
+  obs = jnp.asarray(np.random.default_rng(0).uniform(-1, 1, (3, 39)), jnp.float32)
+  keys = agent.episode_keys(0, [1, 2, 3])
+  active = jnp.ones(3, bool)
+  _, carry, _ = act(smoke_params, obs, keys, 0, None, active)
+  sequence, guard = carry
+  assert sequence.shape == (3, c.horizon, c.action_dim) and guard.peak.shape == (3,)
+  assert np.all(np.isfinite(np.asarray(guard.peak))) and not np.any(np.asarray(guard.fallen))
+  _, (_, guard2), _ = act(smoke_params, obs, keys, 1, carry, active)
+  assert np.all(np.asarray(guard2.peak) >= np.asarray(guard.peak))
+
+
+def test_fallback_settings_fail_in_one_line(smoke_config):
+  c = smoke_config
+  c.plan.fallback_drop = 1.5
+  with pytest.raises(ValueError, match='fallback_drop must be in'):
+    make_plan(c)
+  c.plan.fallback_drop, c.plan.num_prior_candidates = 0.1, 0
+  with pytest.raises(ValueError, match='fallback_drop falls back'):
+    make_plan(c)

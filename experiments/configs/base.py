@@ -131,6 +131,15 @@ def get_config() -> ml_collections.ConfigDict:
   # one keeps more of the departures the first test passed: with eight rollouts, push `medium`
   # solves 21/150 at 2 and 29/150 at 1 (actor prior 11/150; README, docs/results.md).
   p.confirm_margin = -1.0
+  # Fallback: once J of the actor prior's own sequence (the objective's value of the current
+  # state) falls more than fallback_drop x |its highest value so far in the episode| below that
+  # peak, the planner executes the actor prior's sequence for the rest of the episode: the
+  # departures claimed a gain and the state they led to is worth less than one already reached,
+  # so the model is wrong here. Measured on MT10 peg-insert-side (training seed 1), where every
+  # episode the planner lost dropped the peg at the hole while departing (docs/results.md). 0:
+  # off. Acting as a policy, the planner then carries this state between decisions
+  # (ld_mpc_jax.planner.Guard).
+  p.fallback_drop = 0.0
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
