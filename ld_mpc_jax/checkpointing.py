@@ -23,7 +23,7 @@ _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
                       num_refine=64, num_elites=8, temperature=0.5, min_std=0.05,
                       selection='argmax', safe_selection=False, safe_margin=1.0,
                       safe_margin_scaling='none', safe_confirm=False, confirm_draws=1,
-                      confirm_margin=-1.0, fallback_drop=0.0,
+                      confirm_margin=-1.0, fallback_drop=0.0, fallback_floor=0.0,
                       first_round=('proposal', 'gaussian'))
 
 # Data, training and model settings of experiments/configs/base.py for configs saved before they

@@ -46,12 +46,13 @@ def initial_guard() -> Guard:
   return Guard(peak=jnp.asarray(-jnp.inf, jnp.float32), fallen=jnp.asarray(False))
 
 
-def advance_guard(guard: Guard, prior_score: jnp.ndarray, drop: float) -> Guard:
+def advance_guard(guard: Guard, prior_score: jnp.ndarray, drop: float,
+                  floor: float = 0.0) -> Guard:
   """The state after a decision whose actor prior's own sequence scores `prior_score`: the
   planner falls back (for the rest of the episode) once that score is more than drop x |peak|
-  below the episode's peak so far; drop = 0 never falls back."""
+  below the episode's peak so far, a peak above `floor`; drop = 0 never falls back."""
   peak = jnp.maximum(guard.peak, prior_score)
-  fell = (drop > 0) & (prior_score < peak - drop * jnp.abs(peak))
+  fell = (drop > 0) & (peak > floor) & (prior_score < peak - drop * jnp.abs(peak))
   return Guard(peak=peak, fallen=guard.fallen | fell)
 
 
@@ -282,7 +283,8 @@ def make_plan(config: ml_collections.ConfigDict,
     the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
     `guard` is the previous call's `PlanOutput.guard` in the same episode (None at its start):
     with `plan.fallback_drop` > 0 the planner executes the actor prior's own sequence once the
-    objective's value of the state has fallen that far below the episode's peak (`Guard`).
+    objective's value of the state has fallen that far below the episode's peak, a peak above
+    `plan.fallback_floor` (`Guard`).
 
   The first round holds the kinds of `plan.first_round` (search.CANDIDATES: by default the
   proposal's K - P, then `plan.num_gaussian` broad Gaussian sequences, TD-MPC2's first MPPI
@@ -348,7 +350,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     guard = initial_guard() if guard is None else guard
     if anchor >= 0:
       prior_score = pool.scores[anchor]
-      guard = advance_guard(guard, prior_score, p.fallback_drop)
+      guard = advance_guard(guard, prior_score, p.fallback_drop, p.fallback_floor)
       if p.fallback_drop:  # Fallen back: the actor prior's own sequence, whatever won.
         sequence = jnp.where(guard.fallen, pool.actions[anchor], sequence)
         index = jnp.where(guard.fallen, anchor, index)

@@ -429,9 +429,13 @@ def test_advance_guard_falls_at_the_drop_and_stays():
   g = initial_guard()
   for score, fallen in [(-50.0, False), (-40.0, False), (-43.0, False), (-45.0, True),
                         (-10.0, True)]:  # Negative values: the drop is relative to |peak|.
-    g = advance_guard(g, jnp.float32(score), 0.1)
+    g = advance_guard(g, jnp.float32(score), 0.1, -np.inf)
     assert bool(g.fallen) == fallen
   assert float(g.peak) == -10.0
+  g = initial_guard()  # Armed only above the floor: a peak of 100 is not, 300 is.
+  for score, fallen in [(100.0, False), (50.0, False), (300.0, False), (260.0, True)]:
+    g = advance_guard(g, jnp.float32(score), 0.1, 200.0)
+    assert bool(g.fallen) == fallen
   g = initial_guard()
   for score in [100.0, 1.0]:
     g = advance_guard(g, jnp.float32(score), 0.0)
