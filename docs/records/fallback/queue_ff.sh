@@ -1,0 +1,35 @@
+#!/bin/bash
+# plan.fallback_drop = 0.1 armed above plan.fallback_floor = 1000 on top of C8M1 (FF), against C8M1
+# and the actor prior on the same 50 held-out episodes per seed (evaluation seed 0). Commit 160857f,
+# worktree /work/wt42. Cached C8M1 and actor cells are read, not run again.
+cd /work/wt42 && . .venv/bin/activate
+export MUJOCO_GL=osmesa PYTHONUNBUFFERED=1
+O=/work/runs32
+R=/work/runs31/mt10
+P=/work/runs27/obj/push_medium
+G=/work/runs29/gpu
+S=plan.safe_selection=True,plan.safe_margin=2.0,plan.safe_margin_scaling=expected_max
+C8M1=safe2x_confirm8_m1:$S,plan.safe_confirm=True,plan.confirm_draws=8,plan.confirm_margin=1.0
+FF=${C8M1/safe2x_confirm8_m1:/safe2x_confirm8_m1_ff:},plan.fallback_drop=0.1,plan.fallback_floor=1000
+cs() { python -m experiments.compare_selection --variant=$C8M1 --variant=$FF --baselines=actor --episodes=50 --seed=0 "$@"; }
+echo "$(date +%T) start peg seed1 and push"
+cs --workdirs=$R/seed1 --tasks=peg-insert-side-v3 --out=$O/ff_peg_seed1.json > $O/ff_peg_seed1.log 2>&1 &
+for s in 0 1 2; do cs --workdirs=$P/seed$s --out=$O/ff_push_seed$s.json > $O/ff_push_seed$s.log 2>&1 & done; wait
+cs --workdirs=$P/seed0,$P/seed1,$P/seed2 --out=$O/ff_push.json > $O/ff_push.log 2>&1
+echo "$(date +%T) done peg and push rc=$?"
+A=reach-v3,push-v3,pick-place-v3,door-open-v3,drawer-open-v3
+B=drawer-close-v3,button-press-topdown-v3,peg-insert-side-v3,window-open-v3,window-close-v3
+for s in 1 0 2; do
+  cs --workdirs=$R/seed$s --tasks=$A --out=$O/ff_mt10_seed${s}_a.json > $O/ff_mt10_seed${s}_a.log 2>&1 &
+  cs --workdirs=$R/seed$s --tasks=$B --out=$O/ff_mt10_seed${s}_b.json > $O/ff_mt10_seed${s}_b.log 2>&1 &
+  wait
+  echo "$(date +%T) done mt10 seed$s"
+done
+cs --workdirs=$R/seed0,$R/seed1,$R/seed2 --out=$O/ff_mt10.json > $O/ff_mt10.log 2>&1
+echo "$(date +%T) done mt10 rc=$?"
+for d in door_weak reach_medium; do
+  for s in 0 1 2; do cs --workdirs=$G/${d}_seed$s --out=$O/ff_${d}_seed$s.json > $O/ff_${d}_seed$s.log 2>&1 & done; wait
+  cs --workdirs=$G/${d}_seed0,$G/${d}_seed1,$G/${d}_seed2 --out=$O/ff_$d.json > $O/ff_$d.log 2>&1
+  echo "$(date +%T) done $d rc=$?"
+done
+echo "$(date +%T) all done"
