@@ -255,6 +255,23 @@ def _make_refine(config: ml_collections.ConfigDict, score_draws: Callable,
   return refine_pool
 
 
+def _fall_back(p, pool: Pool, anchor: int, sequence, index, departed, guard: Optional[Guard]):
+  """(sequence, index, departed, prior_score, guard) after the fallback (`plan.fallback_drop`):
+  the guard advanced by the actor prior's score, and once it has fallen, the actor prior's own
+  sequence whatever won. Without an actor prior among the candidates: unchanged, prior_score
+  NaN."""
+  guard = initial_guard() if guard is None else guard
+  if anchor < 0:
+    return sequence, index, departed, jnp.asarray(jnp.nan, jnp.float32), guard
+  prior_score = pool.scores[anchor]
+  guard = advance_guard(guard, prior_score, p.fallback_drop, p.fallback_floor)
+  if p.fallback_drop:
+    sequence = jnp.where(guard.fallen, pool.actions[anchor], sequence)
+    index = jnp.where(guard.fallen, anchor, index)
+    departed = departed & ~guard.fallen
+  return sequence, index, departed, prior_score, guard
+
+
 def _warm_start(prev_sequence: Optional[jnp.ndarray], h: int, a_dim: int
                 ) -> Optional[jnp.ndarray]:
   """The previous plan [H, A] shifted one step (shift_sequence), or None without one."""
@@ -347,16 +364,8 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
       keep = departed & beats(fresh, fresh_members, 0, 1, confirm_margin)
       sequence = jnp.where(keep, sequence, pool.actions[anchor])
       index, departed = jnp.where(keep, index, anchor), keep
-    guard = initial_guard() if guard is None else guard
-    if anchor >= 0:
-      prior_score = pool.scores[anchor]
-      guard = advance_guard(guard, prior_score, p.fallback_drop, p.fallback_floor)
-      if p.fallback_drop:  # Fallen back: the actor prior's own sequence, whatever won.
-        sequence = jnp.where(guard.fallen, pool.actions[anchor], sequence)
-        index = jnp.where(guard.fallen, anchor, index)
-        departed = departed & ~guard.fallen
-    else:
-      prior_score = jnp.asarray(jnp.nan, jnp.float32)
+    sequence, index, departed, prior_score, guard = _fall_back(
+        p, pool, anchor, sequence, index, departed, guard)
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
     action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)
     return PlanOutput(action=action, sequence=sequence, scores=pool.scores,
