@@ -295,7 +295,8 @@ def make_plan(config: ml_collections.ConfigDict,
     plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0, guard=None) ->
     PlanOutput, one jitted pure function, the same one for every config of the same value in
     this process (ld_mpc_jax.config_cache; a `score_fn` always builds a new one). With
-    `plan.warm_start_steps` > 0, passing the previous call's `sequence` as `prev_sequence` warm-starts the proposal (and centres the Gaussian set) on it,
+    `plan.warm_start_steps` > 0, passing the previous call's `sequence` as `prev_sequence`
+    warm-starts the proposal (and centres the Gaussian set) on it,
     shifted by one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
     the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
     `guard` is the previous call's `PlanOutput.guard` in the same episode (None at its start):
