@@ -25,13 +25,15 @@ from ld_mpc_jax.models import build_networks
 from ld_mpc_jax.planner import make_plan, make_propose
 from ld_mpc_jax.registry import Registry
 
-# What a decision reports beside its action: int32 [3] = (kind of the winning candidate, an
+# What a decision reports beside its action: int32 [4] = (kind of the winning candidate, an
 # index into search.CANDIDATES.names() or -1 for policies that do not plan; the refinement round it
-# came from; 1 if the planner departed from the actor prior's own sequence, else 0).
-NO_PLAN_INFO = (-1, 0, 0)
+# came from; 1 if the planner departed from the actor prior's own sequence, else 0; the fallback
+# (`plan.fallback_drop`): 1 once it has handed the episode to the actor prior, 0 before, -1 for
+# policies without it).
+NO_PLAN_INFO = (-1, 0, 0, -1)
 
 # Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise []) ->
-# (action [A], carry, info [3]) is built by make_act(config, nets), not jitted; `carry` is what
+# (action [A], carry, info [4]) is built by make_act(config, nets), not jitted; `carry` is what
 # the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
 # MPPI's mean; the planner with `plan.fallback_drop` adds its planner.Guard);
 # `uses_prev(config)`: whether it acts on the previous decision's carry.
@@ -48,7 +50,7 @@ def _encode(nets, params, obs):
 
 
 def _plan_act(config, nets):
-  """The planner (ld_mpc_jax.planner); info is (kind, iteration, departed). With
+  """The planner (ld_mpc_jax.planner); info is (kind, iteration, departed, fallen). With
   `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
   previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
   plan = make_plan(config)
@@ -61,7 +63,8 @@ def _plan_act(config, nets):
     else:
       sequence, guard = prev, None
     out = plan(params, _encode(nets, params, obs), key, sequence, noise, guard)
-    info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32)])
+    fallen = out.guard.fallen.astype(jnp.int32) if guarded else jnp.asarray(-1, jnp.int32)
+    info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32), fallen])
     return out.action, (out.sequence, out.guard) if guarded else out.sequence, info
   return act
 
@@ -118,7 +121,7 @@ MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the regis
 
 
 def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
-  """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [3]),
+  """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [4]),
   not jitted. `noise`: std of Gaussian noise on the executed action of the planner or the actor
   prior (acting only)."""
   entry = POLICY_MODES.get(mode)
@@ -132,7 +135,7 @@ def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0) -> (action [A],
-  carry, info [3] int32: NO_PLAN_INFO's fields).
+  carry, info [4] int32: NO_PLAN_INFO's fields).
 
   The decision's key is fold_in(key, t). `prev` is the previous decision's carry (or None at
   the start of an episode); only the planner with `plan.warm_start_steps` > 0 or
@@ -157,7 +160,7 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
                    chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise []).
 
-  -> (actions [N, A], sequences [N, H, A], infos [N, 3]): `jax.lax.map` of the
+  -> (actions [N, A], sequences [N, H, A], infos [N, 4]): `jax.lax.map` of the
   single-environment act over the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
   environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
   vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
@@ -245,7 +248,7 @@ class BatchAgentPolicy:
     self.keys = self.prev = None
     # Std of the noise on the executed action (the planner, while acting; 0 in evaluation).
     self.action_noise = 0.0
-    self.last_info = None  # [N, 3] int32 of the last decision (NO_PLAN_INFO's fields).
+    self.last_info = None  # [N, 4] int32 of the last decision (NO_PLAN_INFO's fields).
 
   def set_params(self, params) -> None:
     """The parameters to act with from now on (replicated over the mesh, if any; copied to

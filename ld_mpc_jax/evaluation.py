@@ -195,10 +195,10 @@ def _run_wave(policy: BatchPolicy, wave: Sequence[goals_lib.Episode], slots: Lis
     if frames is not None and active[0]:
       frames.append(np.asarray(slots[0].render(), np.uint8))
     actions = np.asarray(policy(obs, t, active))
-    infos = getattr(policy, 'last_info', None)  # Planners: [N, 3] (agent.NO_PLAN_INFO).
+    infos = getattr(policy, 'last_info', None)  # Planners: [N, 4] (agent.NO_PLAN_INFO).
     for i in np.flatnonzero(active):
-      if infos is not None and infos[i][0] >= 0:  # A planner left the actor prior's sequence.
-        rec[i]['departures'] = rec[i].get('departures', 0) + int(infos[i][2])
+      if infos is not None:
+        _record_info(rec[i], t, infos[i])
       obs[i], reward, terminated, truncated, info = slots[i].step(actions[i])
       _record_step(rec[i], t, reward, info, action_repeat)
       if rec[i]['success'] or terminated or truncated:
@@ -209,6 +209,17 @@ def _run_wave(policy: BatchPolicy, wave: Sequence[goals_lib.Episode], slots: Lis
   seconds = time.perf_counter() - start_time
   bar.update(int(active.sum()))  # Episodes cut at the decision limit.
   return rec, seconds
+
+
+def _record_info(r: dict, t: int, info) -> None:
+  """Adds decision t's planner info (agent.NO_PLAN_INFO's fields) to record `r`: `departures`
+  counts decisions that left the actor prior's sequence (planners only); with the fallback,
+  `fallback_at` is the first decision the actor prior made for it (None while it has not)."""
+  if info[0] >= 0:  # A planner: did it leave the actor prior's sequence?
+    r['departures'] = r.get('departures', 0) + int(info[2])
+  if len(info) > 3 and info[3] >= 0:  # A planner with the fallback (`plan.fallback_drop`).
+    if r.get('fallback_at') is None:
+      r['fallback_at'] = t if info[3] else None
 
 
 def _record_step(r: dict, t: int, reward: float, info: Dict[str, Any],

@@ -205,6 +205,11 @@ def departure_share(records: Sequence[dict]) -> float:
   return sum(r['departures'] for r in records) / max(sum(r['length'] for r in records), 1)
 
 
+def fallback_share(records: Sequence[dict]) -> float:
+  """Episodes the fallback (`plan.fallback_drop`) handed to the actor prior, over all episodes."""
+  return sum(r['fallback_at'] is not None for r in records) / max(len(records), 1)
+
+
 def summarize(records: Sequence[dict]) -> Dict[str, Any]:
   """Pooled per (split, policy) summaries, spread over runs, and paired tests vs. the planner.
 
@@ -224,6 +229,8 @@ def summarize(records: Sequence[dict]) -> Dict[str, Any]:
       s['per_eval_seed'] = stats.spread(mine, 'eval_seed')['rates']
       if all('departures' in r for r in mine):  # Decisions that left the actor prior's plan.
         s['departure_share'] = departure_share(mine)
+      if all('fallback_at' in r for r in mine):  # Planners with the fallback.
+        s['fallback_share'] = fallback_share(mine)
       s['decisions_per_s'] = float(np.median([r['decisions_per_s'] for r in mine
                                               if 'decisions_per_s' in r] or [np.nan]))
       policies[mode] = s
@@ -265,7 +272,8 @@ def markdown(summary: Dict[str, Any]) -> str:
 def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]:
   """Per policy: pooled and per-run success, the paired test against `anchor` pooled and per run
   (`most_behind`: the most episodes one run's policy lost to its anchor, net), and for planners
-  ('plan...') the share of decisions that departed from the actor prior's own sequence."""
+  ('plan...') the share of decisions that departed from the actor prior's own sequence and,
+  with the fallback, `fallbacks`: the episodes it handed to the actor prior."""
   policies = list(dict.fromkeys(r['policy'] for r in records))
   runs = list(dict.fromkeys(r['run'] for r in records))
   base = stats.select(records, policy=anchor)
@@ -276,6 +284,8 @@ def against_anchor(records: Sequence[dict], anchor: str = 'actor') -> List[dict]
     row = dict(policy=policy, **stats.summarize(mine), per_run=[rates[str(run)] for run in runs])
     if policy.startswith('plan') and all('departures' in r for r in mine):
       row['departure_share'] = departure_share(mine)
+    if policy.startswith('plan') and mine and all('fallback_at' in r for r in mine):
+      row['fallbacks'] = sum(r['fallback_at'] is not None for r in mine)
     if base and policy != anchor:
       row['vs_anchor'] = stats.paired(mine, base)
       per_run = [stats.paired(stats.select(mine, run=run), stats.select(base, run=run))
@@ -376,6 +386,8 @@ def anchor_markdown(rows: Sequence[dict], anchor: str = 'actor') -> str:
            f'most episodes behind {anchor} on one seed |', '| --- ' * 7 + '|']
   for r in rows:
     dep = f"{r['departure_share']:.2f}" if 'departure_share' in r else ''
+    if 'fallbacks' in r:  # Episodes the fallback handed to the actor prior.
+      dep += f"; fallback in {r['fallbacks']}/{r['episodes']} episodes"
     seeds = ', '.join(f'{x:.2f}' for x in r['per_run'])
     if 'vs_anchor' in r:
       v = r['vs_anchor']

@@ -7,7 +7,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ld_mpc_jax import evaluation
+from ld_mpc_jax import evaluation, evaluation_suite
 from ld_mpc_jax.envs import metaworld_env
 
 
@@ -100,7 +100,7 @@ def test_lockstep_waves_give_the_same_records_as_one_at_a_time():
 
 
 class _InfoPolicy(evaluation.CallablePolicy):
-  """Reports `info` [3] per environment after each decision, as agent.BatchAgentPolicy does."""
+  """Reports `info` [4] per environment after each decision, as agent.BatchAgentPolicy does."""
 
   def __init__(self, info):
     super().__init__(lambda obs: np.zeros(1))
@@ -116,10 +116,35 @@ def test_departures_are_counted_for_planners_only():
   run = lambda info: evaluation.run_episodes(_InfoPolicy(info), episodes, 'door-open-v3',
                                              batch_size=2, max_episode_steps=20,
                                              env_factory=_FakeEnv, progress=False)[0]
-  planner = run((2, 0, 1))  # Every decision departed from the actor prior's sequence.
+  planner = run((2, 0, 1, -1))  # Every decision departed from the actor prior's sequence.
   assert [r['departures'] for r in planner] == [r['length'] for r in planner]
-  assert all(r['departures'] == 0 for r in run((2, 0, 0)))
-  assert all('departures' not in r for r in run((-1, 0, 0)))  # A policy that does not plan.
+  assert all('fallback_at' not in r for r in planner)  # No fallback configured.
+  assert all(r['departures'] == 0 for r in run((2, 0, 0, -1)))
+  assert all('departures' not in r for r in run((-1, 0, 0, -1)))  # A policy that does not plan.
+
+
+class _FallingPolicy(_InfoPolicy):
+  """A planner with the fallback that hands every episode to the actor prior at decision 3."""
+
+  def __call__(self, obs, t, active):
+    self.last_info = np.tile(np.asarray((2, 0, int(t < 3), int(t >= 3))), (len(obs), 1))
+    return np.zeros((len(obs), 1))
+
+
+def test_fallback_records_the_first_decision_of_the_actor_prior():
+  episodes = evaluation.seeded_episodes(5, 4)
+  run = lambda policy: evaluation.run_episodes(policy, episodes, 'door-open-v3', batch_size=2,
+                                               max_episode_steps=20, env_factory=_FakeEnv,
+                                               progress=False)[0]
+  fell = run(_FallingPolicy(None))
+  lengths = [r['length'] for r in fell]  # _FakeEnv ends some episodes within three decisions.
+  assert [r['fallback_at'] for r in fell] == [3 if n > 3 else None for n in lengths]
+  assert [r['departures'] for r in fell] == [min(n, 3) for n in lengths] and max(lengths) > 3
+  armed = run(_InfoPolicy((2, 0, 1, 0)))  # Armed, never fallen.
+  assert all(r['fallback_at'] is None for r in armed)
+  rows = evaluation_suite.against_anchor(
+      [dict(r, policy='plan', run=0) for r in fell + armed[:2]], anchor='plan')
+  assert rows[0]['fallbacks'] == sum(n > 3 for n in lengths) > 0
 
 def test_noise_sweep_and_fake_video(tmp_path):
   path = str(tmp_path / 'v.gif')

@@ -136,7 +136,7 @@ def test_acting_policy_has_no_noise_unless_set(smoke_config, smoke_params):
   eps = [goals.Episode('x', i, 0, i, '', None) for i in range(2)]
   policy.start(eps)
   quiet = policy(obs, 0, np.ones(2, bool))
-  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 3)
+  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 4)
   policy.start(eps)
   policy.action_noise = 0.5
   noisy = policy(obs, 0, np.ones(2, bool))
@@ -454,8 +454,13 @@ def test_batch_policy_carries_the_guard_between_decisions(smoke_config, smoke_pa
   sequence, guard = carry
   assert sequence.shape == (3, c.horizon, c.action_dim) and guard.peak.shape == (3,)
   assert np.all(np.isfinite(np.asarray(guard.peak))) and not np.any(np.asarray(guard.fallen))
-  _, (_, guard2), _ = act(smoke_params, obs, keys, 1, carry, active)
+  _, (_, guard2), info = act(smoke_params, obs, keys, 1, carry, active)
   assert np.all(np.asarray(guard2.peak) >= np.asarray(guard.peak))
+  assert np.array_equal(np.asarray(info)[:, 3], np.asarray(guard2.fallen).astype(int))
+  high = guard.replace(peak=jnp.full(3, 1e9, jnp.float32))
+  _, (_, fell), info = act(smoke_params, obs, keys, 2, (sequence, high), active)
+  info = np.asarray(info)  # A value far below its peak: the actor prior acts, and info says so.
+  assert np.all(np.asarray(fell.fallen)) and np.all(info[:, 3] == 1) and np.all(info[:, 2] == 0)
 
 
 def test_fallback_settings_fail_in_one_line(smoke_config):
