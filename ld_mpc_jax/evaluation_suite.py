@@ -205,11 +205,6 @@ def departure_share(records: Sequence[dict]) -> float:
   return sum(r['departures'] for r in records) / max(sum(r['length'] for r in records), 1)
 
 
-def fallback_share(records: Sequence[dict]) -> float:
-  """Episodes the fallback (`plan.fallback_drop`) handed to the actor prior, over all episodes."""
-  return sum(r['fallback_at'] is not None for r in records) / max(len(records), 1)
-
-
 def summarize(records: Sequence[dict]) -> Dict[str, Any]:
   """Pooled per (split, policy) summaries, spread over runs, and paired tests vs. the planner.
 
@@ -229,8 +224,6 @@ def summarize(records: Sequence[dict]) -> Dict[str, Any]:
       s['per_eval_seed'] = stats.spread(mine, 'eval_seed')['rates']
       if all('departures' in r for r in mine):  # Decisions that left the actor prior's plan.
         s['departure_share'] = departure_share(mine)
-      if all('fallback_at' in r for r in mine):  # Planners with the fallback.
-        s['fallback_share'] = fallback_share(mine)
       s['decisions_per_s'] = float(np.median([r['decisions_per_s'] for r in mine
                                               if 'decisions_per_s' in r] or [np.nan]))
       policies[mode] = s
