@@ -20,6 +20,7 @@ episode in both (the deterministic actor prior, say) counts once, and must have 
 in both.
 """
 
+import gzip
 import json
 import os
 import sys
@@ -45,11 +46,12 @@ def pool(results: list, names: list) -> dict:
 
 
 def read_json(path: str) -> dict:
-  """The JSON file at `path`; a file that cannot be read ends the program with one line, code 2."""
+  """The JSON file at `path` (gzip-compressed if it ends in .gz); a file that cannot be read ends
+  the program with one line, code 2."""
   try:
-    with open(path) as f:
+    with (gzip.open(path, 'rt') if path.endswith('.gz') else open(path)) as f:
       return json.load(f)
-  except (OSError, json.JSONDecodeError) as err:
+  except (OSError, EOFError, json.JSONDecodeError) as err:
     cli.fail(f'cannot read {path}: {err}')
 
 

@@ -1,5 +1,6 @@
 """experiments.pool_evals: pooling evaluation records over files."""
 
+import gzip
 import json
 
 import pytest
@@ -60,8 +61,9 @@ def test_main_prints_per_task_table_pooled_over_files(tmp_path, capsys):
     res = _result({'plan': outcomes})
     for r in res['records']:  # Two tasks, two episodes each.
       r['task'], r['episode'] = ('reach-v3', 'push-v3')[r['episode'] // 2], r['episode'] % 2
-    paths.append(tmp_path / f'{name}.json')
-    paths[-1].write_text(json.dumps(res))
+    paths.append(tmp_path / f'{name}.json.gz')  # Compressed records read as they are.
+    with gzip.open(paths[-1], 'wt') as f:
+      json.dump(res, f)
   pool_evals.main([str(p) for p in paths])
   out = capsys.readouterr().out
   assert '| reach-v3 | 3/4 = 0.75' in out and '| push-v3 | 0/4 = 0.00' in out
