@@ -11,7 +11,7 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   candidates, its acting pessimism (`online.act_pessimism`; evaluation keeps `plan.pessimism`):
   unfamiliar states are model error offline, opportunity online; and its acting selection
   (`online.act_safe_selection`; evaluation keeps `plan.safe_selection`; `plan.safe_confirm`
-  applies while acting only with it), and its search
+  and `plan.fallback_drop` apply while acting only with it), and its search
   (`online.act_num_gaussian`, `online.act_iterations`; evaluation keeps `plan.num_gaussian`
   and `plan.iterations`)."""
   c = ml_collections.ConfigDict(config.to_dict())
@@ -20,6 +20,8 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   c.plan.pessimism = config.online.act_pessimism
   c.plan.safe_selection = config.online.act_safe_selection
   c.plan.safe_confirm = config.plan.safe_confirm and config.online.act_safe_selection
+  # The fallback hands the rest of an episode to the actor prior: a safe-selection gate too.
+  c.plan.fallback_drop = config.plan.fallback_drop if config.online.act_safe_selection else 0.0
   c.plan.num_gaussian = config.online.act_num_gaussian
   c.plan.iterations = config.online.act_iterations
   return c

@@ -34,6 +34,17 @@ def test_acting_searches_with_its_own_settings_and_evaluation_with_the_plans():
   assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)
 
 
+def test_acting_keeps_the_safe_selection_gates_only_when_asked():
+  c = door_open_online.get_config('cpu_correlated')
+  c.plan.safe_selection, c.plan.safe_confirm, c.plan.fallback_drop = True, True, 0.1
+  acting = exploration.acting_config(c)  # online.act_safe_selection is off in the presets.
+  assert not (acting.plan.safe_selection or acting.plan.safe_confirm)
+  assert acting.plan.fallback_drop == 0
+  c.online.act_safe_selection = True
+  acting = exploration.acting_config(c)
+  assert acting.plan.safe_confirm and acting.plan.fallback_drop == 0.1
+
+
 def test_cpu_tanh_is_cpu_correlated_with_tanh_and_evaluation_without_the_search():
   base, tanh = (json.loads(door_open_online.get_config(p).to_json_best_effort())
                 for p in ('cpu_correlated', 'cpu_tanh'))
