@@ -218,8 +218,9 @@ def _record_info(r: dict, t: int, info) -> None:
   if info[0] >= 0:  # A planner: did it leave the actor prior's sequence?
     r['departures'] = r.get('departures', 0) + int(info[2])
   if len(info) > 3 and info[3] >= 0:  # A planner with the fallback (`plan.fallback_drop`).
-    if r.get('fallback_at') is None:
-      r['fallback_at'] = t if info[3] else None
+    r.setdefault('fallback_at', None)
+    if info[3] and r['fallback_at'] is None:
+      r['fallback_at'] = t
 
 
 def _record_step(r: dict, t: int, reward: float, info: Dict[str, Any],
