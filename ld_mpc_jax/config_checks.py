@@ -1,5 +1,7 @@
 """Checks that a config makes sense, so bad values fail with a message naming the field."""
 
+import os
+
 import ml_collections
 
 from ld_mpc_jax import exploration, legacy, tasks
@@ -182,18 +184,19 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   o = config.online
   for name, least in (('env_steps', 1), ('num_envs', 1), ('episode_steps', 1),
                       ('checkpoint_every', 1), ('eval_every', 1), ('seed_steps', 0),
-                      ('plan_chunk', 0)):
+                      ('plan_chunk', 0), ('demos', 0), ('demo_pretrain_updates', 0)):
     if not isinstance(o[name], int) or isinstance(o[name], bool) or o[name] < least:
       raise ValueError(f'config.online.{name} must be an integer >= {least}, got {o[name]!r}')
-  for name in ('update_ratio', 'action_noise_std', 'prior_noise_std'):
+  for name in ('update_ratio', 'action_noise_std', 'prior_noise_std', 'demo_noise_std'):
     if o[name] < 0:
       raise ValueError(f'config.online.{name} must be >= 0, got {o[name]}')
+  _validate_demos(config)
   decisions = -(-o.episode_steps // config.eval.action_repeat)
   if decisions < config.horizon + 1:
     raise ValueError(f'config.online.episode_steps ({o.episode_steps}) gives episodes of '
                      f'{decisions} decisions; training windows need horizon + 1 = '
                      f'{config.horizon + 1}')
-  if not o.init_from and o.seed_steps < 1:
+  if not o.init_from and not o.demos and o.seed_steps < 1:
     raise ValueError('config.online.seed_steps must be >= 1 from scratch (no online.init_from): '
                      'the first updates need seed episodes')
   check_online_budget(config)
@@ -244,6 +247,19 @@ def _validate_acting_search(config: ml_collections.ConfigDict) -> None:
                      f'{err}') from None
 
 
+def _validate_demos(config: ml_collections.ConfigDict) -> None:
+  """config.online's demonstration fields (ld_mpc_jax.data.demos)."""
+  o = config.online
+  for name in ('demo_share_start', 'demo_share_end'):
+    if not 0.0 <= o[name] <= 1.0:
+      raise ValueError(f'config.online.{name} must be in [0, 1], got {o[name]}')
+  if o.demo_path and not o.demos:
+    raise ValueError('config.online.demo_path is set but config.online.demos is 0: '
+                     'set how many of its episodes to use')
+  if o.demo_path and not os.path.isfile(o.demo_path):
+    raise ValueError(f'config.online.demo_path={o.demo_path!r} is not a file')
+
+
 def check_online_budget(config: ml_collections.ConfigDict) -> None:
   """ValueError when config.train.batch_size exceeds the windows of an online run's first update.
 
@@ -255,7 +271,7 @@ def check_online_budget(config: ml_collections.ConfigDict) -> None:
   nor with `online.init_from`, whose offline dataset `runs.check_config_for_data` checks.
   """
   o, batch = config.online, config.train.batch_size
-  if o.init_from or not o.update_ratio:
+  if o.init_from or not o.update_ratio or o.demos:  # Sampling from demos has replacement.
     return
   wave = o.num_envs * o.episode_steps  # Environment steps per wave (success ends no episode).
   waves = -(-o.seed_steps // wave)

@@ -12,6 +12,10 @@ them the agent acts with its planner and EMA parameters (one jitted plan per env
 evaluation never uses. Updates interleave with acting: once learning has started, after every
 decision updates run until floor(`online.update_ratio` x environment steps) have been made, so
 from scratch the seed steps' share comes at once (TD-MPC2 pretrains on its seed data likewise).
+With `online.demos` = N (ld_mpc_jax.data.demos), N successful scripted episodes on training
+goals (or a dataset file's) sit in their own buffer; every batch draws an annealed share of its
+windows from them, `online.demo_pretrain_updates` updates on them alone come before the first
+wave, and the planner acts from the first wave (no random seed waves).
 With `online.init_from` (an offline run's workdir), the agent starts from that run's latest
 checkpoint (parameters, optimiser state, EMA) and samples from that run's dataset and its own
 episodes alike.
@@ -43,9 +47,10 @@ from ld_mpc_jax.models import count_params, set_obs_normalization
 from ld_mpc_jax.search import CANDIDATES
 from ld_mpc_jax.train_state import create_train_state, make_multi_update, make_update
 
+from ld_mpc_jax.data.demos import demo_share, get_demos
+from ld_mpc_jax.data.online_buffer import BUFFER_DIR, Buffer, buffer_path
 from ld_mpc_jax.run_files import LOSSES_CSV, ONLINE_CSV
 
-BUFFER_DIR = 'online'
 
 
 def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collections.ConfigDict]:
@@ -77,51 +82,6 @@ def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collection
   return source
 
 
-class Buffer:
-  """The replay buffer of an online run: the offline dataset (if any) and the online episodes.
-
-  Episodes are dicts of obs [L+1, obs_dim], action [L, A], reward [L], success [L] (float32,
-  bool); windows are sampled uniformly over both (`data.ReplayBuffer`) with one persistent
-  generator, whose state the checkpoint keeps.
-  """
-
-  def __init__(self, seq_len: int, offline: Optional[data.Dataset], seed: int):
-    self.seq_len, self.offline = seq_len, offline
-    self.episodes: List[Dict[str, np.ndarray]] = []
-    self.rng = np.random.default_rng([seed, 23])
-    self._sampler = None
-
-  def add(self, episodes: List[Dict[str, np.ndarray]]) -> None:
-    self.episodes.extend(episodes)
-    self._sampler = None
-
-  def sample(self, batch_size: int) -> Dict[str, np.ndarray]:
-    if self._sampler is None:
-      old = [self.offline.episode(e) for e in range(self.offline.num_episodes)] if (
-          self.offline is not None) else []
-      # default_rng(Generator) is that generator: the sampler draws from self.rng.
-      self._sampler = data.ReplayBuffer(data.Dataset.from_episodes(old + self.episodes),
-                                        self.seq_len, seed=self.rng)
-    return self._sampler.sample(batch_size)
-
-  def save(self, path: str, counters: Dict[str, Any]) -> None:
-    """Online episodes and `counters` to `path` (.npz, atomic; `data.save`)."""
-    meta = dict(online=counters, sampler_rng=self.rng.bit_generator.state)
-    data.save(data.Dataset.from_episodes(self.episodes, metadata=meta), path)
-
-  def load(self, path: str) -> Dict[str, Any]:
-    """Replaces the online episodes and the sampler state with `path`'s; returns its counters."""
-    ds = data.load(path)
-    self.episodes = [ds.episode(e) for e in range(ds.num_episodes)]
-    self.rng.bit_generator.state = ds.metadata['sampler_rng']
-    self._sampler = None
-    return ds.metadata['online']
-
-
-def buffer_path(workdir: str, step: int) -> str:
-  return os.path.join(workdir, BUFFER_DIR, f'buffer_{step}.npz')
-
-
 class OnlineJob:
   """An online run as a `runs.Job`: each advance is one wave of episodes and its updates.
 
@@ -131,8 +91,9 @@ class OnlineJob:
 
   def __init__(self, config, run: runs.Run, source, offline: Optional[data.Dataset]):
     self.config, self.run, self.source, o = config, run, source, config.online
-    self.buffer = Buffer(runs.window_length(config), offline, config.seed)
-    self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0)
+    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config))
+    self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
+                         pretrain_updates=0)
     self.state = run.restore()
     if self.state is not None:  # Resume: the buffer file of the same step.
       step = run.manager.latest_step()
@@ -145,7 +106,9 @@ class OnlineJob:
     else:  # From scratch; observation statistics come with the seed data (catch_up).
       self.state = create_train_state(config, jax.random.key(config.seed))
       self.counters['normalized'] = not config.model.normalize_obs
-    self.learn_start = 0 if source is not None else o.seed_steps
+    # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
+    # pretrained on them, plus the executed-action noise), act with the planner from the start.
+    self.learn_start = 0 if source is not None or o.demos else o.seed_steps
     self.per_call = o.updates_per_call
     self.update = (make_update(config) if self.per_call == 1
                    else make_multi_update(config, self.per_call))
@@ -171,24 +134,35 @@ class OnlineJob:
     """Updates until floor(update_ratio x environment steps) have been made.
 
     From scratch, the first call sets the encoder's observation statistics from the seed
-    episodes (`config.model.normalize_obs`) before any update.
+    episodes and demonstrations (`config.model.normalize_obs`) before any update, then makes
+    the `online.demo_pretrain_updates` updates on the demonstrations alone (MoDem's BC
+    pretraining; not counted in the update ratio).
     """
-    c = self.counters
+    c, o = self.counters, self.config.online
     if not c.get('normalized', True):  # Counters; fine-tuning starts normalized (no key).
-      obs = np.concatenate([ep['obs'] for ep in self.buffer.episodes])
+      obs = np.concatenate([ep['obs'] for ep in self.buffer.episodes + self.buffer.demos])
       params = set_obs_normalization(self.state.params, obs)
       self.state = self.state.replace(  # Copies: the update donates both trees.
           params=params, ema_params=jax.tree_util.tree_map(jnp.copy, params))
       c['normalized'] = True
-    target, batch, n = (int(self.config.online.update_ratio * c['env_steps']),
-                        self.config.train.batch_size, self.per_call)
-    while c['updates'] + n <= target:  # `online.updates_per_call` updates per jitted call.
-      windows = self.buffer.sample(batch * n)
+    if self.buffer.demos and c.get('pretrain_updates', 0) < o.demo_pretrain_updates:
+      self._updates(o.demo_pretrain_updates, 'pretrain_updates', share=1.0)
+    self._updates(int(o.update_ratio * c['env_steps']), 'updates',
+                  share=demo_share(self.config, c['env_steps']))
+
+  def _updates(self, target: int, counter: str, share: float) -> None:
+    """Updates until counters[counter] reaches `target`, `online.updates_per_call` per jitted
+    call, a `share` of each batch from the demonstrations (`Buffer.sample`)."""
+    c, batch, n = self.counters, self.config.train.batch_size, self.per_call
+    c.setdefault(counter, 0)
+    while c[counter] + n <= target:
+      windows = self.buffer.sample(batch, n, share)
       if n > 1:
         windows = {k: v.reshape((n, batch) + v.shape[1:]) for k, v in windows.items()}
+      step = c['updates'] + c.get('pretrain_updates', 0)  # One key per update made.
       self.state, self.metrics = self.update(
-          self.state, windows, jax.random.fold_in(self.update_key, c['updates']))
-      c['updates'] += n
+          self.state, windows, jax.random.fold_in(self.update_key, step))
+      c[counter] += n
 
   def advance(self) -> None:
     """One wave: its episodes into the buffer, its acting and update time into the counters."""
@@ -363,6 +337,8 @@ def _report(job: OnlineJob, final, summary, commit) -> Dict[str, Any]:
       'mean_return': final['mean_return'], 'eval_episodes': config.eval.episodes,
       'eval_seeds': list(config.eval.seeds), 'evaluation': summary, 'curve': curve,
       'num_params': count_params(job.state.ema_params),
+      'demos': len(job.buffer.demos), 'reward': config.online.reward,
+      'first_training_success': _first_success(job.run.workdir),
       'buffer': {'online_episodes': len(job.buffer.episodes),
                  'offline_episodes': (job.buffer.offline.num_episodes
                                       if job.buffer.offline is not None else 0)},
@@ -370,12 +346,26 @@ def _report(job: OnlineJob, final, summary, commit) -> Dict[str, Any]:
   }
 
 
+def _first_success(workdir: str) -> Optional[int]:
+  """Environment steps (simulator steps) at the end of the first wave with a successful
+  training episode (None: none succeeded), from online.csv."""
+  for row in run_files.read_csv(os.path.join(workdir, ONLINE_CSV)):
+    if float(row['episode_success']) > 0:
+      return int(row['env_steps'])
+  return None
+
+
 def _summary_md(report: Dict[str, Any]) -> str:
   """report.md: what ran, the held-out curve against environment steps, the final evaluation."""
   start = (f"fine-tuned from `{report['init_from']}` (its dataset and "
            f"{report['buffer']['online_episodes']} online episodes in the buffer)"
            if report['init_from'] else f"from scratch ({report['buffer']['online_episodes']} "
-           'online episodes, seed episodes of random actions first)')
+           'online episodes, seed episodes of random actions first)' if not report['demos']
+           else f"from scratch with {report['demos']} demonstrations "
+           f"({report['buffer']['online_episodes']} online episodes)")
+  first = report['first_training_success']
+  start += (f"; first successful training episode by {first:,} environment steps"
+            if first is not None else '; no training episode succeeded')
   lines = [f"{report['env_steps']:,} environment steps, {report['updates']:,} updates, {start}; "
            f"{report['train_seconds']:.0f} s acting and training "
            f"({report['env_steps_per_s']:.1f} environment steps/s with updates and compilation, "

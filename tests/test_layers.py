@@ -126,7 +126,7 @@ LAYERS = (
     ('model parts', ('actors', 'critics', 'proposals', 'dynamics', 'objective', 'search',
                      'tasks')),
     ('data', ('data', 'data.dataset', 'data.collection', 'data.replay', 'data.tdmpc2',
-              'data.multitask', 'data.sources')),
+              'data.multitask', 'data.sources', 'data.demos', 'data.online_buffer')),
     ('config checks', ('config_checks', 'exploration')),
     ('model', ('models',)),
     ('learn', ('losses', 'train_state', 'checkpointing')),

@@ -67,6 +67,21 @@ def online_settings() -> ml_collections.ConfigDict:
   o.train_goals = 'mt1'
   # 'dense': Meta-World's shaped reward; 'sparse': 1 on steps where the task is solved, else 0.
   o.reward = 'dense'
+  # Demonstrations (ld_mpc_jax.data.demos), as MoDem (Hansen et al. 2022) and DEMO3 use: N
+  # successful episodes of the scripted policy on training goals (or the first N successful
+  # episodes of the dataset file `demo_path`), with the run's reward, in their own buffer.
+  o.demos = 0  # MoDem and DEMO3: 5.
+  o.demo_path = ''
+  o.demo_noise_std = 0.1  # Gaussian noise on the scripted actions (the `expert` data level).
+  # Share of every batch drawn from the demonstrations, linear over the run (MoDem: 50% -> 25%;
+  # RLPD samples offline and online data 50:50).
+  o.demo_share_start = 0.5
+  o.demo_share_end = 0.25
+  # Updates on the demonstrations alone before the first wave (MoDem's BC pretraining; here of
+  # every network: proposal, actor prior, dynamics, objective); not counted in update_ratio.
+  # With demonstrations the planner acts from the first wave, with the executed-action noise
+  # (MoDem's seeding phase acts with the pretrained policy), and seed_steps is unused.
+  o.demo_pretrain_updates = 1_000
   # Planner environments per vmap (0: one jitted plan per environment, the faster on a 2-core
   # CPU; an accelerator wants them all in one vmap).
   o.plan_chunk = 4

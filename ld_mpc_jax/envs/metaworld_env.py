@@ -266,11 +266,11 @@ def make_env(task: str, seed: int, action_repeat: int = 2,
 
 
 # Independent seed streams, so evaluation never replays a collected (or online) episode.
-SEED_STREAMS = {'eval': 0, 'collect': 1, 'online': 2}
+SEED_STREAMS = {'eval': 0, 'collect': 1, 'online': 2, 'demos': 3}
 
 
 def episode_seeds(seed: int, num_episodes: int, stream: str) -> np.ndarray:
-  """int64 [num_episodes]: per-episode reset seeds for `stream` ('eval'/'collect'/'online').
+  """int64 [num_episodes]: per-episode reset seeds for `stream` ('eval'/'collect'/'online'/'demos').
 
   Episode i's seed is drawn from np.random.SeedSequence([seed, stream, i]), so
   different base seeds and streams give unrelated episodes.

@@ -1,0 +1,93 @@
+"""ld_mpc_jax.data.demos and the demonstration buffer: sparse reward, the annealed share of every
+batch, the files they come from, and a smoke online run that pretrains and acts on them."""
+
+import csv
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from experiments.configs import door_open_online
+from ld_mpc_jax import data, online
+from ld_mpc_jax.data import demos
+from ld_mpc_jax.data.online_buffer import Buffer
+
+DEMO_OBS = 5.0  # Observations of the fake demonstrations: every window from them is all 5.0.
+
+
+def _episode(length, value, success_from=None):
+  success = np.zeros(length, bool)
+  if success_from is not None:
+    success[success_from:] = True
+  return dict(obs=np.full((length + 1, 39), value, np.float32),
+              action=np.zeros((length, 4), np.float32),
+              reward=np.linspace(0.0, 9.0, length).astype(np.float32), success=success)
+
+
+def test_sparse_reward_is_one_exactly_on_solved_steps():
+  ep = _episode(12, 0.0, success_from=7)
+  ep['success'][9] = False  # Solved, then not: the reward follows the flag, step by step.
+  (out,) = demos.with_reward([ep], 'sparse')
+  np.testing.assert_array_equal(out['reward'], ep['success'].astype(np.float32))
+  assert out['reward'].sum() == 4.0
+  (dense,) = demos.with_reward([ep], 'dense')
+  np.testing.assert_array_equal(dense['reward'], ep['reward'])
+
+
+def test_demo_share_is_linear_from_start_to_end_and_zero_without_demos():
+  config = door_open_online.get_config('smoke')
+  o = config.online
+  o.env_steps, o.demos, o.demo_share_start, o.demo_share_end = 1000, 5, 0.5, 0.25
+  assert [demos.demo_share(config, s) for s in (0, 500, 1000, 5000)] == [0.5, 0.375, 0.25, 0.25]
+  o.demos = 0
+  assert demos.demo_share(config, 0) == 0.0
+
+
+@pytest.mark.parametrize('share', [0.5, 0.25, 0.0])
+def test_every_batch_of_a_call_holds_its_share_of_demo_windows(share):
+  buffer = Buffer(seq_len=4, offline=None, seed=0,
+                  demos=[_episode(30, DEMO_OBS, 20), _episode(30, DEMO_OBS, 25)])
+  # Nothing but demonstrations yet: every window comes from them, whatever the share.
+  only = buffer.sample(16, groups=2, demo_share=share)
+  assert only['obs'].shape == (32, 4, 39) and np.all(only['obs'] == DEMO_OBS)
+  buffer.add([_episode(30, 0.0), _episode(40, 0.0)])
+  windows = buffer.sample(16, groups=3, demo_share=share)
+  assert windows['obs'].shape == (48, 4, 39)
+  from_demos = np.all(windows['obs'] == DEMO_OBS, axis=(1, 2)).reshape(3, 16).sum(axis=1)
+  np.testing.assert_array_equal(from_demos, [demos.demo_rows(16, share)] * 3)
+
+
+def test_load_demos_keeps_the_first_successful_episodes(tmp_path):
+  path = str(tmp_path / 'demos.npz')
+  episodes = [_episode(20, 1.0), _episode(20, 2.0, 5), _episode(20, 3.0), _episode(20, 4.0, 9)]
+  data.save(data.Dataset.from_episodes(episodes), path)
+  got = demos.load_demos(path, 2)
+  assert [float(ep['obs'][0, 0]) for ep in got] == [2.0, 4.0]
+  with pytest.raises(ValueError, match='holds 2 successful episodes'):
+    demos.load_demos(path, 3)
+
+
+def test_a_run_with_demos_pretrains_on_them_and_plans_from_the_first_wave(tmp_path, monkeypatch):
+  path = str(tmp_path / 'demos.npz')
+  data.save(data.Dataset.from_episodes([_episode(10, DEMO_OBS, 6), _episode(10, DEMO_OBS, 4)]),
+            path)
+  config = door_open_online.get_config('smoke')
+  o = config.online
+  o.demos, o.demo_path, o.demo_pretrain_updates, o.reward = 2, path, 3, 'sparse'
+  o.env_steps, o.eval_every, o.update_ratio = 40, 40, 0.1
+  config.eval.splits, config.eval.baselines, config.eval.episodes = ('held_out',), (), 2
+  shares = []
+
+  def counting(cfg):  # Records each batch's share of demo windows; compiles in no time.
+    def update(state, batch, key):
+      shares.append(float(np.mean(np.all(np.asarray(batch['obs']) == DEMO_OBS, axis=(1, 2)))))
+      return state.replace(step=state.step + 1), {'loss': jnp.float32(1.0)}
+    return update
+  monkeypatch.setattr(online, 'make_update', counting)
+  report = online.train_online(config, str(tmp_path / 'run'))
+  assert report['demos'] == 2 and report['updates'] == 4  # 0.1 x 40 environment steps.
+  # The pretraining (demos alone), then the updates during the first wave: its episodes join the
+  # buffer only at its end, so these too come from the demos.
+  assert shares == [1.0] * 7
+  with open(tmp_path / 'run' / 'online.csv') as f:
+    assert [r['acting'] for r in csv.DictReader(f)] == ['planner']
