@@ -59,7 +59,8 @@ def main(argv):
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
   if jax.process_index() == 0:  # The one process that writes the report.
-    print(open(os.path.join(_WORKDIR.value, 'report.md')).read())
+    name = 'report.md' if _CONFIG.value.train.num_seeds == 1 else 'pooled.md'
+    print(open(os.path.join(_WORKDIR.value, name)).read())
 
 
 if __name__ == '__main__':

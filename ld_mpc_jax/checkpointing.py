@@ -28,7 +28,7 @@ _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
 
 # Data, training and model settings of experiments/configs/base.py for configs saved before they
 # existed, with the values those runs used (one device, no observation normalisation).
-_TRAIN_DEFAULTS = dict(data_parallel=False)
+_TRAIN_DEFAULTS = dict(data_parallel=False, num_seeds=1)
 
 
 def _data_defaults() -> dict:
@@ -113,6 +113,12 @@ def restore_latest(manager: ocp.CheckpointManager,
   step = manager.latest_step()
   if step is None:
     return None
+  return manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
+
+
+def restore_step(manager: ocp.CheckpointManager, config: ml_collections.ConfigDict,
+                 step: int) -> TrainState:
+  """The TrainState of checkpoint `step`."""
   return manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
 
 

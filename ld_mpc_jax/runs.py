@@ -108,9 +108,11 @@ class Run:
     self.writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
                    else run_files.NoWriter())
 
-  def restore(self):
-    """The latest checkpoint's TrainState, or None; the logs lose rows written after it."""
-    state = checkpointing.restore_latest(self.manager, self.config)
+  def restore(self, step: Optional[int] = None):
+    """The TrainState of checkpoint `step` (None: the latest), or None without a checkpoint;
+    the logs lose rows written after it."""
+    state = (checkpointing.restore_latest(self.manager, self.config) if step is None
+             else checkpointing.restore_step(self.manager, self.config, step))
     if state is not None:
       # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which
       # lowers to another program): a resumed run then compiles the update a fresh run compiled
@@ -118,7 +120,7 @@ class Run:
       state = jax.tree.map(_uncommitted, state)
       for name, column in STEP_LOGS:
         run_files.drop_rows_after(os.path.join(self.workdir, name), column,
-                                  self.manager.latest_step())
+                                  self.manager.latest_step() if step is None else step)
     return state
 
   def prior_seconds(self) -> float:

@@ -140,4 +140,34 @@ def make_multi_update(config: ml_collections.ConfigDict, num: int) -> Callable:
     state, metrics = jax.lax.scan(body, state, (batches, jnp.arange(num)))
     return state, jax.tree_util.tree_map(lambda x: x[-1], metrics)
 
-  return jax.jit(multi, donate_argnums=0)
+  jitted = jax.jit(multi, donate_argnums=0)
+  jitted.unjitted = multi  # For make_seeds_update.
+  return jitted
+
+
+def stack_states(states):
+  """One tree with a leading seed axis [N, ...] from N trees of the same structure."""
+  return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *states)
+
+
+def seed_slice(tree, i: int):
+  """Seed i's tree from one with a leading seed axis (`stack_states`)."""
+  return jax.tree_util.tree_map(lambda x: x[i], tree)
+
+
+def make_seeds_update(config: ml_collections.ConfigDict, num_seeds: int, per_call: int = 1
+                      ) -> Callable:
+  """Returns jitted update(state, batches, keys) -> (state, metrics) for `num_seeds`
+  independent agents (`config.train.num_seeds`): state, batches and keys [N] carry a leading
+  seed axis, and the update (`make_update`, or `per_call` updates in one call,
+  `make_multi_update`, batches [N, per_call, B, ...]) is vmapped over it; metrics [N]. With one
+  seed it is the unbatched update on the squeezed arguments, the same program a single run
+  compiles. State donated."""
+  one = (make_update(config).unjitted if per_call == 1
+         else make_multi_update(config, per_call).unjitted)
+  if num_seeds == 1:
+    squeeze = lambda tree: jax.tree_util.tree_map(lambda x: x[0], tree)
+    expand = lambda tree: jax.tree_util.tree_map(lambda x: x[None], tree)
+    return jax.jit(lambda state, batches, keys: expand(one(squeeze(state), squeeze(batches),
+                                                           keys[0])), donate_argnums=0)
+  return jax.jit(jax.vmap(one), donate_argnums=0)

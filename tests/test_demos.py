@@ -78,12 +78,13 @@ def test_a_run_with_demos_pretrains_on_them_and_plans_from_the_first_wave(tmp_pa
   config.eval.splits, config.eval.baselines, config.eval.episodes = ('held_out',), (), 2
   shares = []
 
-  def counting(cfg):  # Records each batch's share of demo windows; compiles in no time.
-    def update(state, batch, key):
-      shares.append(float(np.mean(np.all(np.asarray(batch['obs']) == DEMO_OBS, axis=(1, 2)))))
-      return state.replace(step=state.step + 1), {'loss': jnp.float32(1.0)}
+  def counting(cfg, n, per_call):  # Records each batch's share of demo windows; no compiling.
+    def update(state, batch, keys):
+      obs = np.asarray(batch['obs'])[0]  # [B, T, obs_dim] of the one seed.
+      shares.append(float(np.mean(np.all(obs == DEMO_OBS, axis=(1, 2)))))
+      return state.replace(step=state.step + 1), {'loss': jnp.ones(n, jnp.float32)}
     return update
-  monkeypatch.setattr(online, 'make_update', counting)
+  monkeypatch.setattr(online, 'make_seeds_update', counting)
   report = online.train_online(config, str(tmp_path / 'run'))
   assert report['demos'] == 2 and report['updates'] == 4  # 0.1 x 40 environment steps.
   # The pretraining (demos alone), then the updates during the first wave: its episodes join the

@@ -132,7 +132,7 @@ LAYERS = (
     ('learn', ('losses', 'train_state', 'checkpointing')),
     ('plan', ('planner', 'mppi', 'agent')),
     ('eval', ('evaluation', 'evaluation_suite', 'diagnostics', 'multitask_eval', 'run_files')),
-    ('runs', ('runs', 'online', 'train', '')),
+    ('runs', ('runs', 'online_seats', 'online_report', 'online', 'train', '')),
 )
 
 

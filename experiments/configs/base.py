@@ -222,6 +222,11 @@ def get_config() -> ml_collections.ConfigDict:
   # Split each batch over all devices (jax.sharding mesh, state replicated; ld_mpc_jax.sharding).
   # Off: a plain single-device jit, which is what one device needs.
   t.data_parallel = False
+  # Independent training seeds in one run (config.seed, config.seed + 1, ...): parameters,
+  # optimiser states and keys carry a leading seed axis and the update is vmapped over it; each
+  # seed has its own data order, buffer and environments and writes <workdir>/seed<seed> as a
+  # run of that seed alone would (online runs; ld_mpc_jax.online).
+  t.num_seeds = 1
 
   c.data = ml_collections.ConfigDict()
   c.data.preset = 'mixed'

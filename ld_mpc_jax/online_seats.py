@@ -1,0 +1,153 @@
+"""The training seeds of an online run (ld_mpc_jax.online, `train.num_seeds`): each seed's
+config, run directory, buffer and environments (`Seat`), and its episodes of a wave while they
+run (`SeatWave`). The seeds' parameters live stacked in the job's TrainState."""
+
+import os
+from typing import Optional
+
+import jax
+import ml_collections
+import numpy as np
+
+from ld_mpc_jax import data, envs, run_files, runs
+from ld_mpc_jax.data.demos import get_demos
+from ld_mpc_jax.data.online_buffer import Buffer
+from ld_mpc_jax.exploration import ar1_noise, executed_noise
+from ld_mpc_jax.run_files import LOSSES_CSV, ONLINE_CSV
+from ld_mpc_jax.search import CANDIDATES
+
+
+def seat_configs(config: ml_collections.ConfigDict, workdir: str):
+  """[(config, workdir)] of each training seed of a run: the run itself with one seed; with
+  `train.num_seeds` = N > 1, seeds config.seed + i in <workdir>/seed<seed>, each config as a
+  separate run of that seed would save it (num_seeds = 1)."""
+  n = config.train.num_seeds
+  if n == 1:
+    return [(config, workdir)]
+  out = []
+  for i in range(n):
+    c = ml_collections.ConfigDict(config.to_dict())
+    c.seed, c.train.num_seeds = config.seed + i, 1
+    out.append((c, os.path.join(workdir, f'seed{c.seed}')))
+  return out
+
+
+class Seat:
+  """One training seed of an online run: its config, run directory, buffer, environments and
+  what its last wave did; the parameters live in the job's stacked TrainState."""
+
+  def __init__(self, config, workdir: str, offline: Optional[data.Dataset], index: int):
+    o, self.config, self.index = config.online, config, index
+    self.run = runs.Run(config, workdir)
+    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config))
+    self.envs = [envs.make_env(config.task, seed=config.data.seed,
+                               action_repeat=config.eval.action_repeat,
+                               max_episode_steps=o.episode_steps,
+                               random_goals=o.train_goals == 'random')
+                 for _ in range(o.num_envs)]
+    self.update_key = jax.random.key(config.seed + 1)
+    self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
+    self.dense_max, self.episodes, self.policy = 0.0, [], None
+
+  def ema_params(self, job):
+    return job.views()[self.index]
+
+  def log(self, job, before: int, planner: bool, seconds: float) -> None:
+    """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
+    metrics = {k: float(v[self.index]) for k, v in sorted(jax.device_get(job.metrics).items())}
+    step, episodes, c = job.counters['env_steps'], self.episodes, job.counters
+    if metrics:
+      self.run.check_loss(metrics['loss'], f'environment step {step}')
+    # Shares of planned decisions: NaN where nothing was planned (random waves, the actor acting).
+    decisions = int(self.winners[:-1].sum()) or float('nan')
+    acting = {'plan': 'planner', 'actor': 'actor'}[self.config.online.act_mode]
+    row = dict(env_steps=step, episodes=c['episodes'],
+               updates=c['updates'], acting=acting if planner else 'random',
+               episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
+               episode_success=float(np.mean([e['success'].any() for e in episodes])),
+               max_step_reward=self.dense_max,  # Dense reward, also under a sparse one.
+               **{f'won_{k}': float(self.winners[j] / decisions)
+                  for j, k in enumerate(CANDIDATES.names())},
+               departed=float(self.winners[-1] / decisions),
+               exec_noise=executed_noise(self.config, before, job.learn_start)
+               if planner else float('nan'),
+               env_steps_per_s=(step - before) / seconds)
+    run_files.append_csv(os.path.join(self.run.workdir, ONLINE_CSV), row)
+    if metrics:  # Losses of the wave's last update, from the first update on.
+      run_files.append_csv(os.path.join(self.run.workdir, LOSSES_CSV),
+                           dict(env_steps=step, **metrics))
+    for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
+      if k != 'acting' and np.isfinite(v):  # NaN marks "not measured" in the CSV only.
+        self.run.writer.add_scalar(f'online/{k}', v, step)
+
+
+class SeatRuns:
+  """What `runs.loop` evaluates with: each seed's periodic evaluation on its own parameters."""
+
+  def __init__(self, seats):
+    self.seats = seats
+
+  def periodic_eval(self, params, step: int) -> None:
+    for seat, p in zip(self.seats, params):
+      seat.run.periodic_eval(p, step)
+
+
+class SeatWave:
+  """One seed's episodes of a wave while they run: its environments, observations, policy,
+  noise and what each episode recorded."""
+
+  def __init__(self, job, seat: Seat, first: int, planner: bool):
+    o, n, seed = job.config.online, len(seat.envs), seat.config.seed
+    self.job, self.seat, self.planner = job, seat, planner
+    seeds = envs.episode_seeds(seed, first + n, 'online')[first:]
+    self.policy = job._policy(seat, first, seeds) if planner else None
+    self.rng = np.random.default_rng([seed, first, 17])
+    self.obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(seat.envs, seeds)])
+    # Copies: `obs` rows are overwritten in place by every step below.
+    self.eps = [dict(obs=[np.copy(x)], action=[], reward=[], success=[]) for x in self.obs]
+    self.active = np.ones(n, bool)
+    self.noise = np.zeros((n, job.config.action_dim))
+    self.noise_rng = np.random.default_rng([seed, first, 29])
+    seat.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
+    seat.dense_max = 0.0
+
+  def step(self, t: int) -> int:
+    """One decision in each active environment; returns the environment steps taken, summed
+    over them (`info['substeps']`)."""
+    o, seat, n = self.job.config.online, self.seat, len(self.seat.envs)
+    if self.planner:
+      actions = self.policy(self.obs, t, self.active)
+      self._count_winners()
+      if o.exec_noise_corr > 0:
+        self.noise = ar1_noise(self.noise, self.job.noise_std, o.exec_noise_corr,
+                               self.noise_rng)
+        actions = np.clip(actions + self.noise, -1.0, 1.0).astype(np.float32)
+    else:
+      actions = self.rng.uniform(-1.0, 1.0, (n, self.job.config.action_dim)).astype(np.float32)
+    substeps = 0
+    for i in np.flatnonzero(self.active):
+      self.obs[i], reward, terminated, truncated, info = seat.envs[i].step(actions[i])
+      seat.dense_max = max(seat.dense_max, float(reward))
+      if o.reward == 'sparse':  # Success only: the case the idea was made for.
+        reward = float(info['success'])
+      for name, value in (('obs', self.obs[i]), ('action', actions[i]), ('reward', reward),
+                          ('success', info['success'])):
+        self.eps[i][name].append(np.copy(value))
+      substeps += info['substeps']
+      self.active[i] = not (terminated or truncated)
+    return substeps
+
+  def _count_winners(self) -> None:
+    """Which kind of candidate won each acting decision; the last entry counts departures."""
+    if self.policy.last_info is None:
+      return
+    for info_i in self.policy.last_info[self.active]:
+      if info_i[0] >= 0:
+        self.seat.winners[info_i[0]] += 1
+      self.seat.winners[-1] += info_i[2]
+
+  def finish(self):
+    return [dict(obs=np.asarray(e['obs'], np.float32),
+                 action=np.asarray(e['action'], np.float32),
+                 reward=np.asarray(e['reward'], np.float32),
+                 success=np.asarray(e['success'], bool)) for e in self.eps]

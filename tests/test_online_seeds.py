@@ -1,0 +1,68 @@
+"""Several training seeds in one online run (`train.num_seeds`): each seed's run is the one it
+makes alone (parameters to float tolerance, the same episodes), and the seeds differ."""
+
+import os
+
+import jax
+import numpy as np
+import pytest
+
+from experiments.configs import door_open_online
+from ld_mpc_jax import checkpointing, data, online
+
+
+def _config(seed, num_seeds):
+  config = door_open_online.get_config('smoke')
+  config.seed, config.train.num_seeds = seed, num_seeds
+  config.online.env_steps = 80  # The random seed wave and one wave acting with the planner.
+  config.eval.episodes = 0  # Train and checkpoint only.
+  return config
+
+
+def _params(workdir, config):
+  state = checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir), config)
+  return state.params
+
+
+def _episodes(workdir):
+  ds = data.load(online.buffer_path(workdir, 80))
+  return [ds.episode(e) for e in range(ds.num_episodes)]
+
+
+@pytest.fixture(scope='module')
+def runs(tmp_path_factory):
+  root = tmp_path_factory.mktemp('seeds')
+  online.train_online(_config(0, 2), str(root / 'both'))
+  online.train_online(_config(1, 1), str(root / 'alone1'))
+  return root
+
+
+def test_a_seed_trained_beside_another_is_the_seed_trained_alone(runs):
+  together, alone = str(runs / 'both' / 'seed1'), str(runs / 'alone1')
+  assert sorted(os.listdir(runs / 'both')) == ['pooled.json', 'pooled.md', 'seed0', 'seed1']
+  saved = checkpointing.load_config(together)
+  assert (saved.seed, saved.train.num_seeds) == (1, 1)  # As a run of seed 1 alone saves it.
+  ours, theirs = _params(together, _config(1, 1)), _params(alone, _config(1, 1))
+  for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(ours),
+                          jax.tree_util.tree_leaves(theirs), strict=True):
+    # An attention key's bias has zero gradient (softmax ignores a shift shared by all keys):
+    # Adam turns its rounding noise into steps of up to the learning rate (1e-4, 8 updates).
+    atol = 1e-3 if "['key']['bias']" in jax.tree_util.keystr(path) else 1e-5
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=atol, err_msg=jax.tree_util.keystr(path))
+  for name in ('losses.csv', 'online.csv'):  # Losses of the last update; training episodes.
+    rows = [np.genfromtxt(os.path.join(d, name), delimiter=',', names=True)
+            for d in (together, alone)]
+    for field in rows[0].dtype.names:
+      if field != 'env_steps_per_s':
+        np.testing.assert_allclose(rows[0][field], rows[1][field], rtol=1e-4, atol=1e-9,
+                                   err_msg=field)
+  for a, b in zip(_episodes(together), _episodes(alone), strict=True):
+    np.testing.assert_allclose(a['action'], b['action'], atol=1e-5)
+    np.testing.assert_allclose(a['obs'], b['obs'], atol=1e-5)
+
+
+def test_the_seeds_of_one_run_are_independent(runs):
+  first, second = (_episodes(str(runs / 'both' / f'seed{s}')) for s in (0, 1))
+  assert not np.allclose(first[0]['action'], second[0]['action'])
+  p0, p1 = (_params(str(runs / 'both' / f'seed{s}'), _config(s, 1)) for s in (0, 1))
+  assert not np.allclose(jax.tree_util.tree_leaves(p0)[0], jax.tree_util.tree_leaves(p1)[0])
