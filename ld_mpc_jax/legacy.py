@@ -24,7 +24,7 @@ MODEL_FIELDS = {
                   normalize_obs=False, normalize_dynamics=False, task_dim=96),
     'critic': dict(td_target='one_step', entropy_coef=1e-4, log_std_map='clip',
                    rollout_unroll=True),
-    'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0),
+    'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0, w_demo_bc=0.0),
 }
 TASK_DIM = MODEL_FIELDS['model']['task_dim']  # Before it was a field (TD-MPC2's width).
 

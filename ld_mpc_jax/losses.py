@@ -15,7 +15,10 @@ like every other position.
            0 for 'expectile', whose values are the critics');
   L_actor  the actor kind's loss (ld_mpc_jax.actors);
   L_cons   latent consistency of the model's rollout (`critic.latent_rollout`, TD-MPC2);
-  L_q, L_v the critics' TD and expectile losses (ld_mpc_jax.critics), when the model has them.
+  L_q, L_v the critics' TD and expectile losses (ld_mpc_jax.critics), when the model has them;
+  L_demo_bc behaviour cloning of the actor prior on the demonstrations' windows (batch['demo']
+           [B], 1.0 on a demonstration's window; online runs with `online.demos`, MoDem), on
+           detached latents, + w_demo_bc L_demo_bc in L.
 Metrics: 'loss' and 'loss_<term>' for each term the config uses, plus the critics' and the
 value kind's own metrics.
 """
@@ -33,7 +36,8 @@ from ld_mpc_jax.ops import soft_cross_entropy, two_hot
 
 # Loss weight of each term (config.loss.<weight>), in the order they are summed.
 WEIGHTS = (('dyn', 'w_dyn'), ('act', 'w_act'), ('rew', 'w_rew'), ('val', 'w_val'),
-           ('actor', 'w_actor'), ('consistency', 'w_consistency'), ('q', 'w_q'), ('v', 'w_v'))
+           ('actor', 'w_actor'), ('consistency', 'w_consistency'), ('q', 'w_q'), ('v', 'w_v'),
+           ('demo_bc', 'w_demo_bc'))
 
 
 def reward_loss(r_logits: jnp.ndarray, reward: jnp.ndarray, num_bins: int, vmin: float,
@@ -55,6 +59,15 @@ def weighted_sum(terms: Dict[str, jnp.ndarray], weights: ml_collections.ConfigDi
     term = terms.get(name, jnp.zeros(()))
     total = weights[weight] * term if i == 0 else total + weights[weight] * term
   return total
+
+
+def demo_bc_loss(nets, params, z: jnp.ndarray, action: jnp.ndarray,
+                 demo: jnp.ndarray) -> jnp.ndarray:
+  """Mean over the demonstrations' windows of the actor prior's squared error:
+  z [B, T, D], action [B, T, A], demo [B] (1.0 on a demonstration's window) -> []."""
+  a_pi = nets.actor.apply({'params': params['actor']}, z)
+  err = jnp.mean(jnp.sum((a_pi - action) ** 2, axis=-1), axis=-1)
+  return jnp.sum(demo * err) / jnp.maximum(jnp.sum(demo), 1.0)
 
 
 def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
@@ -140,6 +153,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
       terms.update(critic)
       metrics.update(critic_metrics)
     terms['actor'] = actor.loss(config, nets, params, z, action, weights, k_pi)
+    if 'demo' in batch:  # Structure, not value: known when tracing.
+      terms['demo_bc'] = demo_bc_loss(nets, params, sg(z[:, :-1]), action, batch['demo'])
     loss = weighted_sum(terms, config.loss)
     metrics['loss'] = loss
     for name, _ in WEIGHTS:

@@ -14,8 +14,10 @@ decision updates run until floor(`online.update_ratio` x environment steps) have
 from scratch the seed steps' share comes at once (TD-MPC2 pretrains on its seed data likewise).
 With `online.demos` = N (ld_mpc_jax.data.demos), N successful scripted episodes on training
 goals (or a dataset file's) sit in their own buffer; every batch draws an annealed share of its
-windows from them, `online.demo_pretrain_updates` updates on them alone come before the first
-wave, and the planner acts from the first wave (no random seed waves).
+windows from them (the actor prior also clones them with `loss.w_demo_bc` > 0),
+`online.demo_pretrain_updates` updates on them alone come before the first wave, and no wave
+acts at random: the planner acts from the first (or the actor prior in the seed waves, with
+`online.demo_seed_actor`), plus the executed-action noise; updates interleave from the first.
 With `online.init_from` (an offline run's workdir), the agent starts from that run's latest
 checkpoint (parameters, optimiser state, EMA) and samples from that run's dataset and its own
 episodes alike.
@@ -109,7 +111,7 @@ class OnlineJob:
     self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in range(len(self.seats))])
     self._views = None
     # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
-    # pretrained on them, plus the executed-action noise), act with the planner from the start.
+    # pretrained on them, plus the executed-action noise), learn from the start.
     self.learn_start = 0 if source is not None or o.demos else o.seed_steps
     self.per_call = o.updates_per_call
     self.update = make_seeds_update(config, len(self.seats), self.per_call)
@@ -196,20 +198,31 @@ class OnlineJob:
   def advance(self) -> None:
     """One wave: its episodes into the buffers, its acting and update time into the counters."""
     start = time.perf_counter()
-    planner = self.wave()
+    mode = self.wave()
     for seat in self.seats:
       seat.buffer.add(seat.episodes)
     seconds = time.perf_counter() - start
     self.counters['train_seconds'] += seconds
-    self.last = (planner, seconds)
+    self.last = (mode, seconds)
 
-  def _policy(self, seat: Seat, first: int, seeds):
-    """The policy acting for a seed's episodes of the wave (`online.act_mode`: the planner or
-    the actor prior alone; EMA parameters, exploration noise)."""
+  def acting_mode(self) -> str:
+    """Who acts in the next wave: 'random' (seed waves from scratch), 'actor' (seed waves with
+    demonstrations and `online.demo_seed_actor`: the actor prior pretrained on them), else
+    `online.act_mode` ('plan' or 'actor')."""
+    o = self.config.online
+    if not self.learning():
+      return 'random'
+    if o.demos and o.demo_seed_actor and self.counters['env_steps'] < o.seed_steps:
+      return 'actor'
+    return o.act_mode
+
+  def _policy(self, seat: Seat, first: int, seeds, mode: str):
+    """The policy acting for a seed's episodes of the wave (`mode`: the planner or the actor
+    prior alone; EMA parameters, exploration noise)."""
     o = self.config.online
     mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
             if self.act_config.eval.data_parallel else None)
-    policy = BatchAgentPolicy(self.act_config, seat.ema_params(self), o.act_mode,
+    policy = BatchAgentPolicy(self.act_config, seat.ema_params(self), mode,
                               seed=seat.config.seed, chunk=o.plan_chunk, mesh=mesh)
     policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
                   for i, s in enumerate(seeds)])
@@ -217,16 +230,17 @@ class OnlineJob:
     policy.action_noise = 0.0 if o.exec_noise_corr > 0 else self.noise_std
     return policy
 
-  def wave(self) -> bool:
-    """One episode per environment of every seed, in lockstep, by the planner or at random;
-    each seat's `episodes` are dicts of obs [L+1, obs_dim], action [L, A], reward [L],
-    success [L]. Returns whether the planner acted."""
+  def wave(self) -> str:
+    """One episode per environment of every seed, in lockstep, by the `acting_mode`; each
+    seat's `episodes` are dicts of obs [L+1, obs_dim], action [L, A], reward [L], success [L].
+    Returns the acting mode."""
     o, first = self.config.online, self.counters['episodes']
-    planner = self.learning()
+    mode = self.acting_mode()
+    planner = mode != 'random'
     self.noise_std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
     if planner:
       self.catch_up()
-    acting = [SeatWave(self, seat, first, planner) for seat in self.seats]
+    acting = [SeatWave(self, seat, first, mode) for seat in self.seats]
     t = 0
     while any(w.active.any() for w in acting):
       steps = [w.step(t) for w in acting]
@@ -240,7 +254,7 @@ class OnlineJob:
     self.counters['episodes'] += o.num_envs
     for w in acting:
       w.seat.episodes = w.finish()
-    return planner
+    return mode
 
   def checkpoint(self) -> None:
     """Each seed's buffer file, then its orbax step (environment steps); older buffer files
@@ -261,9 +275,9 @@ class OnlineJob:
     return self.views()
 
   def log(self, before: int) -> None:
-    planner, seconds = self.last
+    mode, seconds = self.last
     for seat in self.seats:
-      seat.log(self, before, planner, seconds)
+      seat.log(self, before, mode, seconds)
     self.bar.set_postfix(updates=self.counters['updates'], success=np.mean(
         [e['success'].any() for seat in self.seats for e in seat.episodes]))
 

@@ -52,7 +52,7 @@ class Seat:
   def ema_params(self, job):
     return job.views()[self.index]
 
-  def log(self, job, before: int, planner: bool, seconds: float) -> None:
+  def log(self, job, before: int, mode: str, seconds: float) -> None:
     """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
     metrics = {k: float(v[self.index]) for k, v in sorted(jax.device_get(job.metrics).items())}
     step, episodes, c = job.counters['env_steps'], self.episodes, job.counters
@@ -60,9 +60,8 @@ class Seat:
       self.run.check_loss(metrics['loss'], f'environment step {step}')
     # Shares of planned decisions: NaN where nothing was planned (random waves, the actor acting).
     decisions = int(self.winners[:-1].sum()) or float('nan')
-    acting = {'plan': 'planner', 'actor': 'actor'}[self.config.online.act_mode]
-    row = dict(env_steps=step, episodes=c['episodes'],
-               updates=c['updates'], acting=acting if planner else 'random',
+    row = dict(env_steps=step, episodes=c['episodes'], updates=c['updates'],
+               acting={'plan': 'planner', 'actor': 'actor', 'random': 'random'}[mode],
                episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
                episode_success=float(np.mean([e['success'].any() for e in episodes])),
                max_step_reward=self.dense_max,  # Dense reward, also under a sparse one.
@@ -70,7 +69,7 @@ class Seat:
                   for j, k in enumerate(CANDIDATES.names())},
                departed=float(self.winners[-1] / decisions),
                exec_noise=executed_noise(self.config, before, job.learn_start)
-               if planner else float('nan'),
+               if mode != 'random' else float('nan'),
                env_steps_per_s=(step - before) / seconds)
     run_files.append_csv(os.path.join(self.run.workdir, ONLINE_CSV), row)
     if metrics:  # Losses of the wave's last update, from the first update on.
@@ -96,11 +95,11 @@ class SeatWave:
   """One seed's episodes of a wave while they run: its environments, observations, policy,
   noise and what each episode recorded."""
 
-  def __init__(self, job, seat: Seat, first: int, planner: bool):
-    o, n, seed = job.config.online, len(seat.envs), seat.config.seed
-    self.job, self.seat, self.planner = job, seat, planner
+  def __init__(self, job, seat: Seat, first: int, mode: str):
+    n, seed = len(seat.envs), seat.config.seed
+    self.job, self.seat = job, seat
     seeds = envs.episode_seeds(seed, first + n, 'online')[first:]
-    self.policy = job._policy(seat, first, seeds) if planner else None
+    self.policy = job._policy(seat, first, seeds, mode) if mode != 'random' else None
     self.rng = np.random.default_rng([seed, first, 17])
     self.obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(seat.envs, seeds)])
     # Copies: `obs` rows are overwritten in place by every step below.
@@ -115,7 +114,7 @@ class SeatWave:
     """One decision in each active environment; returns the environment steps taken, summed
     over them (`info['substeps']`)."""
     o, seat, n = self.job.config.online, self.seat, len(self.seat.envs)
-    if self.planner:
+    if self.policy is not None:
       actions = self.policy(self.obs, t, self.active)
       self._count_winners()
       if o.exec_noise_corr > 0:

@@ -74,21 +74,46 @@ def test_a_run_with_demos_pretrains_on_them_and_plans_from_the_first_wave(tmp_pa
   config = door_open_online.get_config('smoke')
   o = config.online
   o.demos, o.demo_path, o.demo_pretrain_updates, o.reward = 2, path, 3, 'sparse'
-  o.env_steps, o.eval_every, o.update_ratio = 40, 40, 0.1
+  o.demo_seed_actor = True
+  o.env_steps, o.eval_every, o.update_ratio = 80, 80, 0.1  # A seed wave, then the planner.
   config.eval.splits, config.eval.baselines, config.eval.episodes = ('held_out',), (), 2
   shares = []
 
   def counting(cfg, n, per_call):  # Records each batch's share of demo windows; no compiling.
     def update(state, batch, keys):
       obs = np.asarray(batch['obs'])[0]  # [B, T, obs_dim] of the one seed.
-      shares.append(float(np.mean(np.all(obs == DEMO_OBS, axis=(1, 2)))))
+      from_demos = np.all(obs == DEMO_OBS, axis=(1, 2))
+      np.testing.assert_array_equal(np.asarray(batch['demo'])[0], from_demos)  # The BC mask.
+      shares.append(float(np.mean(from_demos)))
       return state.replace(step=state.step + 1), {'loss': jnp.ones(n, jnp.float32)}
     return update
   monkeypatch.setattr(online, 'make_seeds_update', counting)
   report = online.train_online(config, str(tmp_path / 'run'))
-  assert report['demos'] == 2 and report['updates'] == 4  # 0.1 x 40 environment steps.
+  assert report['demos'] == 2 and report['updates'] == 8  # 0.1 x 80 environment steps.
   # The pretraining (demos alone), then the updates during the first wave: its episodes join the
-  # buffer only at its end, so these too come from the demos.
-  assert shares == [1.0] * 7
+  # buffer only at its end, so these too come from the demos; then the annealed share
+  # (0.5 -> 0.25 over the 80 steps) when the second wave reaches 0.1 x steps = 5, 6, 7, 8
+  # updates (4 environment steps a decision: at 52, 60, 72 and 80).
+  batch = config.train.batch_size
+  expected = [demos.demo_rows(batch, demos.demo_share(config, s)) / batch
+              for s in (52, 60, 72, 80)]
+  assert shares == [1.0] * 7 + expected and expected[0] > expected[-1] == 0.25
+  # MoDem's seeding phase: the seed wave acts with the actor prior, then the planner.
   with open(tmp_path / 'run' / 'online.csv') as f:
-    assert [r['acting'] for r in csv.DictReader(f)] == ['planner']
+    assert [r['acting'] for r in csv.DictReader(f)] == ['actor', 'planner']
+
+
+def test_demo_bc_loss_averages_the_actor_error_over_demo_windows_only():
+  from ld_mpc_jax.losses import demo_bc_loss
+  from ld_mpc_jax.models import build_networks, init_params
+  import jax
+  config = door_open_online.get_config('smoke')
+  nets, params = build_networks(config), init_params(config, jax.random.key(0))
+  z = jax.random.normal(jax.random.key(1), (3, 2, config.model.latent_dim))
+  action = jnp.zeros((3, 2, 4))
+  demo = jnp.array([1.0, 0.0, 1.0])
+  a_pi = np.asarray(nets.actor.apply({'params': params['actor']}, z))
+  per_window = np.mean(np.sum(a_pi ** 2, axis=-1), axis=-1)
+  np.testing.assert_allclose(demo_bc_loss(nets, params, z, action, demo),
+                             (per_window[0] + per_window[2]) / 2, rtol=1e-5)
+  assert float(demo_bc_loss(nets, params, z, action, jnp.zeros(3))) == 0.0

@@ -204,6 +204,10 @@ def get_config() -> ml_collections.ConfigDict:
   l.w_q = 1.0  # Critics (critic.value 'expectile'): TD loss of Q and expectile loss of V,
   l.w_v = 1.0  # both MSE-scale in value_scale units.
   l.w_consistency = 1.0  # Latent consistency of the dynamics rollout (critic.latent_rollout).
+  # Behaviour cloning of the actor prior on demonstrations (online.demos only; MoDem pretrains
+  # its policy by BC). Off: the measured demonstration runs (docs/sparse.md) clone them through
+  # the diffusion proposal alone; 1.0 is TD3+BC's scale against a Q of unit scale.
+  l.w_demo_bc = 0.0
   # Behaviour value target for V(z_i) (critic.value 'behaviour', ld_mpc_jax.losses):
   # discounted rewards to the end of the window plus gamma^(H-i) times the EMA target network's
   # V(z_H) (TD-MPC2, DQN).

@@ -79,9 +79,12 @@ def online_settings() -> ml_collections.ConfigDict:
   o.demo_share_end = 0.25
   # Updates on the demonstrations alone before the first wave (MoDem's BC pretraining; here of
   # every network: proposal, actor prior, dynamics, objective); not counted in update_ratio.
-  # With demonstrations the planner acts from the first wave, with the executed-action noise
-  # (MoDem's seeding phase acts with the pretrained policy), and seed_steps is unused.
+  # With demonstrations, updates start at once and no wave acts at random: the planner acts from
+  # the first wave with the proposal pretrained on them, plus the executed-action noise (MoDem's
+  # seeding phase acts with its BC-pretrained policy); with demo_seed_actor the seed waves
+  # (seed_steps) act with the actor prior alone instead (give it loss.w_demo_bc > 0).
   o.demo_pretrain_updates = 1_000
+  o.demo_seed_actor = False
   # Planner environments per vmap (0: one jitted plan per environment, the faster on a 2-core
   # CPU; an accelerator wants them all in one vmap).
   o.plan_chunk = 4

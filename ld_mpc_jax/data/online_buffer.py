@@ -58,7 +58,8 @@ class Buffer:
              ) -> Dict[str, np.ndarray]:
     """`groups` batches of `batch_size` windows, concatenated [groups x batch_size, ...]; in
     each, `demos.demo_rows(batch_size, demo_share)` windows come from the demonstrations (all of
-    them while there is nothing else), the rest from the offline data and online episodes."""
+    them while there is nothing else), the rest from the offline data and online episodes;
+    with demonstrations, 'demo' [groups x batch_size] is 1.0 on their windows, else 0.0."""
     if self._demo_sampler is None:
       return self._main().sample(batch_size * groups)
     d = batch_size if not self.has_main else demos_lib.demo_rows(batch_size, demo_share)
@@ -67,6 +68,8 @@ class Buffer:
       parts.append(self._main().sample(groups * (batch_size - d)))
     if d:
       parts.append(self._demo_sampler.sample(groups * d))
+    for part, flag in zip(parts, ([0.0] if batch_size - d else []) + ([1.0] if d else [])):
+      part['demo'] = np.full(len(part['obs']), flag, np.float32)
     per_group = lambda x: x.reshape((groups, -1) + x.shape[1:])
     return {k: np.concatenate([per_group(p[k]) for p in parts], axis=1).reshape(
         (groups * batch_size,) + parts[0][k].shape[1:]) for k in parts[0]}
