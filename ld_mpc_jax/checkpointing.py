@@ -2,7 +2,7 @@
 
 import json
 import os
-from typing import Optional
+from typing import List, Optional
 
 import jax
 import ml_collections
@@ -55,6 +55,12 @@ def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointMana
                                options=options)
 
 
+def has_checkpoint(workdir: str) -> bool:
+  """Whether `workdir` holds a complete checkpoint (creates nothing)."""
+  return (os.path.isdir(os.path.join(workdir, 'checkpoints'))
+          and checkpoint_manager(workdir).latest_step() is not None)
+
+
 def save_config(config: ml_collections.ConfigDict, workdir: str) -> str:
   os.makedirs(workdir, exist_ok=True)
   path = os.path.join(workdir, CONFIG_FILE)
@@ -63,6 +69,68 @@ def save_config(config: ml_collections.ConfigDict, workdir: str) -> str:
     f.write(config.to_json_best_effort(indent=2))
   os.replace(tmp, path)
   return path
+
+
+class WorkdirError(ValueError):
+  """A workdir this run must not write to (made with another config): one line, exit code 2."""
+
+
+def _flat(config: ml_collections.ConfigDict) -> dict:
+  """{'section.field': value} of `config` as JSON (tuples and lists alike)."""
+  out = {}
+  def walk(node, prefix):
+    for k, v in node.items():
+      if isinstance(v, dict):
+        walk(v, f'{prefix}{k}.')
+      else:
+        out[prefix + k] = v
+  walk(json.loads(config.to_json_best_effort()), '')
+  return out
+
+
+def config_changes(saved: ml_collections.ConfigDict,
+                   config: ml_collections.ConfigDict) -> List[str]:
+  """'field (old -> new)' for every field whose value differs, sorted by name; a field only one
+  side has shows as absent. `saved` is compared as loaded (`migrate_config`)."""
+  old, new = _flat(saved), _flat(config)
+  show = lambda flat, k: json.dumps(flat[k]) if k in flat else 'absent'
+  return [f'{k} ({show(old, k)} -> {show(new, k)})' for k in sorted(set(old) | set(new))
+          if k not in old or k not in new or old[k] != new[k]]
+
+
+def check_workdir(config: ml_collections.ConfigDict, workdir: str,
+                  continue_with_changes: bool = False) -> None:
+  """WorkdirError when `workdir` holds a run of another config; reads, never writes.
+
+  With `continue_with_changes`, a changed config continues the run, unless its networks no
+  longer fit the checkpoint (then nothing could be restored).
+  """
+  if not os.path.exists(os.path.join(workdir, CONFIG_FILE)):
+    return
+  saved = load_config(workdir)
+  changes = config_changes(saved, config)
+  if not changes:
+    return
+  if not continue_with_changes:
+    shown = ', '.join(changes[:6]) + (f' and {len(changes) - 6} more' if len(changes) > 6 else '')
+    raise WorkdirError(f'{workdir} holds a run of another config; this one differs in {shown}: '
+                       'choose another --workdir, or pass --continue_with_changes to continue '
+                       'that run under this config')
+  shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, abstract_state(c))
+  if has_checkpoint(workdir) and shapes(saved) != shapes(config):
+    raise WorkdirError(f'{workdir}: even with --continue_with_changes, its checkpoints cannot '
+                       f'continue under this config: the networks differ ({", ".join(changes)})')
+
+
+def record_config(config: ml_collections.ConfigDict, workdir: str) -> str:
+  """Saves config.json; a different earlier one is kept as config.<n>.json (n = 1, 2, ...)."""
+  path = os.path.join(workdir, CONFIG_FILE)
+  if os.path.exists(path) and config_changes(load_config(workdir), config):
+    n = 1
+    while os.path.exists(os.path.join(workdir, f'config.{n}.json')):
+      n += 1
+    os.replace(path, os.path.join(workdir, f'config.{n}.json'))
+  return save_config(config, workdir)
 
 
 def load_config(workdir: str) -> ml_collections.ConfigDict:

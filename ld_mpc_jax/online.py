@@ -291,20 +291,23 @@ class OnlineJob:
                          success=np.mean([e['success'].any() for e in episodes]))
 
 
-def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
+def train_online(config: ml_collections.ConfigDict, workdir: str,
+                 continue_with_changes: bool = False) -> Dict[str, Any]:
   """Online (or offline-to-online) training and evaluation; returns the report.
 
   Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json, online.csv
   (one row per wave: environment steps, updates, training episodes' return and success),
   losses.csv (the wave's last update's losses),
   eval.csv (held-out success every `online.eval_every` environment steps), tb/, online.png,
-  episodes.csv, report.json and report.md, like the offline job.
+  episodes.csv, report.json and report.md, like the offline job. A workdir of another config is
+  refused before anything is written to it, unless `continue_with_changes` (`train_and_evaluate`).
   """
   validate_config(config)
   envs.check_task(config.task)
   source = check_init_from(config)
   if source is not None:  # Fine-tuning trains on the offline run's data too.
     config.data.update(source.data.to_dict())
+  checkpointing.check_workdir(config, workdir, continue_with_changes)  # As it will be saved.
   os.makedirs(workdir, exist_ok=True)
   offline = data.load_for_config(config) if source is not None else None
   if offline is not None:

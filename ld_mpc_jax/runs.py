@@ -103,7 +103,7 @@ class Run:
     self.config, self.workdir = config, workdir
     self.commit = run_files.git_commit()  # The code this process runs: HEAD may move later.
     os.makedirs(workdir, exist_ok=True)
-    checkpointing.save_config(config, workdir)
+    checkpointing.record_config(config, workdir)  # Checked first: checkpointing.check_workdir.
     self.manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
     self.writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
                    else run_files.NoWriter())

@@ -13,14 +13,15 @@ import ml_collections
 import numpy as np
 import tqdm
 
-from ld_mpc_jax import data, multitask_eval, run_files, runs, sharding, tasks
+from ld_mpc_jax import checkpointing, data, multitask_eval, run_files, runs, sharding, tasks
 from ld_mpc_jax.config_checks import online_enabled, validate_config
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
 
 
 
-def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
+def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
+                       continue_with_changes: bool = False) -> Dict[str, Any]:
   """Trains LD-MPC on the task's offline dataset and evaluates it; returns the report.
 
   Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json,
@@ -29,13 +30,18 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   tasks.png, and its report a per-task table ('per_task'). The returned report also holds the
   per-episode records under 'records'.
 
+  A workdir that holds a run of another config is refused (`checkpointing.WorkdirError`, before
+  anything is written to it) unless `continue_with_changes`; its earlier config.json is then kept
+  as config.<n>.json.
+
   With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.online.train_online`).
   """
   if online_enabled(config):
     from ld_mpc_jax import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
-    return online.train_online(config, workdir)
+    return online.train_online(config, workdir, continue_with_changes)
   validate_config(config)
   tasks.check_tasks(config)
+  checkpointing.check_workdir(config, workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
   runs.check_config_for_data(config, dataset)

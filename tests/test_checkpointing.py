@@ -3,6 +3,7 @@ used (migrate_config), so library code reads fields directly; checkpoints restor
 process's device whatever device wrote them."""
 
 import json
+import os
 
 import jax
 import numpy as np
@@ -108,3 +109,42 @@ def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
   for a, b in zip(jax.tree.leaves(restored.ema_params), jax.tree.leaves(state.ema_params)):
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert a.devices() == {jax.local_devices()[0]}
+
+
+def test_a_workdir_of_another_config_is_refused_naming_the_fields(tmp_path):
+  workdir = str(tmp_path)
+  saved = door_open.get_config('smoke')
+  checkpointing.save_config(saved, workdir)
+  checkpointing.check_workdir(door_open.get_config('smoke'), workdir)  # The same: no error.
+  other = with_overrides(door_open.get_config('smoke'), {'train.learning_rate': 1e-2, 'seed': 7})
+  with pytest.raises(checkpointing.WorkdirError) as err:
+    checkpointing.check_workdir(other, workdir)
+  message = str(err.value)
+  assert '\n' not in message and '--continue_with_changes' in message
+  assert f'seed (0 -> 7), train.learning_rate ({saved.train.learning_rate} -> 0.01)' in message
+  checkpointing.check_workdir(other, workdir, continue_with_changes=True)  # No checkpoint.
+  assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]  # Checks write nothing.
+
+
+def test_continuing_with_other_networks_is_refused_even_with_the_flag(tmp_path):
+  workdir = str(tmp_path)
+  config = door_open.get_config('smoke')
+  checkpointing.save_config(config, workdir)
+  manager = checkpointing.checkpoint_manager(workdir)
+  manager.save(1, args=ocp.args.StandardSave(create_train_state(config, jax.random.key(0))))
+  manager.wait_until_finished()
+  wider = with_overrides(door_open.get_config('smoke'), {'model.width': 32})
+  with pytest.raises(checkpointing.WorkdirError, match=r'networks differ \(model.width'):
+    checkpointing.check_workdir(wider, workdir, continue_with_changes=True)
+
+
+def test_a_changed_config_keeps_the_earlier_one_beside_it(tmp_path):
+  workdir = str(tmp_path)
+  first = door_open.get_config('smoke')
+  checkpointing.record_config(first, workdir)
+  checkpointing.record_config(first, workdir)  # The same config: nothing kept.
+  assert sorted(os.listdir(workdir)) == [checkpointing.CONFIG_FILE]
+  checkpointing.record_config(with_overrides(first, {'seed': 3}), workdir)
+  assert sorted(os.listdir(workdir)) == ['config.1.json', checkpointing.CONFIG_FILE]
+  assert json.load(open(tmp_path / 'config.1.json'))['seed'] == 0
+  assert checkpointing.load_config(workdir).seed == 3

@@ -214,3 +214,15 @@ def test_packed_run_evaluates_as_trained_and_holds_no_training_state(unevaluated
   with open(empty / 'config.json', 'w') as f:
     f.write(open(os.path.join(workdir, 'config.json')).read())
   assert pack_runs.pack(str(empty), str(tmp_path / 'out')) is None
+
+
+def test_training_into_a_workdir_of_another_config_writes_nothing(tmp_path, data_dir,
+                                                                  monkeypatch):
+  workdir = tmp_path / 'run'
+  checkpointing.save_config(smoke(data_dir), str(workdir))
+  before = (workdir / checkpointing.CONFIG_FILE).read_text()
+  monkeypatch.setattr(train.data, 'load_for_config', lambda c: 1 / 0)  # No work before the check.
+  with pytest.raises(checkpointing.WorkdirError, match=r'train.learning_rate \(.* -> 0.5\)'):
+    train.train_and_evaluate(smoke(data_dir, learning_rate=0.5), str(workdir))
+  assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]
+  assert (workdir / checkpointing.CONFIG_FILE).read_text() == before
