@@ -2,7 +2,9 @@
 
 import json
 import os
-from typing import List, Optional
+import shutil
+import sys
+from typing import Callable, List, Optional, Tuple
 
 import jax
 import ml_collections
@@ -175,17 +177,65 @@ def abstract_state(config: ml_collections.ConfigDict) -> TrainState:
   return jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=here), shapes)
 
 
+def _warn(message: str) -> None:
+  print(f'warning: {message}', file=sys.stderr)
+
+
+def _one_line(err: BaseException, limit: int = 300) -> str:
+  text = ' '.join(f'{type(err).__name__}: {err}'.split()).split(' See full TensorStore')[0]
+  return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
+def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.ConfigDict,
+                   usable: Optional[Callable[[int], Optional[str]]] = None,
+                   ) -> Tuple[Optional[int], Optional[TrainState], List[int]]:
+  """(step, state, skipped): the newest checkpoint that restores, newest first.
+
+  A step whose files fail to restore (damaged or truncated), or for which `usable(step)` gives
+  a reason (e.g. an online run's missing buffer file), is skipped with one warning line naming
+  it and why; `skipped` lists those steps. (None, None, []) without any checkpoint; WorkdirError
+  when every step was skipped.
+  """
+  skipped = []
+  for step in sorted(manager.all_steps(), reverse=True):
+    reason = usable(step) if usable is not None else None
+    if reason is None:
+      try:
+        state = manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
+      except Exception as err:  # pylint: disable=broad-except (orbax/tensorstore: many kinds)
+        reason = _one_line(err)
+      else:
+        return step, state, skipped
+    _warn(f'checkpoint step {step} in {manager.directory} skipped, {reason}; trying an '
+          'earlier one')
+    skipped.append(step)
+  if skipped:
+    raise WorkdirError(f'no intact checkpoint in {manager.directory}: steps '
+                       f'{", ".join(map(str, skipped))} all failed (warnings above)')
+  return None, None, []
+
+
+def set_aside(workdir: str, manager: ocp.CheckpointManager, steps: List[int]) -> None:
+  """Moves checkpoint `steps` to <workdir>/damaged_checkpoints/<step> (kept, out of the way of
+  the steps a resumed run saves again), then reloads the manager."""
+  for step in steps:
+    target = os.path.join(workdir, 'damaged_checkpoints', str(step))
+    shutil.rmtree(target, ignore_errors=True)
+    os.makedirs(os.path.dirname(target), exist_ok=True)
+    os.replace(os.path.join(str(manager.directory), str(step)), target)
+  if steps:
+    manager.reload()
+
+
 def restore_latest(manager: ocp.CheckpointManager,
                    config: ml_collections.ConfigDict) -> Optional[TrainState]:
-  """The latest complete checkpoint, or None if there is none."""
-  step = manager.latest_step()
-  if step is None:
-    return None
-  return manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
+  """The newest intact checkpoint (`restore_intact`), or None if there is none."""
+  return restore_intact(manager, config)[1]
 
 
 def load_for_evaluation(workdir: str):
-  """(config, ema_params, step) from a training workdir's config and latest checkpoint."""
+  """(config, ema_params, step) from a training workdir's config and newest intact checkpoint
+  (a newer damaged one is skipped with a warning line, and left as it is)."""
   config = load_config(workdir)
   manager = checkpoint_manager(workdir)
   state = restore_latest(manager, config)

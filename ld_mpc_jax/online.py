@@ -94,12 +94,11 @@ class OnlineJob:
     self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config))
     self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
                          pretrain_updates=0)
-    self.state = run.restore()
-    if self.state is not None:  # Resume: the buffer file of the same step.
-      step = run.manager.latest_step()
-      if not os.path.exists(buffer_path(run.workdir, step)):
-        raise FileNotFoundError(f'checkpoint {step} has no {buffer_path(run.workdir, step)}')
-      self.counters = self.buffer.load(buffer_path(run.workdir, step))
+    # Resume: the newest checkpoint that has its buffer file.
+    self.state = run.restore(lambda step: None if os.path.exists(buffer_path(run.workdir, step))
+                             else f'no {buffer_path(run.workdir, step)}')
+    if self.state is not None:
+      self.counters = self.buffer.load(buffer_path(run.workdir, run.step))
     elif source is not None:
       self.state = checkpointing.restore_latest(
           checkpointing.checkpoint_manager(o.init_from), config)

@@ -108,17 +108,22 @@ class Run:
     self.writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
                    else run_files.NoWriter())
 
-  def restore(self):
-    """The latest checkpoint's TrainState, or None; the logs lose rows written after it."""
-    state = checkpointing.restore_latest(self.manager, self.config)
+  def restore(self, usable=None):
+    """The newest intact checkpoint's TrainState (its step: `self.step`), or None; the logs lose
+    rows written after it.
+
+    Newer steps that fail to restore, or that `usable(step)` gives a reason against, are skipped
+    with a warning and moved to damaged_checkpoints/ (`checkpointing.restore_intact`).
+    """
+    self.step, state, skipped = checkpointing.restore_intact(self.manager, self.config, usable)
+    checkpointing.set_aside(self.workdir, self.manager, skipped)
     if state is not None:
       # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which
       # lowers to another program): a resumed run then compiles the update a fresh run compiled
       # (one entry in JAX's persistent cache, not two).
       state = jax.tree.map(_uncommitted, state)
       for name, column in STEP_LOGS:
-        run_files.drop_rows_after(os.path.join(self.workdir, name), column,
-                                  self.manager.latest_step())
+        run_files.drop_rows_after(os.path.join(self.workdir, name), column, self.step)
     return state
 
   def prior_seconds(self) -> float:
