@@ -29,6 +29,7 @@ those counters, so a resumed run continues exactly as the uninterrupted one.
 
 import json
 import os
+import sys
 import time
 from typing import Any, Dict, List, Optional
 
@@ -311,6 +312,9 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
   offline = data.load_for_config(config) if source is not None else None
   if offline is not None:
     runs.check_config_for_data(config, offline)
+  if not config.online.update_ratio:  # Once, before any work.
+    print('warning: config.online.update_ratio=0: no updates; the agent is evaluated as it '
+          f"starts ({'the offline run' if source is not None else 'untrained'})", file=sys.stderr)
   run = runs.Run(config, workdir)
   job = OnlineJob(config, run, source, offline)
   o, c = config.online, job.counters

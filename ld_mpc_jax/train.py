@@ -85,6 +85,7 @@ class OfflineJob:
   def __init__(self, config, run: runs.Run, dataset: data.Dataset, state):
     t = config.train
     self.config, self.run, self.progress = config, run, int(state.step)
+    self.start = self.progress  # Resumed at (0 from scratch).
     self.prior_seconds = run.prior_seconds() if self.progress else 0.0
     mesh = sharding.make_mesh() if t.data_parallel else None
     self.update = make_update(config, mesh)
@@ -144,6 +145,7 @@ def _report(config, dataset, job, final, baselines, summary, commit, records):
       'eval_episodes': config.eval.episodes, 'eval_seeds': list(config.eval.seeds),
       'baselines': baselines, 'evaluation': summary,
       'train_seconds': job.prior_seconds + job.timer.seconds, 'steps': int(job.state.step),
+      'steps_this_run': job.progress - job.start,
       'steps_per_s': job.timer.steps_per_s,
       'num_params': count_params(job.state.ema_params),
       'dataset': {'source': config.data.source, 'preset': config.data.preset,
@@ -155,8 +157,11 @@ def _report(config, dataset, job, final, baselines, summary, commit, records):
 
 def _summary_md(report: Dict[str, Any]) -> str:
   """report.md of an offline run: steps, speed and size, then the final evaluation."""
+  made = report['steps_this_run']
   speed = (f"{report['steps_per_s']:.2f} steps/s without compilation"
            if np.isfinite(report['steps_per_s'])
+           else f"{made} update step{'s' if made > 1 else ''} in this run, too few to time "
+           'without compilation' if made
            else 'no update steps in this run: resumed at the final step')
   intro = [f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
            f"({speed}); {report['num_params']:,} parameters.", '']
