@@ -1,6 +1,7 @@
 """Orbax checkpoints of the TrainState, with the config saved beside them."""
 
 import json
+import logging
 import os
 import shutil
 import sys
@@ -186,6 +187,23 @@ def _one_line(err: BaseException, limit: int = 300) -> str:
   return text if len(text) <= limit else text[:limit - 3] + '...'
 
 
+def _quiet_abandoned_reads() -> None:
+  """Drops the noise a failed orbax restore leaves: its other tensorstore reads finish after
+  asyncio's loop closed (hundreds of 'Event loop is closed' tracebacks, and 'exception was never
+  retrieved' log lines of asyncio). Installed once, only after a restore failed."""
+  if getattr(sys.unraisablehook, 'quiet_abandoned_reads', False):
+    return
+  previous = sys.unraisablehook
+  def hook(unraisable):
+    if not (unraisable.exc_type is RuntimeError
+            and str(unraisable.exc_value) == 'Event loop is closed'):
+      previous(unraisable)
+  hook.quiet_abandoned_reads = True
+  sys.unraisablehook = hook
+  logging.getLogger('asyncio').addFilter(
+      lambda record: 'exception was never retrieved' not in record.getMessage())
+
+
 def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.ConfigDict,
                    usable: Optional[Callable[[int], Optional[str]]] = None,
                    ) -> Tuple[Optional[int], Optional[TrainState], List[int]]:
@@ -204,6 +222,7 @@ def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.Config
         state = manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
       except Exception as err:  # pylint: disable=broad-except (orbax/tensorstore: many kinds)
         reason = _one_line(err)
+        _quiet_abandoned_reads()
       else:
         return step, state, skipped
     _warn(f'checkpoint step {step} in {manager.directory} skipped, {reason}; trying an '
