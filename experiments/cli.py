@@ -4,6 +4,7 @@ import contextlib
 import os
 import re
 import sys
+import tempfile
 from typing import Iterable, NoReturn, Type
 
 
@@ -29,12 +30,25 @@ def check_subset(name: str, chosen: Iterable[str], valid: Iterable[str]) -> None
     raise ValueError(f'unknown {name} {unknown}; choose from {list(valid)}')
 
 
-def check_new_output(path: str, overwrite: bool) -> None:
-  """ValueError when `path` exists and `overwrite` is off: an earlier result is never replaced
-  silently. Call it before the long work, so that a refusal costs nothing."""
+def check_new_output(path: str, overwrite: bool, flag: str = '--out') -> None:
+  """ValueError when `path` exists and `overwrite` is off (an earlier result is never replaced
+  silently), or when it cannot be written. Call it before the long work, so that a refusal costs
+  nothing; it leaves no file behind."""
   if os.path.exists(path) and not overwrite:
-    raise ValueError(f'{path} exists (an earlier result); choose another --out or pass '
+    raise ValueError(f'{path} exists (an earlier result); choose another {flag} or pass '
                      '--overwrite')
+  where = os.path.dirname(os.path.abspath(path))
+  while not os.path.exists(where):  # The folder that will hold it (made later).
+    where = os.path.dirname(where)
+  try:
+    if not os.path.isdir(where):
+      raise NotADirectoryError(f'{where} is not a folder')
+    if os.path.isdir(path):
+      raise IsADirectoryError(f'{path} is a folder')
+    with tempfile.TemporaryFile(dir=where):  # Writes there, as the result will.
+      pass
+  except OSError as err:
+    raise ValueError(f'{path} cannot be written ({err}); choose another {flag}') from None
 
 
 def parse_flags(argv):

@@ -8,7 +8,8 @@ Loads <workdir>/config.json and the latest checkpoint (EMA parameters) and runs 
 the same episodes of each goal split and evaluation seed (environments in lockstep, one jitted
 call per decision). Prints pooled success with Wilson intervals and exact McNemar tests between
 policies, and writes the per-episode records and the summary to <workdir>/evaluation.json
-(or --out; an existing file is kept unless --overwrite).
+(or --out; an existing file is kept unless --overwrite; written once the policies are evaluated,
+then again with the noise sweep and video).
 Optionally an observation-noise sweep of the planner (held-out goals) and a short video (mp4 with
 imageio-ffmpeg; rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless machine).
 """
@@ -30,7 +31,10 @@ _NOISE = flags.DEFINE_bool('noise_sweep', False, 'Observation-noise sweep of the
 _VIDEO = flags.DEFINE_bool('video', False, 'Render a 2-episode video of the planner.')
 _OVERRIDE = flags.DEFINE_multi_string('set', [], 'Config override, e.g. plan.action_steps=4.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output (default: <workdir>/evaluation.json).')
-_OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out file.')
+_VIDEO_OUT = flags.DEFINE_string('video_out', None, 'mp4 of --video (default: '
+                                  '<workdir>/planner.mp4).')
+_OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out or --video_out '
+                               'file.')
 flags.mark_flag_as_required('workdir')
 
 
@@ -45,7 +49,10 @@ def main(argv):
   with cli.one_line_errors():
     seeds = [int(s) for s in _SEEDS.value]
     path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
-    cli.check_new_output(path, _OVERWRITE.value)
+    cli.check_new_output(path, _OVERWRITE.value)  # Before the long work: exists, or unwritable.
+    video = _VIDEO_OUT.value or os.path.join(_WORKDIR.value, 'planner.mp4')
+    if _VIDEO.value:
+      cli.check_new_output(video, _OVERWRITE.value, flag='--video_out')
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
     config = with_overrides(config, parse_items(_OVERRIDE.value))
     validate_config(config)
@@ -66,6 +73,7 @@ def main(argv):
   print(evaluation_suite.markdown(summary))
   out = {'step': step, 'episodes': episodes, 'seeds': seeds, 'overrides': _OVERRIDE.value,
          'git_commit': git_commit(), 'summary': summary, 'records': records}
+  _write(path, out)  # The records are kept should the extras below fail.
   if _NOISE.value:
     out['noise_sweep'] = {}
     for std in config.eval.noise_stds:
@@ -77,18 +85,23 @@ def main(argv):
       print(f"obs noise {std}: planner {pooled['successes']}/{pooled['episodes']} = "
             f"{pooled['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] (held-out goals)")
   if _VIDEO.value:
-    video = os.path.join(_WORKDIR.value, 'planner.mp4')  # Its own name: `path` is the JSON's.
-    try:
+    try:  # `video`: its own name; `path` is the JSON's.
       video = run_evaluation(config, params, 'plan', 2, seeds[0], video_path=video)['video_path']
       out['video'] = video
       print(f'video: {video}')
     except Exception as err:  # pylint: disable=broad-except
       out['video_error'] = f'{type(err).__name__}: {err}'
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
-  os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-  with open(path, 'w') as f:
-    json.dump(out, f, indent=1)
+  _write(path, out)
   print(f'wrote {path}')
+
+
+def _write(path: str, out: dict) -> None:
+  """`out` as JSON at `path`, atomically (a file that exists is always whole)."""
+  os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+  with open(path + '.tmp', 'w') as f:
+    json.dump(out, f, indent=1)
+  os.replace(path + '.tmp', path)
 
 
 if __name__ == '__main__':

@@ -28,12 +28,13 @@ def pack(workdir: str, out: str) -> str | None:
   name = os.path.basename(workdir)
   config = checkpointing.load_config(workdir)
   manager = checkpointing.checkpoint_manager(workdir)
-  step, state = manager.latest_step(), checkpointing.restore_latest(manager, config)
+  step, state, _ = checkpointing.restore_intact(manager, config)  # Newest intact step.
   if state is None:
     return None
   tmp = tempfile.mkdtemp()
   staging = os.path.join(tmp, name)
-  shutil.copytree(workdir, staging, ignore=shutil.ignore_patterns('checkpoints'))
+  shutil.copytree(workdir, staging, ignore=shutil.ignore_patterns('checkpoints',
+                                                                     'damaged_checkpoints'))
   zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)
   state = state.replace(params=zero(state.params), opt_state=zero(state.opt_state))
   staged = checkpointing.checkpoint_manager(staging)

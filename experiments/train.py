@@ -24,6 +24,9 @@ from experiments.configs import resolve_config_arg
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
                                           lock_config=True)
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Run directory (checkpoints, logs, report).')
+_CONTINUE = flags.DEFINE_bool('continue_with_changes', False, 'Continue the run in --workdir '
+                              'although its config.json differs from this config (kept as '
+                              'config.<n>.json); without it such a workdir is refused.')
 # Several processes (hosts) training one model: docs/scaling.md. None: detected from the cluster
 # environment (SLURM, Open MPI, Cloud TPU) by jax.distributed.initialize.
 _DISTRIBUTED = flags.DEFINE_bool('distributed', False, 'Call jax.distributed.initialize first.')
@@ -40,6 +43,7 @@ def main(argv):
   if _DISTRIBUTED.value:  # Before anything touches a device.
     jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
+  from ld_mpc_jax.checkpointing import WorkdirError
   from ld_mpc_jax.config_checks import online_enabled, validate_config
   from ld_mpc_jax.data import DatasetError, sources
   from ld_mpc_jax.tasks import check_tasks
@@ -54,8 +58,8 @@ def main(argv):
   except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
     cli.fail(' '.join(str(err).split()))
   try:
-    train_and_evaluate(_CONFIG.value, _WORKDIR.value)
-  except DatasetError as err:  # Data that do not fit the config: also one line.
+    train_and_evaluate(_CONFIG.value, _WORKDIR.value, _CONTINUE.value)
+  except (DatasetError, WorkdirError) as err:  # Data that do not fit, another run's workdir.
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
   if jax.process_index() == 0:  # The one process that writes the report.

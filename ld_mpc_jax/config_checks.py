@@ -12,6 +12,9 @@ _POSITIVE_INTS = (
     'model.mlp_ratio', 'model.proposal_blocks', 'model.dynamics_blocks', 'model.objective_blocks',
     'plan.num_candidates', 'plan.action_steps', 'plan.dynamics_steps',
     'train.batch_size', 'train.num_steps',
+    # Intervals and how many checkpoints to keep (0 would delete every checkpoint, or divide by 0
+    # after data collection and compilation; a negative interval would never checkpoint).
+    'train.log_every', 'train.checkpoint_every', 'train.eval_every', 'train.max_checkpoints',
 )
 # Policy modes (ld_mpc_jax.agent.POLICY_MODES) that can act online: the planner, or the actor
 # prior alone (with the executed-action noise).

@@ -31,6 +31,7 @@ those counters, so a resumed run continues exactly as the uninterrupted one.
 
 import json
 import os
+import sys
 import time
 from typing import Any, Dict, List, Optional
 
@@ -123,23 +124,29 @@ class OnlineJob:
                          unit='env step', dynamic_ncols=True)
 
   def _restore(self):
-    """Each seed's TrainState at the latest step that all of them checkpointed (a run killed
-    between two seeds' saves resumes from the step before), with seed 0's counters; None
-    without a checkpoint."""
-    steps = [seat.run.manager.all_steps() for seat in self.seats]
-    if not any(steps):
+    """Each seed's TrainState at the newest step that every seed has intact, with its buffer
+    file, and seed 0's counters; None without a checkpoint. Newer steps (damaged, without a
+    buffer file, or not saved by every seed: a run killed between two seeds' saves) are skipped
+    with a warning (`runs.Run.restore`)."""
+    if not any(seat.run.manager.all_steps() for seat in self.seats):
       return None
-    common = set(steps[0]).intersection(*steps[1:])
-    if not common:
-      raise FileNotFoundError(f'the seeds of this run have no checkpoint step in common '
-                              f'({steps}); start it in a new workdir')
-    step, states = max(common), []
+    allowed = set.intersection(*(set(seat.run.manager.all_steps()) for seat in self.seats))
+
+    def usable(seat):
+      def reason(step):
+        if step not in allowed:
+          return 'not checkpointed by every seed of this run'
+        path = buffer_path(seat.run.workdir, step)
+        return None if os.path.exists(path) else f'no {path}'
+      return reason
+    while True:
+      states = [seat.run.restore(usable(seat)) for seat in self.seats]
+      steps = {seat.run.step for seat in self.seats}
+      if len(steps) == 1:
+        break
+      allowed = {s for s in allowed if s <= min(steps)}  # One seed fell back further.
     for seat in self.seats:
-      path = buffer_path(seat.run.workdir, step)
-      if not os.path.exists(path):
-        raise FileNotFoundError(f'checkpoint {step} has no {path}')
-      states.append(seat.run.restore(step))
-      counters = seat.buffer.load(path)
+      counters = seat.buffer.load(buffer_path(seat.run.workdir, seat.run.step))
       if seat.index == 0:
         self.counters = counters
     return states
@@ -282,7 +289,8 @@ class OnlineJob:
         [e['success'].any() for seat in self.seats for e in seat.episodes]))
 
 
-def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
+def train_online(config: ml_collections.ConfigDict, workdir: str,
+                 continue_with_changes: bool = False) -> Dict[str, Any]:
   """Online (or offline-to-online) training and evaluation; returns the report.
 
   Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json, online.csv
@@ -292,17 +300,23 @@ def train_online(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, A
   episodes.csv, report.json and report.md, like the offline job. With `train.num_seeds` = N > 1
   each seed writes these in <workdir>/seed<seed> (`seat_configs`), and the run adds pooled.json
   and pooled.md (online_report.write_pooled); the returned report is then the pooled one, with
-  each seed's report under 'seeds'.
+  each seed's report under 'seeds' A workdir of another config is
+  refused before anything is written to it, unless `continue_with_changes` (`train_and_evaluate`).
   """
   validate_config(config)
   envs.check_task(config.task)
   source = check_init_from(config)
   if source is not None:  # Fine-tuning trains on the offline run's data too.
     config.data.update(source.data.to_dict())
+  for seat_config, seat_workdir in seat_configs(config, workdir):  # As they will be saved.
+    checkpointing.check_workdir(seat_config, seat_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   offline = data.load_for_config(config) if source is not None else None
   if offline is not None:
     runs.check_config_for_data(config, offline)
+  if not config.online.update_ratio:  # Once, before any work.
+    print('warning: config.online.update_ratio=0: no updates; the agent is evaluated as it '
+          f"starts ({'the offline run' if source is not None else 'untrained'})", file=sys.stderr)
   job = OnlineJob(config, workdir, source, offline)
   o, c = config.online, job.counters
   if source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.

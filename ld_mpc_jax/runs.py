@@ -103,24 +103,27 @@ class Run:
     self.config, self.workdir = config, workdir
     self.commit = run_files.git_commit()  # The code this process runs: HEAD may move later.
     os.makedirs(workdir, exist_ok=True)
-    checkpointing.save_config(config, workdir)
+    checkpointing.record_config(config, workdir)  # Checked first: checkpointing.check_workdir.
     self.manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
     self.writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
                    else run_files.NoWriter())
 
-  def restore(self, step: Optional[int] = None):
-    """The TrainState of checkpoint `step` (None: the latest), or None without a checkpoint;
-    the logs lose rows written after it."""
-    state = (checkpointing.restore_latest(self.manager, self.config) if step is None
-             else checkpointing.restore_step(self.manager, self.config, step))
+  def restore(self, usable=None):
+    """The newest intact checkpoint's TrainState (its step: `self.step`), or None; the logs lose
+    rows written after it.
+
+    Newer steps that fail to restore, or that `usable(step)` gives a reason against, are skipped
+    with a warning and moved to damaged_checkpoints/ (`checkpointing.restore_intact`).
+    """
+    self.step, state, skipped = checkpointing.restore_intact(self.manager, self.config, usable)
+    checkpointing.set_aside(self.workdir, self.manager, skipped)
     if state is not None:
       # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which
       # lowers to another program): a resumed run then compiles the update a fresh run compiled
       # (one entry in JAX's persistent cache, not two).
       state = jax.tree.map(_uncommitted, state)
       for name, column in STEP_LOGS:
-        run_files.drop_rows_after(os.path.join(self.workdir, name), column,
-                                  self.manager.latest_step() if step is None else step)
+        run_files.drop_rows_after(os.path.join(self.workdir, name), column, self.step)
     return state
 
   def prior_seconds(self) -> float:

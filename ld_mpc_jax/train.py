@@ -13,14 +13,15 @@ import ml_collections
 import numpy as np
 import tqdm
 
-from ld_mpc_jax import data, multitask_eval, run_files, runs, sharding, tasks
+from ld_mpc_jax import checkpointing, data, multitask_eval, run_files, runs, sharding, tasks
 from ld_mpc_jax.config_checks import online_enabled, validate_config
 from ld_mpc_jax.models import count_params
 from ld_mpc_jax.train_state import create_train_state, make_update
 
 
 
-def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[str, Any]:
+def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
+                       continue_with_changes: bool = False) -> Dict[str, Any]:
   """Trains LD-MPC on the task's offline dataset and evaluates it; returns the report.
 
   Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json,
@@ -29,13 +30,18 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str) -> Dict[
   tasks.png, and its report a per-task table ('per_task'). The returned report also holds the
   per-episode records under 'records'.
 
+  A workdir that holds a run of another config is refused (`checkpointing.WorkdirError`, before
+  anything is written to it) unless `continue_with_changes`; its earlier config.json is then kept
+  as config.<n>.json.
+
   With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.online.train_online`).
   """
   if online_enabled(config):
     from ld_mpc_jax import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
-    return online.train_online(config, workdir)
+    return online.train_online(config, workdir, continue_with_changes)
   validate_config(config)
   tasks.check_tasks(config)
+  checkpointing.check_workdir(config, workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
   runs.check_config_for_data(config, dataset)
@@ -79,6 +85,7 @@ class OfflineJob:
   def __init__(self, config, run: runs.Run, dataset: data.Dataset, state):
     t = config.train
     self.config, self.run, self.progress = config, run, int(state.step)
+    self.start = self.progress  # Resumed at (0 from scratch).
     self.prior_seconds = run.prior_seconds() if self.progress else 0.0
     mesh = sharding.make_mesh() if t.data_parallel else None
     self.update = make_update(config, mesh)
@@ -138,6 +145,7 @@ def _report(config, dataset, job, final, baselines, summary, commit, records):
       'eval_episodes': config.eval.episodes, 'eval_seeds': list(config.eval.seeds),
       'baselines': baselines, 'evaluation': summary,
       'train_seconds': job.prior_seconds + job.timer.seconds, 'steps': int(job.state.step),
+      'steps_this_run': job.progress - job.start,
       'steps_per_s': job.timer.steps_per_s,
       'num_params': count_params(job.state.ema_params),
       'dataset': {'source': config.data.source, 'preset': config.data.preset,
@@ -149,8 +157,11 @@ def _report(config, dataset, job, final, baselines, summary, commit, records):
 
 def _summary_md(report: Dict[str, Any]) -> str:
   """report.md of an offline run: steps, speed and size, then the final evaluation."""
+  made = report['steps_this_run']
   speed = (f"{report['steps_per_s']:.2f} steps/s without compilation"
            if np.isfinite(report['steps_per_s'])
+           else f"{made} update step{'s' if made > 1 else ''} in this run, too few to time "
+           'without compilation' if made
            else 'no update steps in this run: resumed at the final step')
   intro = [f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
            f"({speed}); {report['num_params']:,} parameters.", '']

@@ -3,6 +3,8 @@ used (migrate_config), so library code reads fields directly; checkpoints restor
 process's device whatever device wrote them."""
 
 import json
+import os
+import sys
 
 import jax
 import numpy as np
@@ -108,3 +110,102 @@ def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
   for a, b in zip(jax.tree.leaves(restored.ema_params), jax.tree.leaves(state.ema_params)):
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert a.devices() == {jax.local_devices()[0]}
+
+
+def test_a_workdir_of_another_config_is_refused_naming_the_fields(tmp_path):
+  workdir = str(tmp_path)
+  saved = door_open.get_config('smoke')
+  checkpointing.save_config(saved, workdir)
+  checkpointing.check_workdir(door_open.get_config('smoke'), workdir)  # The same: no error.
+  other = with_overrides(door_open.get_config('smoke'), {'train.learning_rate': 1e-2, 'seed': 7})
+  with pytest.raises(checkpointing.WorkdirError) as err:
+    checkpointing.check_workdir(other, workdir)
+  message = str(err.value)
+  assert '\n' not in message and '--continue_with_changes' in message
+  assert f'seed (0 -> 7), train.learning_rate ({saved.train.learning_rate} -> 0.01)' in message
+  checkpointing.check_workdir(other, workdir, continue_with_changes=True)  # No checkpoint.
+  assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]  # Checks write nothing.
+
+
+def test_continuing_with_other_networks_is_refused_even_with_the_flag(tmp_path):
+  workdir = str(tmp_path)
+  config = door_open.get_config('smoke')
+  checkpointing.save_config(config, workdir)
+  manager = checkpointing.checkpoint_manager(workdir)
+  manager.save(1, args=ocp.args.StandardSave(create_train_state(config, jax.random.key(0))))
+  manager.wait_until_finished()
+  wider = with_overrides(door_open.get_config('smoke'), {'model.width': 32})
+  with pytest.raises(checkpointing.WorkdirError, match=r'networks differ \(model.width'):
+    checkpointing.check_workdir(wider, workdir, continue_with_changes=True)
+
+
+def test_a_changed_config_keeps_the_earlier_one_beside_it(tmp_path):
+  workdir = str(tmp_path)
+  first = door_open.get_config('smoke')
+  checkpointing.record_config(first, workdir)
+  checkpointing.record_config(first, workdir)  # The same config: nothing kept.
+  assert sorted(os.listdir(workdir)) == [checkpointing.CONFIG_FILE]
+  checkpointing.record_config(with_overrides(first, {'seed': 3}), workdir)
+  assert sorted(os.listdir(workdir)) == ['config.1.json', checkpointing.CONFIG_FILE]
+  assert json.load(open(tmp_path / 'config.1.json'))['seed'] == 0
+  assert checkpointing.load_config(workdir).seed == 3
+
+
+def _two_checkpoints(workdir):
+  """A workdir of the smoke config with checkpoints at steps 1 and 2; step 2's data files
+  truncated to half. Returns the config."""
+  config = door_open.get_config('smoke')
+  checkpointing.save_config(config, workdir)
+  manager = checkpointing.checkpoint_manager(workdir)
+  state = create_train_state(config, jax.random.key(0))
+  for step in (1, 2):
+    manager.save(step, args=ocp.args.StandardSave(state.replace(step=step)))
+  manager.wait_until_finished()
+  for root, _, names in os.walk(os.path.join(workdir, 'checkpoints', '2', 'default')):
+    for name in names:  # Every array data file (one alone may hold nothing restore reads).
+      if os.path.basename(root) == 'd':
+        path = os.path.join(root, name)
+        with open(path, 'r+b') as f:
+          f.truncate(os.path.getsize(path) // 2)
+  return config
+
+
+def test_a_damaged_checkpoint_falls_back_to_the_newest_intact_one(tmp_path, capsys):
+  workdir = str(tmp_path)
+  _two_checkpoints(workdir)
+  _, _, step = checkpointing.load_for_evaluation(workdir)  # Evaluation: read only.
+  assert step == 1
+  warning = capsys.readouterr().err.strip().splitlines()
+  assert len(warning) == 1 and warning[0].startswith('warning: checkpoint step 2 in ')
+  assert 'skipped' in warning[0] and 'trying an earlier one' in warning[0]
+  # The failed restore's abandoned reads stay quiet ('Event loop is closed', hundreds of times).
+  assert getattr(sys.unraisablehook, 'quiet_abandoned_reads', False)
+  assert checkpointing.checkpoint_manager(workdir).all_steps() == [1, 2]
+
+
+def test_a_resumed_run_sets_damaged_steps_aside_and_saves_them_again(tmp_path):
+  from ld_mpc_jax import runs
+  workdir = str(tmp_path)
+  config = _two_checkpoints(workdir)
+  run = runs.Run(config, workdir)
+  state = run.restore()
+  assert (run.step, int(state.step)) == (1, 1)
+  assert run.manager.all_steps() == [1]
+  assert os.listdir(tmp_path / 'damaged_checkpoints') == ['2']
+  run.save(state.replace(step=2), 2, 0.0)  # Step 2 is saved again, not silently skipped.
+  assert run.manager.all_steps() == [1, 2]
+
+
+def test_a_step_without_what_the_run_needs_is_skipped(tmp_path):
+  workdir = str(tmp_path)
+  config = door_open.get_config('smoke')
+  manager = checkpointing.checkpoint_manager(workdir)
+  state = create_train_state(config, jax.random.key(0))
+  for step in (1, 2):
+    manager.save(step, args=ocp.args.StandardSave(state))
+  manager.wait_until_finished()
+  step, _, skipped = checkpointing.restore_intact(
+      manager, config, lambda s: 'no buffer_2.npz' if s == 2 else None)
+  assert (step, skipped) == (1, [2])
+  with pytest.raises(checkpointing.WorkdirError, match='no intact checkpoint .* steps 2, 1'):
+    checkpointing.restore_intact(manager, config, lambda s: 'no buffer file')

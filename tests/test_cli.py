@@ -55,3 +55,15 @@ def test_config_args_in_either_form_come_back_joined_and_resolved():
   assert resolve_config_arg(argv) == [
       'prog', f'--config={os.path.join(CONFIG_DIR, "door_open.py")}:cpu', '--config.seed=3',
       '--config.plan.pessimism=-0.5', '--config.flag', '--workdir=w', '--config.data.preset=weak']
+
+
+def test_an_output_that_cannot_be_written_is_refused_before_the_work(tmp_path):
+  blocker = tmp_path / 'a_file'
+  blocker.write_text('x')
+  with pytest.raises(ValueError, match=r'a_file/out/evaluation.json cannot be written \(.*a_file '
+                                       r'is not a folder\); choose another --out'):
+    cli.check_new_output(str(blocker / 'out' / 'evaluation.json'), overwrite=False)
+  with pytest.raises(ValueError, match='is a folder'):
+    cli.check_new_output(str(tmp_path), overwrite=True)
+  cli.check_new_output(str(tmp_path / 'new' / 'deeper' / 'e.json'), overwrite=False)
+  assert sorted(os.listdir(tmp_path)) == ['a_file']  # Checking made no folder and no file.

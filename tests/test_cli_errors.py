@@ -41,3 +41,19 @@ def test_bad_preset_or_batch_is_one_line_and_exit_code_2(tmp_path, args, words):
   assert code == 2, lines[-30:]
   assert len(lines) == 1 and lines[0].startswith('error: '), lines[-30:]
   assert all(w in lines[0] for w in words), lines[0]
+
+
+def test_a_workdir_of_another_config_is_one_line_and_exit_code_2(tmp_path):
+  from experiments.configs import door_open
+  from ld_mpc_jax import checkpointing
+  workdir = tmp_path / 'run'
+  checkpointing.save_config(door_open.get_config('smoke'), str(workdir))
+  done = subprocess.run([sys.executable, '-m', 'experiments.train', f'--workdir={workdir}',
+                         '--config=door_open.py:smoke', '--config.seed=5'],
+                        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                        env=dict(os.environ, PYTHONPATH=REPO))
+  lines = [l for l in done.stderr.splitlines() if l.startswith('error: ')]
+  assert done.returncode == 2, done.stderr[-3000:]
+  assert len(lines) == 1 and 'seed (0 -> 5)' in lines[0], done.stderr[-3000:]
+  assert 'Traceback' not in done.stderr
+  assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]

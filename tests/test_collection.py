@@ -1,6 +1,7 @@
 """ld_mpc_jax.data.collection: scripted episodes with their noise levels, collection metadata, and
 the cache of collected datasets."""
 
+import os
 import zipfile
 
 import gymnasium as gym
@@ -65,7 +66,7 @@ def test_collect_records_metadata():
   assert ds.observations.shape[1] == 39 and ds.actions.shape[1] == 4
 
 
-def test_get_or_collect_caches_and_replaces_bad_files(tmp_path, monkeypatch):
+def test_get_or_collect_caches_and_moves_bad_files_aside(tmp_path, monkeypatch):
   calls = []
 
   def fake_collect(task, preset, episodes, seed, action_repeat,
@@ -93,8 +94,29 @@ def test_get_or_collect_caches_and_replaces_bad_files(tmp_path, monkeypatch):
     collection.get_or_collect(**args)
   assert len(calls) == 2
   assert zipfile.is_zipfile(path)
-  # A file of an older collector (no version) is collected again.
+  with open(path + '.bad', 'rb') as f:  # Moved aside, not overwritten.
+    assert f.read() == b'garbage'
+  # A file of an older collector (no version) is collected again; it too is kept.
   monkeypatch.setattr(collection, 'COLLECTOR_VERSION', collection.COLLECTOR_VERSION + 1)
   with pytest.warns(UserWarning, match='collecting again'):
     collection.get_or_collect(**args)
   assert len(calls) == 3
+  assert zipfile.is_zipfile(path + '.1.bad') and os.path.exists(path + '.bad')
+
+
+def test_a_cached_dataset_with_nan_is_moved_aside_not_overwritten(tmp_path, monkeypatch):
+  monkeypatch.setattr(collection, 'collect', lambda *a, **k: _tiny())
+  path = collection.dataset_path(str(tmp_path), 'door-open-v3', 'expert', 3, 0, 2)
+  ds = _tiny()
+  ds.observations[0, 0] = np.nan
+  monkeypatch.setattr(dataset_lib.Dataset, 'validate', lambda self: None)
+  dataset_lib.save(ds, path)  # A damaged file: NaN in the observations.
+  monkeypatch.undo()
+  monkeypatch.setattr(collection, 'collect', lambda *a, **k: _tiny())
+  before = open(path, 'rb').read()
+  with pytest.warns(UserWarning) as record:
+    collection.get_or_collect('door-open-v3', 'expert', 3, 0, str(tmp_path), action_repeat=2)
+  message = str(record[0].message)
+  assert message == (f'invalid cached dataset ({path}: observations contains NaN or inf '
+                     f'values.): moved to {path}.bad; collecting again')
+  assert open(path + '.bad', 'rb').read() == before

@@ -4,7 +4,7 @@ against the windows of the seed data; acting settings; the multi-task batch."""
 import numpy as np
 import pytest
 
-from experiments.configs import door_open_online, mt10
+from experiments.configs import door_open, door_open_online, mt10
 from ld_mpc_jax import config_checks, data
 
 
@@ -112,4 +112,15 @@ def test_bad_evaluation_draws_fail_naming_the_field(field, value, words):
   config = door_open_online.get_config('smoke')
   config.eval[field] = value
   with pytest.raises(ValueError, match=words):
+    config_checks.validate_config(config)
+
+
+@pytest.mark.parametrize('field', ['log_every', 'checkpoint_every', 'eval_every',
+                                   'max_checkpoints'])
+@pytest.mark.parametrize('value', [0, -5])
+def test_intervals_and_kept_checkpoints_must_be_positive(field, value):
+  config = door_open.get_config('smoke')
+  config.train[field] = value
+  with pytest.raises(ValueError, match=rf'^config.train.{field} must be an integer >= 1, '
+                                       rf'got {value}$'):
     config_checks.validate_config(config)

@@ -48,3 +48,19 @@ def test_video_and_json_are_separate_files(tmp_path, smoke_config):
     out = json.load(f)
   assert out['video'] == video and 'video_error' not in out
   assert out['records'] and out['step'] == 0  # The state's own step
+
+
+def test_an_existing_video_is_kept_unless_overwrite(tmp_path):
+  workdir = tmp_path / 'run'
+  workdir.mkdir()
+  (workdir / 'planner.mp4').write_bytes(MARKER)
+  done = subprocess.run(
+      [sys.executable, '-m', 'experiments.evaluate', f'--workdir={workdir}', '--video'],
+      cwd=REPO, capture_output=True, text=True, timeout=300,
+      env=dict(os.environ, PYTHONPATH=REPO))
+  assert done.returncode == 2, done.stderr[-3000:]
+  assert done.stderr.strip().splitlines()[-1] == (
+      f'error: {workdir}/planner.mp4 exists (an earlier result); choose another --video_out or '
+      'pass --overwrite')
+  assert (workdir / 'planner.mp4').read_bytes() == MARKER
+  assert os.listdir(workdir) == ['planner.mp4']

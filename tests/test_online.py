@@ -144,3 +144,24 @@ def test_fine_tuning_from_a_run_of_another_task_is_refused_naming_the_flag(tmp_p
   with pytest.raises(ValueError, match=r'trained on push-v3, not door-open-v3: pass '
                      r'--config.task=push-v3'):
     online.check_init_from(config)
+
+
+class _Stop(Exception):
+  """Stands in for the run itself: the test ends where the work would start."""
+
+
+@pytest.mark.parametrize('ratio,warnings', [(0.0, 1), (1.0, 0)])
+def test_update_ratio_zero_warns_once_before_the_work(tmp_path, monkeypatch, capsys, ratio,
+                                                      warnings):
+  config = door_open_online.get_config('smoke')
+  config.online.update_ratio = ratio
+  def stop(*args):
+    raise _Stop
+  monkeypatch.setattr(online.runs, 'Run', stop)
+  with pytest.raises(_Stop):
+    online.train_online(config, str(tmp_path / 'run'))
+  lines = [l for l in capsys.readouterr().err.splitlines() if l.startswith('warning:')]
+  assert len(lines) == warnings
+  if warnings:
+    assert lines[0] == ('warning: config.online.update_ratio=0: no updates; the agent is '
+                        'evaluated as it starts (untrained)')

@@ -75,8 +75,8 @@ def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, mon
     run_files.append_csv(os.path.join(workdir, run_files.METRICS_CSV), dict(step=step, loss=1.0))
     run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=step))
     run_files.append_csv(os.path.join(workdir, run_files.LOSSES_CSV), dict(env_steps=step))
-  monkeypatch.setattr(checkpointing, 'restore_latest', lambda manager, config: 'state')
-  monkeypatch.setattr(run.manager, 'latest_step', lambda: 80)
+  monkeypatch.setattr(checkpointing, 'restore_intact',
+                      lambda manager, config, usable: (80, 'state', []))
   assert run.restore() == 'state'
   for name in (runs.EVAL_CSV, run_files.METRICS_CSV):
     assert [r['step'] for r in run_files.read_csv(os.path.join(workdir, name))] == ['40', '80']
@@ -84,7 +84,8 @@ def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, mon
     assert [r['env_steps'] for r in run_files.read_csv(os.path.join(workdir, name))] == [
         '40', '80']
   # No checkpoint: a fresh run, whose logs are left alone.
-  monkeypatch.setattr(checkpointing, 'restore_latest', lambda manager, config: None)
+  monkeypatch.setattr(checkpointing, 'restore_intact',
+                      lambda manager, config, usable: (None, None, []))
   run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=120))
   assert run.restore() is None
   assert len(run_files.read_csv(os.path.join(workdir, run_files.ONLINE_CSV))) == 3

@@ -51,8 +51,18 @@ def test_task_lists():
 
 def test_missing_extra_gives_install_hint(monkeypatch, tmp_path):
   monkeypatch.setitem(sys.modules, 'torch', None)
-  with pytest.raises(ImportError, match=r'pip install -e \.\[tdmpc2\]'):
+  (tmp_path / 'chunk_0.pt').write_bytes(b'a chunk file')
+  with pytest.raises(ImportError, match=r'pip install -e \.\[tdmpc2\]') as err:
     tdmpc2.load_tdmpc2(str(tmp_path), 'mt80', ['mw-door-open'])
+  assert isinstance(err.value, DatasetError)  # One line from the launcher, exit code 2.
+  assert '\n' not in str(err.value) and err.value.__cause__ is None
+
+
+@pytest.mark.parametrize('path', ['missing.pt', 'missing_dir'])
+def test_a_missing_path_is_reported_before_torch_is_imported(monkeypatch, tmp_path, path):
+  monkeypatch.setitem(sys.modules, 'torch', None)  # Importing it would raise ImportError.
+  with pytest.raises(DatasetError, match=r'^No TD-MPC2 chunk file .*missing.*: no such file'):
+    tdmpc2.load_tdmpc2(str(tmp_path / path), 'mt80', ['mw-door-open'])
 
 
 @needs_extra

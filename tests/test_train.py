@@ -113,7 +113,7 @@ def test_a_crashed_run_resumes_from_its_last_checkpoint_to_the_final_step(tmp_pa
   assert not os.path.exists(os.path.join(workdir, 'report.json'))
   monkeypatch.setattr(replay.ReplayBuffer, 'sample', original)
   report = train.train_and_evaluate(c, workdir)
-  assert report['steps'] == 4
+  assert report['steps'] == 4 and report['steps_this_run'] == 2
   assert checkpointing.load_for_evaluation(workdir)[2] == 4
   steps = [int(r['step']) for r in run_files.read_csv(os.path.join(workdir, 'metrics.csv'))]
   assert steps == [1, 2, 3, 4]  # Row 3 of the crashed run is not kept twice.
@@ -163,15 +163,18 @@ def test_eval_episodes_zero_trains_without_evaluating(unevaluated_runs):
   assert not os.path.exists(os.path.join(workdir, 'eval.csv'))
 
 
-@pytest.mark.parametrize('steps_per_s,expected', [
-    (4.671, '4.67 steps/s without compilation'),
-    (float('nan'), 'no update steps in this run: resumed at the final step')])
-def test_report_summary_states_speed_or_that_nothing_was_trained(steps_per_s, expected):
+@pytest.mark.parametrize('steps_per_s,made,expected', [
+    (4.671, 4000, '4.67 steps/s without compilation'),
+    (float('nan'), 0, 'no update steps in this run: resumed at the final step'),
+    (float('nan'), 1, '1 update step in this run, too few to time without compilation'),
+    (float('nan'), 2, '2 update steps in this run, too few to time without compilation')])
+def test_report_summary_states_speed_or_that_nothing_was_trained(steps_per_s, made, expected):
   from ld_mpc_jax import evaluation_suite
   records = [dict(run=0, policy=mode, split='held_out', eval_seed=0, episode=i,
                   success=int(i < k), decisions_per_s=30.5, **{'return': 474.7})
              for mode, k in (('plan', 47), ('actor', 40)) for i in range(50)]
   report = dict(task='door-open-v3', steps=4000, train_seconds=836.2, steps_per_s=steps_per_s,
+                steps_this_run=made,
                 num_params=1423442, eval_episodes=50, eval_seeds=[0], git_commit='abc',
                 evaluation=evaluation_suite.summarize(records))
   md = train._summary_md(report)
@@ -214,3 +217,15 @@ def test_packed_run_evaluates_as_trained_and_holds_no_training_state(unevaluated
   with open(empty / 'config.json', 'w') as f:
     f.write(open(os.path.join(workdir, 'config.json')).read())
   assert pack_runs.pack(str(empty), str(tmp_path / 'out')) is None
+
+
+def test_training_into_a_workdir_of_another_config_writes_nothing(tmp_path, data_dir,
+                                                                  monkeypatch):
+  workdir = tmp_path / 'run'
+  checkpointing.save_config(smoke(data_dir), str(workdir))
+  before = (workdir / checkpointing.CONFIG_FILE).read_text()
+  monkeypatch.setattr(train.data, 'load_for_config', lambda c: 1 / 0)  # No work before the check.
+  with pytest.raises(checkpointing.WorkdirError, match=r'train.learning_rate \(.* -> 0.5\)'):
+    train.train_and_evaluate(smoke(data_dir, learning_rate=0.5), str(workdir))
+  assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]
+  assert (workdir / checkpointing.CONFIG_FILE).read_text() == before

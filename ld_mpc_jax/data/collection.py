@@ -171,8 +171,9 @@ def get_or_collect(task: str, preset: str, episodes: int, seed: int,
                    progress: bool = True) -> dataset_lib.Dataset:
   """Loads the cached dataset if present and valid, else collects and saves it.
 
-  A cached file that fails validation, or whose metadata does not match the
-  request, is replaced (with a warning).
+  A cached file that fails validation (e.g. NaN), or whose metadata does not match the request,
+  is never overwritten: it is renamed with a `.bad` suffix (a warning says so), then the data
+  are collected again.
   """
   path = dataset_path(data_dir, task, preset, episodes, seed, action_repeat, max_episode_steps)
   want = dict(collector_version=COLLECTOR_VERSION, task=task, preset=preset, episodes=episodes,
@@ -184,13 +185,23 @@ def get_or_collect(task: str, preset: str, episodes: int, seed: int,
       got = {k: ds.metadata.get(k) for k in want}
       if got == want:
         return ds
-      warnings.warn(f'{path} holds {got}, not {want}; collecting again.')
+      _set_aside(path, f'{path} holds {got}, not {want}')
     except dataset_lib.DatasetError as err:
-      warnings.warn(f'Ignoring invalid cached dataset: {err}')
+      _set_aside(path, f'invalid cached dataset ({err})')  # err names the file.
   ds = collect(task, preset, episodes, seed=seed, action_repeat=action_repeat,
                max_episode_steps=max_episode_steps, progress=progress)
   dataset_lib.save(ds, path)
   return ds
+
+
+def _set_aside(path: str, reason: str) -> str:
+  """Renames `path` to <path>.bad (or <path>.<n>.bad, never replacing one) with a warning."""
+  bad, n = f'{path}.bad', 1
+  while os.path.exists(bad):
+    bad, n = f'{path}.{n}.bad', n + 1
+  os.replace(path, bad)
+  warnings.warn(f'{reason}: moved to {bad}; collecting again')
+  return bad
 
 
 def summary(ds: dataset_lib.Dataset) -> Dict[str, Optional[float]]:

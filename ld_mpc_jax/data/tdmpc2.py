@@ -16,7 +16,13 @@ gives L observations and L - 1 transitions. Success flags are not stored in
 these files, so `successes` is all False (metadata: successes_recorded=False).
 
 torch and tensordict are an optional extra (`pip install -e .[tdmpc2]`, with
-the CPU wheel `pip install torch==2.13.0`); they are imported only here.
+the CPU wheel `pip install torch==2.13.0`); they are imported only here, once
+the chunk files are found.
+
+Risk: chunk files are read with `torch.load(weights_only=False)`, which runs any
+code pickled in them (TensorDicts do not load with weights_only=True, not even
+with tensordict's classes allowlisted: pytorch/tensordict#1363); read only chunk
+files from a source you trust, such as TD-MPC2's published ones.
 """
 
 import glob
@@ -67,12 +73,16 @@ _INSTALL_HINT = (
     'torch==2.13.0).')
 
 
+class MissingExtraError(dataset_lib.DatasetError, ImportError):
+  """torch or tensordict is not installed (one line saying how to install them)."""
+
+
 def _import_torch():
   try:
     import tensordict  # pylint: disable=g-import-not-at-top,unused-import
     import torch  # pylint: disable=g-import-not-at-top
   except ImportError as err:
-    raise ImportError(f'{_INSTALL_HINT} ({err})') from err
+    raise MissingExtraError(f'{_INSTALL_HINT} ({err})') from None
   return torch
 
 
@@ -127,6 +137,8 @@ def _chunk_files(paths: Union[str, Sequence[str]]) -> List[str]:
     if any(c in p for c in '*?['):  # A glob pattern such as 'chunks/chunk_*.pt'.
       files.extend(sorted(glob.glob(p)))
     else:
+      if not os.path.exists(p):
+        raise dataset_lib.DatasetError(f'No TD-MPC2 chunk file {p}: no such file or folder.')
       files.extend(sorted(glob.glob(os.path.join(p, '*.pt')))
                    if os.path.isdir(p) else [p])
   if not files:
@@ -161,7 +173,8 @@ def load_tdmpc2(paths: Union[str, Sequence[str]], task_set: str,
     [N, max act_dim], task_ids [E] in 0..len(tasks)-1.
 
   Raises:
-    ImportError: torch/tensordict missing (message says how to install).
+    MissingExtraError (a DatasetError and an ImportError): torch/tensordict
+      missing (one line saying how to install), raised only once the files are found.
     ValueError: unknown task set or task name.
     DatasetError: unreadable chunk, non-zero padding, NaNs, no episodes.
   """
@@ -174,9 +187,10 @@ def load_tdmpc2(paths: Union[str, Sequence[str]], task_set: str,
   obs_dim = max(s[0] for s in sizes)
   act_dim = max(s[1] for s in sizes)
   remap = {orig: new for new, orig in enumerate(original)}
+  chunks = _chunk_files(paths)  # Before torch: a wrong path is reported without the extra.
   torch = _import_torch()
   obs_parts, act_parts, rew_parts, ids, files = [], [], [], [], []
-  for path in _chunk_files(paths):
+  for path in chunks:
     part = _read_chunk(torch, path, original, obs_dim, act_dim)
     if part is None:
       continue
@@ -200,7 +214,7 @@ def load_tdmpc2(paths: Union[str, Sequence[str]], task_set: str,
 def _read_chunk(torch, path: str, original: Sequence[int], obs_dim: int, act_dim: int):
   """One chunk's episodes of the `original` task ids: (obs [n, L, obs_dim], act [n, L, act_dim],
   rew [n, L], task ids [n]) cut to the true sizes, or None when it holds none of them."""
-  try:
+  try:  # Runs code pickled in the file (module docstring): trusted files only.
     td = torch.load(path, map_location='cpu', weights_only=False)
   except Exception as err:  # pylint: disable=broad-except
     raise dataset_lib.DatasetError(

@@ -18,7 +18,8 @@ def test_mt10_smoke_trains_checkpoints_resumes_and_evaluates_every_task(tmp_path
   first = mt10.get_config('smoke')
   first.data.dir, first.train.num_steps, first.eval.episodes = c.data.dir, 2, 0
   assert train.train_and_evaluate(first, workdir)['steps'] == 2  # Stops at a checkpoint.
-  report = train.train_and_evaluate(c, workdir)  # Resumes from step 2, then evaluates.
+  # Resumes from step 2 with more steps and an evaluation, then evaluates.
+  report = train.train_and_evaluate(c, workdir, continue_with_changes=True)
   assert report['steps'] == 4
   steps = [int(r['step']) for r in run_files.read_csv(os.path.join(workdir, 'metrics.csv'))]
   assert steps == [2, 4]
