@@ -4,18 +4,22 @@
   python -m experiments.benchmark_training --configs=door_open.py:cpu --repeats=20
   python -m experiments.benchmark_training --configs=door_open.py:smoke --repeats=2 --out=b.json
   python -m experiments.benchmark_training --data_parallel       # batch split over all devices
+  python -m experiments.benchmark_training --online_seeds=1,3,5 \
+      --configs=door_open_online.py:cpu_tanh --online_env_steps=4000  # seeds in one online run
 
 Each --configs entry is a config file with an optional :preset, as for experiments.train.
 Parameters are random and batches synthetic. Writes a JSON list, one entry per config (name,
 step_ms {median, min, max, n} after compilation and warm-up, gflop per step from XLA's cost
 analysis with the scans unrolled, peak_gflops measured in this run, bound_ratio = measured time /
 FLOP-bound time, devices), and a markdown table next to it (.md). Method: docs/scaling.md.
+With --online_seeds, instead: online training of the first config with N training seeds in one
+run for each N, one after the other in this process (benchmarks/online_seeds.py).
 """
 
 import importlib.util
 import os
 
-from absl import app, flags
+from absl import app, flags, logging
 
 from experiments import cli
 from experiments.configs import CONFIG_DIR
@@ -30,6 +34,10 @@ _DATA_PARALLEL = flags.DEFINE_bool('data_parallel', False, 'Split the batch over
 _OUT = flags.DEFINE_string('out', 'benchmark_training.json', 'JSON output; .md written beside.')
 _PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
 _PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
+_ONLINE_SEEDS = flags.DEFINE_list('online_seeds', [], 'Numbers of training seeds in one online '
+                                  'run to time, e.g. 1,3,5 (the first config must be online).')
+_ONLINE_STEPS = flags.DEFINE_integer('online_env_steps', 4000, 'Environment steps (simulator '
+                                     'steps) of each timed online run, seed waves included.')
 
 
 def load_config(spec: str):
@@ -45,6 +53,7 @@ def load_config(spec: str):
 
 def main(argv):
   del argv
+  logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the output.
   from experiments.overrides import parse_items, with_overrides
   import benchmarks as bench
   from benchmarks import hardware, training
@@ -57,6 +66,15 @@ def main(argv):
   device = hardware.device_info()
   print(f"device: {device['name']} x {device['device_count']}; load average "
         f"{device['loadavg_1min_at_start']:.2f}")
+  if _ONLINE_SEEDS.value:
+    from benchmarks import online_seeds
+    spec = _CONFIGS.value[0]
+    entries = online_seeds.benchmark_seeds(configs[spec], [int(n) for n in _ONLINE_SEEDS.value],
+                                           _ONLINE_STEPS.value)
+    table = online_seeds.markdown(entries, spec, _ONLINE_STEPS.value, device['name'])
+    print(table)
+    bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)
+    return
   peak = hardware.measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak: {peak:.1f} GFLOP/s ({_PEAK_SIZE.value}^2 float32 matmul)', flush=True)
   entries = []

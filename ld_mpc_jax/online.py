@@ -41,17 +41,15 @@ import ml_collections
 import numpy as np
 import tqdm
 
-from ld_mpc_jax import checkpointing, data, envs, online_report, run_files, runs, sharding
-from ld_mpc_jax.agent import BatchAgentPolicy
+from ld_mpc_jax import checkpointing, data, envs, online_report, run_files, runs
 from ld_mpc_jax.config_checks import validate_config
-from ld_mpc_jax.envs import goals
 from ld_mpc_jax.exploration import acting_config, executed_noise
 from ld_mpc_jax.models import set_obs_normalization
 from ld_mpc_jax.train_state import create_train_state, make_seeds_update, seed_slice, stack_states
 
 from ld_mpc_jax.data.demos import demo_share, get_demos
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, Buffer, buffer_path
-from ld_mpc_jax.online_seats import Seat, SeatRuns, SeatWave, seat_configs
+from ld_mpc_jax.online_seats import Seat, SeatRuns, SeatWave, WavePolicy, seat_configs
 
 
 
@@ -223,20 +221,6 @@ class OnlineJob:
       return 'actor'
     return o.act_mode
 
-  def _policy(self, seat: Seat, first: int, seeds, mode: str):
-    """The policy acting for a seed's episodes of the wave (`mode`: the planner or the actor
-    prior alone; EMA parameters, exploration noise)."""
-    o = self.config.online
-    mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
-            if self.act_config.eval.data_parallel else None)
-    policy = BatchAgentPolicy(self.act_config, seat.ema_params(self), mode,
-                              seed=seat.config.seed, chunk=o.plan_chunk, mesh=mesh)
-    policy.start([goals.Episode('online', first + i, 0, int(s), '', None)
-                  for i, s in enumerate(seeds)])
-    # Correlated noise is added by `wave` (ar1_noise); white noise inside the jitted plan.
-    policy.action_noise = 0.0 if o.exec_noise_corr > 0 else self.noise_std
-    return policy
-
   def wave(self) -> str:
     """One episode per environment of every seed, in lockstep, by the `acting_mode`; each
     seat's `episodes` are dicts of obs [L+1, obs_dim], action [L, A], reward [L], success [L].
@@ -247,17 +231,19 @@ class OnlineJob:
     self.noise_std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
     if planner:
       self.catch_up()
-    acting = [SeatWave(self, seat, first, mode) for seat in self.seats]
-    t = 0
-    while any(w.active.any() for w in acting):
-      steps = [w.step(t) for w in acting]
-      self.counters['env_steps'] += steps[0]  # The seeds' episodes have the same lengths.
+    acting = [SeatWave(self, seat, first) for seat in self.seats]
+    policy = WavePolicy(self, mode, acting) if planner else None
+    t, none = 0, [None] * len(acting)
+    while acting[0].active.any():  # The seeds' episodes have the same lengths.
+      actions, infos = (policy([w.obs for w in acting], t, acting[0].active) if planner
+                        else (none, none))
+      steps = [w.step(a, i) for w, a, i in zip(acting, actions, infos)]
+      self.counters['env_steps'] += steps[0]
       self.bar.update(steps[0])
       t += 1
       if planner:
         self.catch_up()
-        for w in acting:
-          w.policy.set_params(w.seat.ema_params(self))
+        policy.refresh()
     self.counters['episodes'] += o.num_envs
     for w in acting:
       w.seat.episodes = w.finish()

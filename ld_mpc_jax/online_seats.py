@@ -9,11 +9,13 @@ import jax
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax import data, envs, run_files, runs
+from ld_mpc_jax import data, envs, run_files, runs, sharding
+from ld_mpc_jax.agent import BatchAgentPolicy, SeedsAgentPolicy
 from ld_mpc_jax.data.demos import get_demos
 from ld_mpc_jax.data.online_buffer import Buffer
 from ld_mpc_jax.exploration import ar1_noise, executed_noise
 from ld_mpc_jax.run_files import LOSSES_CSV, ONLINE_CSV
+from ld_mpc_jax.envs import goals
 from ld_mpc_jax.search import CANDIDATES
 
 
@@ -91,15 +93,51 @@ class SeatRuns:
       seat.run.periodic_eval(p, step)
 
 
+class WavePolicy:
+  """The policy acting for every seed's episodes of a wave (EMA parameters, exploration
+  noise): one seed acts as a single run does (`BatchAgentPolicy`, `online.plan_chunk`); several
+  act in one call per environment, vmapped over the seeds (`SeedsAgentPolicy`)."""
+
+  def __init__(self, job, mode: str, waves):
+    o, self.job = job.config.online, job
+    self.single = len(job.seats) == 1
+    if self.single:
+      mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
+              if job.act_config.eval.data_parallel else None)
+      self.inner = BatchAgentPolicy(job.act_config, job.views()[0], mode,
+                                    seed=job.seats[0].config.seed, chunk=o.plan_chunk,
+                                    mesh=mesh)
+      self.inner.start(waves[0].episodes)
+    else:
+      self.inner = SeedsAgentPolicy(job.act_config, job.state.ema_params, mode,
+                                    [seat.config.seed for seat in job.seats])
+      self.inner.start([w.episodes for w in waves])
+    # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
+    self.inner.action_noise = 0.0 if o.exec_noise_corr > 0 else job.noise_std
+
+  def __call__(self, obs, t: int, active: np.ndarray):
+    """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 4] or None)."""
+    if self.single:
+      actions = self.inner(obs[0], t, active)
+      return [actions], [self.inner.last_info]
+    actions = self.inner(np.stack(obs), t, active)
+    return list(actions), list(self.inner.last_info)
+
+  def refresh(self) -> None:
+    """The job's current EMA parameters (after its updates)."""
+    self.inner.set_params(self.job.views()[0] if self.single else self.job.state.ema_params)
+
+
 class SeatWave:
   """One seed's episodes of a wave while they run: its environments, observations, policy,
   noise and what each episode recorded."""
 
-  def __init__(self, job, seat: Seat, first: int, mode: str):
+  def __init__(self, job, seat: Seat, first: int):
     n, seed = len(seat.envs), seat.config.seed
     self.job, self.seat = job, seat
     seeds = envs.episode_seeds(seed, first + n, 'online')[first:]
-    self.policy = job._policy(seat, first, seeds, mode) if mode != 'random' else None
+    self.episodes = [goals.Episode('online', first + i, 0, int(s), '', None)
+                     for i, s in enumerate(seeds)]
     self.rng = np.random.default_rng([seed, first, 17])
     self.obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(seat.envs, seeds)])
     # Copies: `obs` rows are overwritten in place by every step below.
@@ -110,13 +148,13 @@ class SeatWave:
     seat.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
     seat.dense_max = 0.0
 
-  def step(self, t: int) -> int:
-    """One decision in each active environment; returns the environment steps taken, summed
-    over them (`info['substeps']`)."""
+  def step(self, actions: Optional[np.ndarray], infos: Optional[np.ndarray]) -> int:
+    """One decision in each active environment, with the policy's `actions` [N, A] and
+    `infos` [N, 4] (None: uniform random actions); returns the environment steps taken, summed
+    over the environments (`info['substeps']`)."""
     o, seat, n = self.job.config.online, self.seat, len(self.seat.envs)
-    if self.policy is not None:
-      actions = self.policy(self.obs, t, self.active)
-      self._count_winners()
+    if actions is not None:
+      self._count_winners(infos)
       if o.exec_noise_corr > 0:
         self.noise = ar1_noise(self.noise, self.job.noise_std, o.exec_noise_corr,
                                self.noise_rng)
@@ -136,11 +174,11 @@ class SeatWave:
       self.active[i] = not (terminated or truncated)
     return substeps
 
-  def _count_winners(self) -> None:
+  def _count_winners(self, infos) -> None:
     """Which kind of candidate won each acting decision; the last entry counts departures."""
-    if self.policy.last_info is None:
+    if infos is None:
       return
-    for info_i in self.policy.last_info[self.active]:
+    for info_i in infos[self.active]:
       if info_i[0] >= 0:
         self.seat.winners[info_i[0]] += 1
       self.seat.winners[-1] += info_i[2]

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax import evaluation_suite, online
+from ld_mpc_jax import evaluation_suite, online, online_seats
 from ld_mpc_jax.models import init_params
 from ld_mpc_jax.planner import make_plan
 
@@ -37,7 +37,8 @@ def _record_policies(config, workdir, monkeypatch):
       used.append((where, mode, cfg.plan.action_noise_std, cfg.plan.prior_noise_std))
       return original(cfg, params, mode, **kwargs)
     return make
-  monkeypatch.setattr(online, 'BatchAgentPolicy', recording('act', online.BatchAgentPolicy))
+  monkeypatch.setattr(online_seats, 'BatchAgentPolicy',
+                      recording('act', online_seats.BatchAgentPolicy))
   monkeypatch.setattr(evaluation_suite, 'BatchAgentPolicy',
                       recording('eval', evaluation_suite.BatchAgentPolicy))
   # No learning needed here: an update that only counts (and compiles in no time).
