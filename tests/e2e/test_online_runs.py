@@ -27,10 +27,10 @@ def launch():
   The subprocesses inherit the session's compilation cache (conftest.py), so the update and the
   planner compile once for all of them.
   """
-  def start(workdir):
+  def start(workdir, *extra):
     cmd = [sys.executable, '-m', 'experiments.train', '--config=door_open_online.py:smoke',
            f'--workdir={workdir}', f'--config.online.env_steps={ENV_STEPS}',
-           '--config.eval.episodes=0']
+           '--config.eval.episodes=0', *extra]
     return subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
   return start
@@ -60,6 +60,7 @@ def test_smoke_run_acts_fills_the_buffer_updates_and_checkpoints(finished):
   ds = _buffer(finished, ENV_STEPS)
   assert ds.num_episodes == 10 and list(ds.episode_lengths) == [10] * 10  # 10 decisions each.
   assert ds.metadata['online'] == dict(env_steps=200, updates=20, episodes=10, normalized=True,
+                                       pretrain_updates=0,
                                        train_seconds=ds.metadata['online']['train_seconds'])
   assert np.all(np.abs(ds.actions) <= 1.0) and np.all(np.isfinite(ds.observations))
   manager = checkpointing.checkpoint_manager(finished)
@@ -111,3 +112,37 @@ def test_sigkill_and_resume_restore_buffer_and_step_counter_exactly(finished, la
   assert int(waves[-1]['env_steps']) == ENV_STEPS
   steps = [int(w['env_steps']) for w in waves]  # Rows logged after the checkpoint came once.
   assert steps == sorted(set(steps)), steps
+
+
+@pytest.mark.long
+def test_sigkill_of_a_two_seed_run_resumes_both_seeds_where_the_whole_run_ends(launch, tmp_path):
+  seeds = '--config.train.num_seeds=2'
+  whole = str(tmp_path / 'whole')
+  proc = launch(whole, seeds)
+  _, err = proc.communicate(timeout=900)
+  assert proc.returncode == 0, err[-2000:]
+  workdir = str(tmp_path / 'killed')
+  proc = launch(workdir, seeds)
+  ckpt_dir = os.path.join(workdir, 'seed1', 'checkpoints')
+  deadline = time.time() + 600
+  while time.time() < deadline and proc.poll() is None:  # Kill once seed 1 has step 80.
+    if os.path.isdir(ckpt_dir) and '80' in os.listdir(ckpt_dir):
+      break
+    time.sleep(0.02)
+  assert proc.poll() is None, 'the run ended before it could be killed'
+  os.kill(proc.pid, signal.SIGKILL)
+  proc.wait()
+  resumed = launch(workdir, seeds)
+  _, err = resumed.communicate(timeout=900)
+  assert resumed.returncode == 0, err[-2000:]
+  for seed in ('seed0', 'seed1'):
+    got = _buffer(os.path.join(workdir, seed), ENV_STEPS)
+    want = _buffer(os.path.join(whole, seed), ENV_STEPS)
+    for name in ('observations', 'actions', 'rewards', 'episode_lengths'):
+      np.testing.assert_allclose(getattr(got, name), getattr(want, name), atol=1e-5,
+                                 err_msg=f'{seed} {name}')
+    assert got.metadata['sampler_rng'] == want.metadata['sampler_rng'], seed
+  assert not np.allclose(_buffer(os.path.join(workdir, 'seed0'), ENV_STEPS).actions,
+                         _buffer(os.path.join(workdir, 'seed1'), ENV_STEPS).actions)
+  with open(os.path.join(workdir, 'pooled.json')) as f:
+    assert json.load(f)['seeds'] == [0, 1]
