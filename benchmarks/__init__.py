@@ -1,8 +1,7 @@
 """Benchmarking tools, apart from the model code: FLOP counts and profiles of a plan call.
 
-Outside the installed package (pyproject.toml installs ld_mpc_jax and experiments only): run
-the launchers that use them (experiments.benchmark_*, experiments.profile_plan) from the
-repository root.
+Installed with the project (pyproject.toml), so that the launchers that use them
+(experiments.benchmark_*, experiments.profile_plan) run from any directory.
 """
 
 

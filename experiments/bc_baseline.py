@@ -9,6 +9,13 @@ the policy with the Meta-World protocol (`ld_mpc_jax.evaluation.evaluate`) on
 held-out goals (`--split=held_out`, the default: the episodes the planner's
 evaluation uses at the same evaluation seed) or on the data's own (`--split=train`).
 The JSON keeps every episode's outcome.
+
+  python -m experiments.bc_baseline --run=runs/sparse/seed0 --out=runs/sparse/seed0/bc.json
+
+With --run (an online run with `online.demos`), BC learns from that run's own demonstrations
+(the same scripted episodes, `data.demos.get_demos`) and is evaluated on the episodes of that
+run's final evaluation (held-out goals, its evaluation seeds), so that it pairs with the run's
+episodes.csv episode by episode.
 """
 
 import json
@@ -40,6 +47,8 @@ _LR = flags.DEFINE_float('lr', 3e-4, 'Adam learning rate.')
 _HIDDEN = flags.DEFINE_integer('hidden', 256, 'Hidden width (2 layers).')
 _EVAL_EPISODES = flags.DEFINE_integer('eval_episodes', 50, 'Protocol episodes.')
 _OUT = flags.DEFINE_string('out', None, 'Where to write the JSON result.')
+_RUN = flags.DEFINE_string('run', None, 'An online training workdir with demonstrations: BC on '
+                           'its demonstrations, evaluated on its final evaluation episodes.')
 _SPLIT = flags.DEFINE_enum('split', 'held_out', list(envs.SUITE.goal_splits),
                            "Evaluation goals: 'held_out' (absent from the data) or 'train'.")
 
@@ -75,6 +84,23 @@ def train_bc(ds, steps, batch_size, lr, hidden, seed):
   return policy, float(loss)
 
 
+def _run_demos(workdir):
+  """(demonstrations as a Dataset, the run's final-evaluation episodes, task, seed) of an online
+  run with `online.demos`."""
+  from ld_mpc_jax import checkpointing, evaluation_suite  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.data import dataset, demos  # pylint: disable=g-import-not-at-top
+  with cli.one_line_errors():
+    config = checkpointing.load_config(workdir)
+    if 'online' not in config or not config.online.demos:
+      raise ValueError(f'--run={workdir!r} is not an online run with demonstrations')
+  ds = dataset.Dataset.from_episodes(demos.get_demos(config), metadata=dict(
+      action_repeat=config.eval.action_repeat))
+  episodes = [ep for split in config.eval.splits for s in config.eval.seeds
+              for ep in evaluation_suite.episodes(config, split, s, config.eval.episodes)][
+                  :config.eval.episodes]
+  return ds, episodes, config.task, config.seed
+
+
 def main(argv):
   del argv
   with cli.one_line_errors():
@@ -82,20 +108,24 @@ def main(argv):
     for name in ('episodes', 'steps', 'batch_size', 'hidden', 'eval_episodes'):
       if flags.FLAGS[name].value < 1:
         raise ValueError(f'--{name} must be >= 1, got {flags.FLAGS[name].value}')
-  ds = collection.get_or_collect(_TASK.value, _PRESET.value, _EPISODES.value,
-                                 _SEED.value, _DATA_DIR.value)
+  if _RUN.value:
+    ds, episodes, task, seed = _run_demos(_RUN.value)
+  else:
+    ds = collection.get_or_collect(_TASK.value, _PRESET.value, _EPISODES.value,
+                                   _SEED.value, _DATA_DIR.value)
+    # The data were collected on the goals of MT1 seed --seed (collection.get_or_collect).
+    episodes = envs.SUITE.make_episodes(_TASK.value, _SPLIT.value, _SEED.value,
+                                        _EVAL_EPISODES.value,
+                                        envs.SUITE.dataset_goal_vectors(ds), _SEED.value)
+    task, seed = _TASK.value, _SEED.value
   start = time.time()
-  policy, loss = train_bc(ds, _STEPS.value, _BATCH.value, _LR.value,
-                          _HIDDEN.value, _SEED.value)
+  policy, loss = train_bc(ds, _STEPS.value, _BATCH.value, _LR.value, _HIDDEN.value, seed)
   train_s = time.time() - start
   start = time.time()
-  # The data were collected on the goals of MT1 seed --seed (collection.get_or_collect).
-  episodes = envs.SUITE.make_episodes(_TASK.value, _SPLIT.value, _SEED.value,
-                                      _EVAL_EPISODES.value, envs.SUITE.dataset_goal_vectors(ds),
-                                      _SEED.value)
-  res = evaluation.evaluate(policy, _TASK.value, episodes=episodes,
+  res = evaluation.evaluate(policy, task, episodes=episodes,
                             action_repeat=ds.metadata['action_repeat'])
-  report = dict(task=_TASK.value, preset=_PRESET.value, split=_SPLIT.value,
+  report = dict(task=task, preset=_PRESET.value if not _RUN.value else 'demos',
+                run=_RUN.value, split=episodes[0].split,
                 outcomes=[dict(ep.record(), success=int(o))
                           for ep, o in zip(episodes, res['outcomes'])],
                 dataset=collection.summary(ds), final_loss=loss,
