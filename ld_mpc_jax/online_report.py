@@ -43,17 +43,21 @@ def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
                  records: List[List[dict]]) -> Dict[str, Any]:
   """pooled.json and pooled.md in `workdir`: each policy's successes per training seed and
   pooled over them (Wilson 95% interval), on the first goal split of the final evaluation."""
-  policies = {}
+  policies, first = {}, {}
   for seed, recs in zip(seeds, records):
     split = recs[0]['split'] if recs else None
     for r in recs:
       if r['split'] == split:
         policies.setdefault(r['policy'], {}).setdefault(seed, []).append(int(r['success']))
+        first.setdefault(r['policy'], []).append(r)
   table = {m: {'per_seed': {str(s): [sum(v), len(v)] for s, v in per.items()},
                'successes': sum(map(sum, per.values())),
                'episodes': sum(map(len, per.values()))} for m, per in policies.items()}
-  for row in table.values():
+  for mode, row in table.items():
     row['ci95'] = stats.wilson_interval(row['successes'], row['episodes'])
+    # Exact McNemar against the planner on the same episodes (records name their seed: 'run').
+    row['vs_plan'] = (stats.paired(first['plan'], first[mode])
+                      if mode != 'plan' and 'plan' in first else None)
   out = dict(task=reports[0]['task'], env_steps=reports[0]['env_steps'], seeds=seeds,
              split=records[0][0]['split'] if records and records[0] else None,
              first_training_success={str(s): r['first_training_success']
@@ -63,13 +67,16 @@ def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
            f"{out['env_steps']:,} environment steps (simulator steps)", '',
            f"{out['train_seconds']:.0f} s acting and training for all seeds together; final "
            f"evaluation on {out['split']} goals, per seed and pooled (Wilson 95% interval).", '',
-           '| policy | ' + ' | '.join(f'seed {s}' for s in seeds) + ' | pooled | 95% CI |',
-           '| --- |' + ' --- |' * (len(seeds) + 2)]
+           '| policy | ' + ' | '.join(f'seed {s}' for s in seeds)
+           + ' | pooled | 95% CI | planner only / this only, McNemar p |',
+           '| --- |' + ' --- |' * (len(seeds) + 3)]
   for mode, row in table.items():
     cells = [f"{row['per_seed'][str(s)][0]}/{row['per_seed'][str(s)][1]}"
              if str(s) in row['per_seed'] else '-' for s in seeds]
+    vs = row['vs_plan']
+    paired = f"{vs['a_only']} / {vs['b_only']}, p = {vs['p_value']:.2g}" if vs else ''
     lines.append(f"| {mode} | {' | '.join(cells)} | {row['successes']}/{row['episodes']} | "
-                 f"[{row['ci95'][0]:.2f}, {row['ci95'][1]:.2f}] |")
+                 f"[{row['ci95'][0]:.2f}, {row['ci95'][1]:.2f}] | {paired} |")
   first = ', '.join(f'seed {s}: {v:,}' if v is not None else f'seed {s}: none'
                     for s, v in zip(seeds, out['first_training_success'].values()))
   lines += ['', f'First successful training episode (environment steps): {first}.', '']
