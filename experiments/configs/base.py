@@ -167,7 +167,7 @@ def get_config() -> ml_collections.ConfigDict:
   # Q's target: 'window': discounted rewards to the end of the training window plus V_ema there
   # (n-step returns, as the behaviour value's); 'one_step': r_t + gamma V_ema(z_{t+1}) (IQL).
   # In 4,000 steps one-step TD leaves V far from converged, and the planner exploited it
-  # (door-open medium, seed 0: success 0.50 against 1.00 with 'window'; README, docs/log.md).
+  # (door-open medium, seed 0: success 0.50 against 1.00 with 'window'; README, lab/log.md).
   o.td_target = 'window'
   o.num_values = 5  # Value ensemble for the pessimism penalty (TD-MPC2 also keeps 5 heads).
   o.num_q = 2  # Clipped double Q for V's target (IQL, TD3).

@@ -125,7 +125,7 @@ def _budget(c: ml_collections.ConfigDict) -> None:
 
 def _optimism(c: ml_collections.ConfigDict) -> None:
   """`:cpu_optimistic`: `:cpu` acting on an optimistic value (two of :cpu's three seeds parked
-  at the handle with the door ajar, docs/log.md) and TD-MPC2's discount for its episode shape."""
+  at the handle with the door ajar, lab/log.md) and TD-MPC2's discount for its episode shape."""
   _budget(c)
   # Optimism in the face of uncertainty (UCB over the value ensemble while acting; evaluation
   # keeps plan.pessimism): the door's unvisited angles are where the members disagree.
@@ -182,7 +182,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     _correlated(c)
   elif preset == 'cpu_tanh':
     _tanh(c)
-  elif preset == 'cpu_v1':  # The first :cpu preset (0.1 updates per step; docs/log.md).
+  elif preset == 'cpu_v1':  # The first :cpu preset (0.1 updates per step; lab/log.md).
     c = door_open.get_config('cpu')
     c.online = o = online_settings()
     c.model.normalize_obs = False
