@@ -41,7 +41,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.plan.num_prior_candidates = 16
     c.plan.warm_start_steps = 2
     c.plan.warm_start_t = 0.5
-    # 4,000 steps of batch 128 took 1,967-4,062 s on the shared 2-core machine (README, Results).
+    # 4,000 steps of batch 128 took 1,967-4,062 s on the shared 2-core machine (docs/results.md).
     c.train.batch_size = 128
     c.train.learning_rate = 3e-4
     c.train.num_steps = 4_000
