@@ -1,7 +1,7 @@
 r"""Behaviour-cloning baseline: MLP policy trained on a dataset preset.
 
   python -m experiments.bc_baseline --task=door-open-v3 --preset=mixed \
-      --episodes=200 --data_dir=/work/runs/data --out=/work/runs/bc_mixed.json
+      --episodes=200 --data_dir=runs/data --out=runs/bc_mixed.json
 
 Gets the dataset with `get_or_collect` (cached .npz), regresses actions on
 normalised observations with an MSE loss (tanh-squashed MLP), then evaluates

@@ -1,7 +1,7 @@
 r"""Collects a scripted-policy dataset and measures the scripted policy.
 
   python -m experiments.collect --task=door-open-v3 --episodes=200 \
-      --preset=mixed --out=/work/data/door-open-v3_mixed.npz \
+      --preset=mixed --out=runs/data/door-open-v3_mixed.npz \
       --protocol_episodes=50
 
 Writes the dataset (atomic .npz, see docs/data.md), prints its summary and,

@@ -102,7 +102,7 @@ def get_config() -> ml_collections.ConfigDict:
   # (safe_confirm, confirm_draws=8, confirm_margin=1) and the fallback (fallback_drop=0.1,
   # fallback_floor=1000): on door-open `weak` and `medium`, push and reach `medium` and MT10
   # (three seeds each) at most one episode of 50 behind the actor prior on any seed and task,
-  # 1910/2100 against 1821/2100 pooled (README). Off by default: it needs actor-prior candidates,
+  # 1910/2100 against 1821/2100 pooled (docs/results.md). Off by default: it needs actor-prior candidates,
   # costs eight rollout pairs per decision, and a checkpoint keeps the settings it trained with.
   # The margin 8
   # was chosen on door-open `weak` on training seed 0
@@ -130,7 +130,7 @@ def get_config() -> ml_collections.ConfigDict:
   # The confirmation's own margin: the fresh rollouts' mean gain must exceed confirm_margin x
   # their spread. Negative: plan.safe_margin (unscaled), as before this field existed. A smaller
   # one keeps more of the departures the first test passed: with eight rollouts, push `medium`
-  # solves 21/150 at 2 and 29/150 at 1 (actor prior 11/150; README, docs/results.md).
+  # solves 21/150 at 2 and 29/150 at 1 (actor prior 11/150; docs/results.md).
   p.confirm_margin = -1.0
   # Fallback: once J of the actor prior's own sequence (the objective's value of the current
   # state) falls more than fallback_drop x |its highest value so far in the episode| below that
@@ -167,7 +167,7 @@ def get_config() -> ml_collections.ConfigDict:
   # Q's target: 'window': discounted rewards to the end of the training window plus V_ema there
   # (n-step returns, as the behaviour value's); 'one_step': r_t + gamma V_ema(z_{t+1}) (IQL).
   # In 4,000 steps one-step TD leaves V far from converged, and the planner exploited it
-  # (door-open medium, seed 0: success 0.50 against 1.00 with 'window'; README, docs/log.md).
+  # (door-open medium, seed 0: success 0.50 against 1.00 with 'window'; docs/results.md, lab/log.md).
   o.td_target = 'window'
   o.num_values = 5  # Value ensemble for the pessimism penalty (TD-MPC2 also keeps 5 heads).
   o.num_q = 2  # Clipped double Q for V's target (IQL, TD3).

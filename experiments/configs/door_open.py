@@ -33,7 +33,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     # The fast planner: 4 deterministic DDIM steps for the proposal, 1 per transition, 16 of the
     # 64 candidates from the actor prior, and after the first step of an episode the proposal
     # warm-started from the shifted previous plan (re-noised to t = 0.5, 2 denoising steps).
-    # On earlier code (docs/log.md, before 2026-11-21) the warm start gave 149 of 150 episodes
+    # On earlier code (lab/log.md, before 2026-11-21) the warm start gave 149 of 150 episodes
     # over 3 evaluation seeds, against 128 without it.
     c.plan.action_steps = 4
     c.plan.dynamics_steps = 1
@@ -41,7 +41,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.plan.num_prior_candidates = 16
     c.plan.warm_start_steps = 2
     c.plan.warm_start_t = 0.5
-    # 4,000 steps of batch 128 took 1,967-4,062 s on the shared 2-core machine (README, Results).
+    # 4,000 steps of batch 128 took 1,967-4,062 s on the shared 2-core machine (docs/results.md).
     c.train.batch_size = 128
     c.train.learning_rate = 3e-4
     c.train.num_steps = 4_000

@@ -95,7 +95,7 @@ def online_settings() -> ml_collections.ConfigDict:
 
 def _budget(c: ml_collections.ConfigDict) -> None:
   """The `:cpu` online preset: 100k environment steps at 0.5 updates per step in about an hour
-  on a 2-core CPU (README), with a planner that searches and values that extrapolate."""
+  on a 2-core CPU (docs/results.md), with a planner that searches and values that extrapolate."""
   door_open.resize(c, width=64, heads=4, blocks=1)  # 50k updates must fit (docs/online.md).
   c.model.actor_hidden = c.critic.hidden = (64, 64)
   c.model.dropout = 0.0
@@ -125,7 +125,7 @@ def _budget(c: ml_collections.ConfigDict) -> None:
 
 def _optimism(c: ml_collections.ConfigDict) -> None:
   """`:cpu_optimistic`: `:cpu` acting on an optimistic value (two of :cpu's three seeds parked
-  at the handle with the door ajar, docs/log.md) and TD-MPC2's discount for its episode shape."""
+  at the handle with the door ajar, lab/log.md) and TD-MPC2's discount for its episode shape."""
   _budget(c)
   # Optimism in the face of uncertainty (UCB over the value ensemble while acting; evaluation
   # keeps plan.pessimism): the door's unvisited angles are where the members disagree.
@@ -147,7 +147,7 @@ def _correlated(c: ml_collections.ConfigDict) -> None:
 def _tanh(c: ml_collections.ConfigDict) -> None:
   """`:cpu_tanh`: `:cpu_correlated` with TD-MPC2's log-std map for the max-Q policy, evaluating
   without the broad search (acting keeps it). On push, the two together lifted held-out success
-  at 100k from 0.59 to 0.77 over three training seeds, level with the actor prior (README)."""
+  at 100k from 0.59 to 0.77 over three training seeds, level with the actor prior (docs/results.md)."""
   _correlated(c)
   # TD-MPC2's map of the policy's log-std into [log_std_min, log_std_max] (a tanh), instead of a
   # clip: the gradient does not vanish at the bounds.
@@ -182,7 +182,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     _correlated(c)
   elif preset == 'cpu_tanh':
     _tanh(c)
-  elif preset == 'cpu_v1':  # The first :cpu preset (0.1 updates per step; docs/log.md).
+  elif preset == 'cpu_v1':  # The first :cpu preset (0.1 updates per step; lab/log.md).
     c = door_open.get_config('cpu')
     c.online = o = online_settings()
     c.model.normalize_obs = False
@@ -191,7 +191,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     o.update_ratio = 0.1
   elif preset == 'finetune':
     c.model.normalize_obs = True  # The offline checkpoint's networks (its data's statistics).
-    o.act_pessimism = c.plan.pessimism  # As measured (README): acting as it evaluates.
+    o.act_pessimism = c.plan.pessimism  # As measured (docs/results.md): acting as it evaluates.
     o.plan_chunk = 0
     o.update_ratio = 0.1
     o.env_steps = 50_000

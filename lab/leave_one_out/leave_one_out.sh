@@ -3,7 +3,7 @@
 # KeyboardInterrupt wherever it is: what it did after its last checkpoint is lost) and packed
 # into $OUT as NAME.tgz (the latest checkpoint and buffer, CSVs, log; split into NAME.tgz.0,
 # .1, ... above 15.5 MiB). A cut run finishes anywhere with resume.sh.
-# From the repository root on the GPU machine: T=470 OUT=/tmp/out bash experiments/gpu/leave_one_out.sh
+# From the repository root on the GPU machine: T=470 OUT=/tmp/out bash lab/leave_one_out/leave_one_out.sh
 # Other runs: VARIANTS="no_discount no_episode_shape no_update_ratio" SEED=0 T=470 OUT=... bash ...
 set -u
 : "${OUT:?set OUT to the folder the packed runs go to}"
