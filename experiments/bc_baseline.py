@@ -128,6 +128,10 @@ def main(argv):
                 run=_RUN.value, split=episodes[0].split,
                 outcomes=[dict(ep.record(), success=int(o))
                           for ep, o in zip(episodes, res['outcomes'])],
+                # With --run: records as the run's episodes.csv names them (its seed as `run`,
+                # policy 'bc'), so that experiments.pool_evals pairs them with the run's own.
+                records=[dict(ep.record(), run=seed, policy='bc', success=int(o))
+                         for ep, o in zip(episodes, res['outcomes'])] if _RUN.value else None,
                 dataset=collection.summary(ds), final_loss=loss,
                 train_seconds=round(train_s, 1),
                 eval_seconds=round(time.time() - start, 1),

@@ -2,6 +2,7 @@
 
   python -m experiments.pool_evals runs/a/evaluation.json runs/b/evaluation.json ...
   python -m experiments.pool_evals runs/online/ft_seed{0,1,2}/episodes.csv
+  python -m experiments.pool_evals run/seed0/episodes.csv.gz+bc/seed0.json.gz ...  # with BC
   python -m experiments.pool_evals runs/seed0_first.json+runs/seed0_more.json runs/seed1.json
 
 A file is an `experiments.evaluate --out` JSON, an `experiments.compare_selection --out` JSON or
@@ -20,6 +21,7 @@ episode in both (the deterministic actor prior, say) counts once, and must have 
 in both.
 """
 
+import csv
 import gzip
 import json
 import os
@@ -61,15 +63,20 @@ _FLOAT_FIELDS = ('return',)
 
 
 def read_records(path: str) -> list:
-  """The per-episode records of an evaluation JSON or of a run's episodes.csv."""
-  if not path.endswith('.csv'):
+  """The per-episode records of an evaluation JSON or of a run's episodes.csv (either may be
+  gzip-compressed, .gz)."""
+  if not path.endswith(('.csv', '.csv.gz')):
     records = read_json(path).get('records')
     if records is None:
       cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
     return records
   if not os.path.exists(path):
     cli.fail(f'cannot read {path}: no such file')
-  rows = run_files.read_csv(path)
+  if path.endswith('.gz'):
+    with gzip.open(path, 'rt', newline='') as f:
+      rows = list(csv.DictReader(f))
+  else:
+    rows = run_files.read_csv(path)
   for r in rows:
     r.update({k: int(r[k]) for k in _INT_FIELDS if r.get(k) not in (None, '')})
     r.update({k: float(r[k]) for k in _FLOAT_FIELDS if r.get(k) not in (None, '')})
