@@ -23,8 +23,8 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax import diffusion
-from ld_mpc_jax.models import ActionProposal, LatentDynamics, build_networks, init_params
+from ld_mpc_jax.ops import diffusion
+from ld_mpc_jax.model.models import ActionProposal, LatentDynamics, build_networks, init_params
 
 
 # ---------------------------------------------------------------------------------------------
@@ -171,7 +171,7 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
   Returns:
     {'plan_once': C(plan), 'proposal_step', 'transition', 'dynamics_step', 'total'} in FLOPs.
   """
-  from ld_mpc_jax import planner  # Local: planner imports nothing from here, keep it that way.
+  from ld_mpc_jax.plan import planner  # Local: planner imports nothing from here, keep it that way.
   nets = build_networks(config)
   p, d = config.plan, config.diffusion
   h, a, w = config.horizon, config.action_dim, config.model.width
@@ -218,7 +218,7 @@ def matmul_flops(n: int) -> int:
 
 
 # ---------------------------------------------------------------------------------------------
-# The MPPI baseline (ld_mpc_jax.mppi with TD-MPC2's MLP world model).
+# The MPPI baseline (ld_mpc_jax.plan.mppi with TD-MPC2's MLP world model).
 
 
 def tdmpc2_mppi_flops(mppi_cfg, model_cfg) -> dict:

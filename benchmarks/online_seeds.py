@@ -1,5 +1,5 @@
 """Online training throughput against the number of training seeds in one run
-(`train.num_seeds`, ld_mpc_jax.online): environment steps and updates per second of each seed,
+(`train.num_seeds`, ld_mpc_jax.runs.online): environment steps and updates per second of each seed,
 and the wall time of N seeds against one, measured in the same process one after the other.
 
 Each N trains `env_steps` from scratch in a temporary workdir with evaluation off; the rate is
@@ -17,7 +17,7 @@ import ml_collections
 
 
 def _wave_rates(workdir: str, skip: int) -> List[float]:
-  from ld_mpc_jax import run_files  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.eval import run_files  # pylint: disable=g-import-not-at-top
   rows = run_files.read_csv(os.path.join(workdir, run_files.ONLINE_CSV))
   return [float(r['env_steps_per_s']) for r in rows[skip:] if r['acting'] != 'random']
 
@@ -28,7 +28,7 @@ def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env
   median environment steps per second of one seed over its acting waves after `skip`, the
   updates per second that implies (`online.update_ratio` x that, per seed), and both summed over
   the N seeds."""
-  from ld_mpc_jax import online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
   out = []
   for n in seeds:
     c = ml_collections.ConfigDict(config.to_dict())

@@ -28,9 +28,9 @@ import jax
 import numpy as np
 
 from benchmarks.training import random_batch
-from ld_mpc_jax.models import encode, init_params
-from ld_mpc_jax.planner import make_plan
-from ld_mpc_jax.train_state import create_train_state, make_update
+from ld_mpc_jax.model.models import encode, init_params
+from ld_mpc_jax.plan.planner import make_plan
+from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
 NETWORKS = (('ActionProposal', 'proposal'), ('LatentDynamics', 'dynamics'),
             ('TrajectoryDynamics', 'dynamics'), ('SequenceObjective', 'objective'),

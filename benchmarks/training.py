@@ -18,10 +18,11 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax import sharding, tasks
+from ld_mpc_jax.ops import sharding
+from ld_mpc_jax.model import tasks
 from benchmarks.flops import compiled_flops
-from ld_mpc_jax.models import count_params
-from ld_mpc_jax.train_state import create_train_state, make_update
+from ld_mpc_jax.model.models import count_params
+from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
 # Primitives whose sub-jaxpr is evaluated in line, so that the scans inside them are unrolled too.
 _INLINE = {'pjit': 'jaxpr', 'jit': 'jaxpr', 'closed_call': 'call_jaxpr',

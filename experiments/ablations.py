@@ -2,13 +2,13 @@
 
   python -m experiments.ablations --workdir=runs/ablations    # about two hours on 2 CPU cores
 
-Trains every variant with the same main job (ld_mpc_jax.train.train_and_evaluate, preset
+Trains every variant with the same main job (ld_mpc_jax.runs.train.train_and_evaluate, preset
 door_open.py:ablation) on the `mixed` dataset over --seeds training seeds and on the `expert`
 dataset over one seed, evaluates each with the Meta-World protocol (50 episodes), then writes
 <workdir>/ablations.md (table), ablations.json and ablations.png (bar plot), and an
 observation-noise sweep of the full model and the two strongest baselines.
 
-Variants (ld_mpc_jax.models):
+Variants (ld_mpc_jax.model.models):
   1 mlp_mlp          single-step Gaussian MLP proposal + MLP dynamics
   2 diffstep_mlp     single-step diffusion proposal + MLP dynamics
   3 diffseq_mlp      whole-sequence diffusion proposal + MLP dynamics
@@ -38,7 +38,7 @@ from experiments import cli
 from experiments.configs import CONFIG_DIR, resolve_config_arg
 from experiments.overrides import with_overrides
 from experiments.pool_evals import read_records
-from ld_mpc_jax import stats
+from ld_mpc_jax.ops import stats
 
 VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant to reuse).
     'mlp_mlp': ('1 MLP proposal (1-step) + MLP dynamics',
@@ -99,7 +99,7 @@ def _dump(obj, path):
 
 def train_variant(base, name, dataset, seed, root, episodes) -> dict:
   """Trains (or resumes, or reuses) one variant; returns its report.json."""
-  from ld_mpc_jax.train import train_and_evaluate
+  from ld_mpc_jax.runs.train import train_and_evaluate
   workdir = os.path.join(root, dataset, name, f'seed{seed}')
   report_path = os.path.join(workdir, 'report.json')
   if os.path.exists(report_path):
@@ -112,8 +112,8 @@ def train_variant(base, name, dataset, seed, root, episodes) -> dict:
 
 def evaluate_on(root, source, dataset, seed, tag, overrides, mode, episodes, noise=0.0) -> dict:
   """Evaluates `mode` on `source`'s checkpoint with overrides; cached as <tag>.json beside it."""
-  from ld_mpc_jax import checkpointing
-  from ld_mpc_jax.runs import run_evaluation
+  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs.loop import run_evaluation
   workdir = os.path.join(root, dataset, source, f'seed{seed}')
   path = os.path.join(workdir, f'{tag}.json')
   if os.path.exists(path):

@@ -5,7 +5,7 @@ r"""Behaviour-cloning baseline: MLP policy trained on a dataset preset.
 
 Gets the dataset with `get_or_collect` (cached .npz), regresses actions on
 normalised observations with an MSE loss (tanh-squashed MLP), then evaluates
-the policy with the Meta-World protocol (`ld_mpc_jax.evaluation.evaluate`) on
+the policy with the Meta-World protocol (`ld_mpc_jax.eval.evaluation.evaluate`) on
 held-out goals (`--split=held_out`, the default: the episodes the planner's
 evaluation uses at the same evaluation seed) or on the data's own (`--split=train`).
 The JSON keeps every episode's outcome.
@@ -30,10 +30,11 @@ import numpy as np
 import optax
 
 from experiments import cli
-from ld_mpc_jax import envs, evaluation
+from ld_mpc_jax import envs
+from ld_mpc_jax.eval import evaluation
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import replay
-from ld_mpc_jax.networks.mlp import MLP
+from ld_mpc_jax.nets.mlp import MLP
 
 _TASK = flags.DEFINE_string('task', 'door-open-v3', 'Meta-World v3 task.')
 _PRESET = flags.DEFINE_enum('preset', 'mixed', list(collection.PRESETS),
@@ -87,7 +88,8 @@ def train_bc(ds, steps, batch_size, lr, hidden, seed):
 def _run_demos(workdir):
   """(demonstrations as a Dataset, the run's final-evaluation episodes, task, seed) of an online
   run with `online.demos`."""
-  from ld_mpc_jax import checkpointing, evaluation_suite  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.eval import evaluation_suite  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.data import dataset, demos  # pylint: disable=g-import-not-at-top
   with cli.one_line_errors():
     config = checkpointing.load_config(workdir)

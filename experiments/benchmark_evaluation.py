@@ -37,8 +37,9 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   import jax
-  from ld_mpc_jax import checkpointing, evaluation, evaluation_suite
-  from ld_mpc_jax.agent import BatchAgentPolicy, make_policy
+  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.eval import evaluation, evaluation_suite
+  from ld_mpc_jax.plan.agent import BatchAgentPolicy, make_policy
   with cli.one_line_errors():
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
   e = config.eval

@@ -8,7 +8,7 @@
 Every LD-MPC variant is a set of config overrides of the same model, run at the reference width
 (the config file without preset) and/or at the `:cpu` preset's width (the trained model's size);
 the rest of the config (plan settings included) comes from --config. `mppi` is the TD-MPC2-style
-baseline (ld_mpc_jax.mppi) with a TD-MPC2-sized MLP world model. Parameters are random (latency
+baseline (ld_mpc_jax.plan.mppi) with a TD-MPC2-sized MLP world model. Parameters are random (latency
 does not depend on their values). Writes a JSON list of entries to --out and a markdown table
 next to it (.md), again after every configuration, so that a run cut short (a device lease's time
 limit, say) keeps the configurations it measured. Method: docs/benchmark.md.
@@ -146,9 +146,9 @@ def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warm
 
 
 def run_mppi(repeats: int, warmup: int) -> dict:
-  from ld_mpc_jax import mppi
+  from ld_mpc_jax.plan import mppi
   from benchmarks import flops
-  from ld_mpc_jax.models import count_params
+  from ld_mpc_jax.model.models import count_params
   mppi_cfg, model_cfg = mppi.MPPIConfig(), mppi.TDMPC2Config()
   params = mppi.init_tdmpc2_params(model_cfg, jax.random.key(0))
   obs = np.linspace(-1.0, 1.0, model_cfg.obs_dim, dtype=np.float32)

@@ -57,7 +57,7 @@ def main(argv):
   from experiments.overrides import parse_items, with_overrides
   import benchmarks as bench
   from benchmarks import hardware, training
-  from ld_mpc_jax.config_checks import validate_config
+  from ld_mpc_jax.model.config_checks import validate_config
   configs = {}
   with cli.one_line_errors():
     for spec in _CONFIGS.value:

@@ -71,7 +71,7 @@ def parse_flags(argv):
 
 def _unknown_field(argv, err) -> str:
   """One line for a `--config.a.b=v` override that names a field the config does not have."""
-  from ld_mpc_jax.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.ops.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
   name = str(err).strip('"\'')
   for arg in argv:
     flag = arg.split('=', 1)[0]

@@ -17,7 +17,8 @@ from absl import flags
 import numpy as np
 
 from experiments import cli
-from ld_mpc_jax import envs, evaluation
+from ld_mpc_jax import envs
+from ld_mpc_jax.eval import evaluation
 from ld_mpc_jax.data import collection as collect_lib
 from ld_mpc_jax.data import dataset as dataset_lib
 

@@ -24,7 +24,7 @@ flags.mark_flags_as_required(['config'])
 
 def main(argv):
   del argv
-  from ld_mpc_jax import tasks
+  from ld_mpc_jax.model import tasks
   from ld_mpc_jax.data import collection, sources
   config = _CONFIG.value
   try:  # Bad input: one line and exit code 2.

@@ -49,8 +49,8 @@ flags.mark_flags_as_required(['workdirs', 'out'])
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import evaluation_suite
-  from ld_mpc_jax.run_files import git_commit
+  from ld_mpc_jax.eval import evaluation_suite
+  from ld_mpc_jax.eval.run_files import git_commit
   with cli.one_line_errors():
     cli.check_new_output(_OUT.value, _OVERWRITE.value)
     variants = [overrides.parse_variant(v) for v in _VARIANTS.value]
@@ -62,7 +62,8 @@ def main(argv):
     if missing:
       raise FileNotFoundError(f'no run directory {missing[0]}')
     if _TASKS.value:
-      from ld_mpc_jax import checkpointing, tasks
+      from ld_mpc_jax.learn import checkpointing
+      from ld_mpc_jax.model import tasks
       for workdir in _WORKDIRS.value:
         config = checkpointing.load_config(workdir)
         if not tasks.is_multitask(config):

@@ -28,7 +28,7 @@ from absl import app, flags
 
 from experiments import cli
 from experiments.pool_evals import read_records
-from ld_mpc_jax import stats
+from ld_mpc_jax.ops import stats
 
 _POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'],
                                'Policies to pair; A_POLICY=B_POLICY pairs two different ones.')

@@ -40,7 +40,7 @@ def _compile_from(root: str, config):
   sys.path.insert(0, root)
   try:
     from benchmarks.training import random_batch
-    from ld_mpc_jax.train_state import create_train_state, make_update
+    from ld_mpc_jax.learn.train_state import create_train_state, make_update
     module = os.path.abspath(sys.modules['ld_mpc_jax'].__file__)
     if not module.startswith(os.path.abspath(root) + os.sep):
       raise ImportError(f'ld_mpc_jax was imported from {module}, not from {root}')

@@ -40,7 +40,8 @@ _SUMMARIZE = flags.DEFINE_string('summarize', None, 'Print the table of an --out
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import checkpointing, diagnostics
+  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.eval import diagnostics
   if _SUMMARIZE.value:
     with cli.one_line_errors():
       with open(_SUMMARIZE.value) as f:

@@ -36,7 +36,8 @@ flags.mark_flags_as_required(['workdir', 'episodes'])
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import checkpointing, diagnostics
+  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.eval import diagnostics
   with cli.one_line_errors():
     indices = [int(i) for i in _EPISODES.value]
     if not indices or min(indices) < 0 or max(indices) >= _NUM_EPISODES.value:

@@ -41,10 +41,12 @@ flags.mark_flag_as_required('workdir')
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import checkpointing, evaluation_suite, multitask_eval, tasks
-  from ld_mpc_jax.config_checks import validate_config
-  from ld_mpc_jax.run_files import git_commit
-  from ld_mpc_jax.runs import run_evaluation
+  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.eval import evaluation_suite, multitask_eval
+  from ld_mpc_jax.model import tasks
+  from ld_mpc_jax.model.config_checks import validate_config
+  from ld_mpc_jax.eval.run_files import git_commit
+  from ld_mpc_jax.runs.loop import run_evaluation
   from experiments.overrides import parse_items, with_overrides
   with cli.one_line_errors():
     seeds = [int(s) for s in _SEEDS.value]

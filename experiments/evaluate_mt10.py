@@ -43,7 +43,8 @@ class MT10Agent:
 
   def __init__(self, config, params, mode, task_ids, train_goals, seed, episodes, bar):
     import jax
-    from ld_mpc_jax import agent, tasks
+    from ld_mpc_jax.plan import agent
+    from ld_mpc_jax.model import tasks
     self.act = agent.make_act(tasks.task_config(config, 0), mode)
     self.params = [tasks.bind(params, k) for k in task_ids]
     self.task_ids, self.train_goals, self.repeat = task_ids, train_goals, config.eval.action_repeat
@@ -90,7 +91,11 @@ def main(argv):
   from metaworld import evaluation as mw_evaluation
   import numpy as np
   import tqdm
-  from ld_mpc_jax import agent, checkpointing, evaluation_suite, stats, tasks
+  from ld_mpc_jax.plan import agent
+  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.eval import evaluation_suite
+  from ld_mpc_jax.ops import stats
+  from ld_mpc_jax.model import tasks
   try:  # Bad input: one line and exit code 2.
     config = checkpointing.load_config(_WORKDIR.value)
     cli.check_new_output(_out_path(), _OVERWRITE.value)
@@ -139,7 +144,7 @@ def _out_path():
 
 def _write(names, step, results):
   """Writes the JSON output and the .md beside it (policies so far); returns the md."""
-  from ld_mpc_jax import evaluation_suite
+  from ld_mpc_jax.eval import evaluation_suite
   stem = os.path.splitext(_out_path())[0]
   os.makedirs(os.path.dirname(os.path.abspath(stem)), exist_ok=True)
   out = dict(workdir=_WORKDIR.value, step=step, seed=_SEED.value, episodes=_EPISODES.value,

@@ -37,7 +37,7 @@ def parse_value(config: ml_collections.ConfigDict, dotted: str, text: str) -> An
 
 def _unknown(dotted: str) -> ValueError:
   """The error for an override of no such field (naming a renamed section's new name)."""
-  from ld_mpc_jax.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.ops.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
   return ValueError(f'unknown config field {dotted!r}{renamed_hint(dotted)}')
 
 

@@ -23,7 +23,7 @@ def pack(workdir: str, out: str) -> str | None:
   import jax
   import jax.numpy as jnp
   import orbax.checkpoint as ocp
-  from ld_mpc_jax import checkpointing
+  from ld_mpc_jax.learn import checkpointing
   workdir = os.path.normpath(workdir)
   name = os.path.basename(workdir)
   config = checkpointing.load_config(workdir)

@@ -86,7 +86,7 @@ def main(argv):
 def curve_table(runs) -> str:
   """Markdown: held-out planner successes per run at each evaluation, and pooled over the runs
   at the steps every run reached (Wilson 95% interval)."""
-  from ld_mpc_jax import stats
+  from ld_mpc_jax.ops import stats
   per_run = {}
   for run in runs:
     for r in read_csv(os.path.join(run, 'eval.csv')):

@@ -28,7 +28,7 @@ import os
 import sys
 
 from experiments import cli
-from ld_mpc_jax import evaluation_suite, multitask_eval, run_files
+from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
 
 
 def named_records(results: list, names: list) -> list:

@@ -39,7 +39,7 @@ def default_workdir(config_arg: str) -> str:
 
 def pooled_table(summary: dict) -> str:
   """Markdown: per split and policy, pooled success, Wilson CI, per-seed rates, mean +- std."""
-  from ld_mpc_jax.evaluation_suite import POLICY_NAMES
+  from ld_mpc_jax.eval.evaluation_suite import POLICY_NAMES
   lines = ['| goals | policy | pooled success | 95% CI (Wilson) | per training seed | '
            'mean +- std over seeds |', '| --- | --- | --- | --- | --- | --- |']
   for split, s in summary.items():
@@ -57,8 +57,9 @@ def pooled_table(summary: dict) -> str:
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax import evaluation_suite, multitask_eval, tasks
-  from ld_mpc_jax.train import train_and_evaluate
+  from ld_mpc_jax.eval import evaluation_suite, multitask_eval
+  from ld_mpc_jax.model import tasks
+  from ld_mpc_jax.runs.train import train_and_evaluate
   from experiments.overrides import with_overrides
   try:
     seeds = [int(s) for s in _SEEDS.value]
@@ -84,7 +85,7 @@ def main(argv):
           f'({", ".join(map(str, eval_seeds))}) and training seed; all policies on the same '
           'episodes.\n\n' + pooled_table(summary) + '\nPaired, pooled over all training and '
           'evaluation seeds:\n\n' + evaluation_suite.markdown(summary).split('\n\n', 1)[1])
-  if tasks.is_multitask(config):  # Per task, pooled over training seeds (ld_mpc_jax.tasks).
+  if tasks.is_multitask(config):  # Per task, pooled over training seeds (ld_mpc_jax.model.tasks).
     names = tasks.task_names(config)
     text += ('\nPer task, pooled over training and evaluation seeds:\n\n'
              + multitask_eval.markdown(multitask_eval.per_task(records, names), names))

@@ -43,17 +43,17 @@ def main(argv):
   if _DISTRIBUTED.value:  # Before anything touches a device.
     jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
-  from ld_mpc_jax.checkpointing import WorkdirError
-  from ld_mpc_jax.config_checks import online_enabled, validate_config
+  from ld_mpc_jax.learn.checkpointing import WorkdirError
+  from ld_mpc_jax.model.config_checks import online_enabled, validate_config
   from ld_mpc_jax.data import DatasetError, sources
-  from ld_mpc_jax.tasks import check_tasks
-  from ld_mpc_jax.train import train_and_evaluate
+  from ld_mpc_jax.model.tasks import check_tasks
+  from ld_mpc_jax.runs.train import train_and_evaluate
   try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
     validate_config(_CONFIG.value)
     check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
     sources.check_source(_CONFIG.value)
     if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
-      from ld_mpc_jax.online import check_init_from
+      from ld_mpc_jax.runs.online import check_init_from
       check_init_from(_CONFIG.value)
   except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
     cli.fail(' '.join(str(err).split()))

@@ -15,7 +15,7 @@ from absl import app, flags
 
 from experiments import cli
 from experiments.pool_evals import named_records, read_records
-from ld_mpc_jax import evaluation_suite
+from ld_mpc_jax.eval import evaluation_suite
 
 _ANCHOR = flags.DEFINE_string('anchor', 'actor', 'The policy the others are paired with.')
 _EDGES = flags.DEFINE_list('edges', ['70', '90', '110'],

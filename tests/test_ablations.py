@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from experiments import ablations
-from ld_mpc_jax import agent, models, objective, planner
+from ld_mpc_jax.plan import agent, planner
+from ld_mpc_jax.model import models, objective
 
 
 def test_trajectory_dynamics_rejects_actor_prior_candidates(smoke_config):
@@ -131,7 +132,8 @@ def test_paired_table_pools_the_seeds_on_the_same_episodes(tmp_path):
 
 def test_baselines_run_the_variants_evaluation_seed_not_the_training_seed(
     tmp_path, monkeypatch, smoke_config):
-  from ld_mpc_jax import checkpointing, runs
+  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import loop as runs
   workdir = tmp_path / 'mixed' / 'ldmpc' / 'seed2'
   workdir.mkdir(parents=True)
   (workdir / 'report.json').write_text(json.dumps({'num_params': 3}))

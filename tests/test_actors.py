@@ -1,4 +1,4 @@
-"""ld_mpc_jax.actors: the actor's mode and its tanh-Gaussian sample with log-probability, and the
+"""ld_mpc_jax.model.actors: the actor's mode and its tanh-Gaussian sample with log-probability, and the
 weighted regression loss, against hand-computed values. (Each kind's loss term is in
 tests/test_losses.py.)"""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from ld_mpc_jax import actors
+from ld_mpc_jax.model import actors
 
 MEAN, LOG_STD = np.array([0.3, -0.8]), np.array([-0.5, -12.0])  # The second is clipped to -10.
 

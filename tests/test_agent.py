@@ -5,8 +5,8 @@ import pytest
 
 import jax
 
-from ld_mpc_jax.agent import make_act, make_policy
-from ld_mpc_jax.models import build_networks, encode
+from ld_mpc_jax.plan.agent import make_act, make_policy
+from ld_mpc_jax.model.models import build_networks, encode
 
 
 @pytest.mark.parametrize('mode', ['plan', 'actor', 'proposal'])
@@ -73,8 +73,8 @@ def test_warm_started_policy_is_reproducible(smoke_config, smoke_params):
 def test_lockstep_batch_equals_one_at_a_time(smoke_config, smoke_params, mode, chunk):
   """N environments with one jitted call per decision give the episodes of one-at-a-time
   evaluation, for the actor and for the warm-started planner (fixed key schedule)."""
-  from ld_mpc_jax import evaluation
-  from ld_mpc_jax.agent import BatchAgentPolicy
+  from ld_mpc_jax.eval import evaluation
+  from ld_mpc_jax.plan.agent import BatchAgentPolicy
   smoke_config.plan.warm_start_steps = 1
   episodes = evaluation.seeded_episodes(0, 3)
   policy, reset = make_policy(smoke_config, smoke_params, mode, seed=2)

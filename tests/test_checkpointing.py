@@ -1,4 +1,4 @@
-"""ld_mpc_jax.checkpointing: configs saved before a field existed load with the value their run
+"""ld_mpc_jax.learn.checkpointing: configs saved before a field existed load with the value their run
 used (migrate_config), so library code reads fields directly; checkpoints restore onto this
 process's device whatever device wrote them."""
 
@@ -13,9 +13,10 @@ import pytest
 
 from experiments.configs import door_open
 from experiments.overrides import with_overrides
-from ld_mpc_jax import checkpointing, envs
-from ld_mpc_jax.config_checks import validate_config
-from ld_mpc_jax.train_state import create_train_state
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax import envs
+from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.learn.train_state import create_train_state
 
 # Fields whose fallbacks moved into migrate_config, with what a run saved before them did.
 OLD_RUN_VALUES = {
@@ -184,7 +185,7 @@ def test_a_damaged_checkpoint_falls_back_to_the_newest_intact_one(tmp_path, caps
 
 
 def test_a_resumed_run_sets_damaged_steps_aside_and_saves_them_again(tmp_path):
-  from ld_mpc_jax import runs
+  from ld_mpc_jax.runs import loop as runs
   workdir = str(tmp_path)
   config = _two_checkpoints(workdir)
   run = runs.Run(config, workdir)

@@ -3,8 +3,10 @@
 import jax.numpy as jnp
 
 from experiments.configs import door_open
-from ld_mpc_jax import config_cache, make_plan, models, registry
-from ld_mpc_jax.train_state import make_update
+from ld_mpc_jax.ops import config_cache, registry
+from ld_mpc_jax import make_plan
+from ld_mpc_jax.model import models
+from ld_mpc_jax.learn.train_state import make_update
 
 
 def test_equal_configs_share_one_built_function_and_others_do_not():

@@ -1,11 +1,12 @@
-"""ld_mpc_jax.config_checks: bad values fail with one line naming the field; the online batch
+"""ld_mpc_jax.model.config_checks: bad values fail with one line naming the field; the online batch
 against the windows of the seed data; acting settings; the multi-task batch."""
 
 import numpy as np
 import pytest
 
 from experiments.configs import door_open, door_open_online, mt10
-from ld_mpc_jax import config_checks, data
+from ld_mpc_jax.model import config_checks
+from ld_mpc_jax import data
 
 
 def _seed_windows(config) -> int:

@@ -1,4 +1,4 @@
-"""ld_mpc_jax.critics: expectile values, AWR weights, TD targets; the terminal value the planner
+"""ld_mpc_jax.model.critics: expectile values, AWR weights, TD targets; the terminal value the planner
 reads from them, and runs saved before the critics existed."""
 
 import jax
@@ -9,8 +9,11 @@ import optax
 import pytest
 
 from experiments.overrides import with_overrides
-from ld_mpc_jax import checkpointing, critics, legacy, models, objective, planner
-from ld_mpc_jax.ops import discounted_return, two_hot_decode
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.model import critics, models, objective
+from ld_mpc_jax.ops import legacy
+from ld_mpc_jax.plan import planner
+from ld_mpc_jax.ops.numerics import discounted_return, two_hot_decode
 
 
 def test_expectile_loss_hand_computed():

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax import data, online
+from ld_mpc_jax import data
+from ld_mpc_jax.runs import online
 from ld_mpc_jax.data import demos
 from ld_mpc_jax.data.online_buffer import Buffer
 
@@ -104,8 +105,8 @@ def test_a_run_with_demos_pretrains_on_them_and_plans_from_the_first_wave(tmp_pa
 
 
 def test_demo_bc_loss_averages_the_actor_error_over_demo_windows_only():
-  from ld_mpc_jax.losses import demo_bc_loss
-  from ld_mpc_jax.models import build_networks, init_params
+  from ld_mpc_jax.learn.losses import demo_bc_loss
+  from ld_mpc_jax.model.models import build_networks, init_params
   import jax
   config = door_open_online.get_config('smoke')
   nets, params = build_networks(config), init_params(config, jax.random.key(0))

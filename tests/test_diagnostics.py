@@ -1,4 +1,4 @@
-"""ld_mpc_jax.diagnostics: held-out windows and their returns, departures from the actor prior,
+"""ld_mpc_jax.eval.diagnostics: held-out windows and their returns, departures from the actor prior,
 success per K paired with the largest K, and the report's table."""
 
 import jax
@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from ld_mpc_jax import diagnostics, evaluation_suite
+from ld_mpc_jax.eval import diagnostics, evaluation_suite
 
 
 def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
-  from ld_mpc_jax import data, models, objective
+  from ld_mpc_jax import data
+  from ld_mpc_jax.model import models, objective
   length, gamma = 120, smoke_config.gamma
 
   class OneEpisode:
@@ -97,7 +98,7 @@ def test_markdown_table_rows():
 
 def test_candidate_kinds_counted_over_start_states(monkeypatch, smoke_config):
   """planner.make_plan stubbed: the winning kind of each plan is its key's index mod 2."""
-  from ld_mpc_jax import planner
+  from ld_mpc_jax.plan import planner
 
   class Out:
     def __init__(self, kind):
@@ -113,7 +114,7 @@ def test_candidate_kinds_counted_over_start_states(monkeypatch, smoke_config):
 
 
 def test_summarize_trace_reads_last_and_largest_terms():
-  from ld_mpc_jax.diagnostics import summarize_trace, trace_markdown
+  from ld_mpc_jax.eval.diagnostics import summarize_trace, trace_markdown
   steps = [dict(reward=r, in_place_reward=p, success=0.0) for r, p in
            [(1.0, 0.1), (4.0, 0.8), (2.0, 0.3)]]
   s = summarize_trace(steps, last=2)
@@ -130,7 +131,8 @@ def test_summarize_trace_reads_last_and_largest_terms():
 def test_gain_parts_add_up_to_the_objective(smoke_config, smoke_params):
   """The reward part plus the value part is J at pessimism 0 of the same rollout, for the
   executed sequence and the actor prior acting along its own rollout."""
-  from ld_mpc_jax import models, objective, planner
+  from ld_mpc_jax.model import models, objective
+  from ld_mpc_jax.plan import planner
   nets = models.build_networks(smoke_config)
   z = models.encode(smoke_params, np.zeros(39, np.float32))
   seq = jax.random.uniform(jax.random.key(3), (smoke_config.horizon, smoke_config.action_dim),
@@ -146,7 +148,7 @@ def test_gain_parts_add_up_to_the_objective(smoke_config, smoke_params):
 
 
 def test_summarize_gains_from_hand_built_decisions():
-  from ld_mpc_jax.diagnostics import gains_markdown, summarize_gains
+  from ld_mpc_jax.eval.diagnostics import gains_markdown, summarize_gains
   dec = [dict(t=0, departed=False),
          dict(t=1, departed=True, reward_gain=1.0, value_gain=3.0, j_prior=100.0),
          dict(t=2, departed=True, reward_gain=2.0, value_gain=-1.0, j_prior=-50.0),

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax import diffusion
+from ld_mpc_jax.ops import diffusion
 
 MU = jnp.array([0.5, -0.3, 0.0])
 STD = jnp.array([0.5, 0.2, 1.0])

@@ -1,4 +1,4 @@
-"""ld_mpc_jax.dynamics: the deterministic MLP kind's transition (the diffusion kinds' losses are in
+"""ld_mpc_jax.model.dynamics: the deterministic MLP kind's transition (the diffusion kinds' losses are in
 tests/test_losses.py, their rollouts in tests/test_planner.py and tests/e2e)."""
 
 import jax
@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from experiments import ablations
-from ld_mpc_jax import dynamics, models
+from ld_mpc_jax.model import dynamics, models
 
 
 def test_mlp_dynamics_stays_on_the_encoder_sphere(smoke_config):

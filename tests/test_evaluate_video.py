@@ -7,8 +7,9 @@ import sys
 
 import jax
 
-from ld_mpc_jax import checkpointing, runs
-from ld_mpc_jax.train_state import create_train_state
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.runs import loop as runs
+from ld_mpc_jax.learn.train_state import create_train_state
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MARKER = b'not json: a stand-in for the mp4'
@@ -16,7 +17,7 @@ MARKER = b'not json: a stand-in for the mp4'
 # OpenGL); every other evaluation is the real one.
 _SCRIPT = f"""
 from absl import app
-from ld_mpc_jax import runs
+from ld_mpc_jax.runs import loop as runs
 real = runs.run_evaluation
 def fake(config, params, mode, num_episodes, seed, video_path=None, **kwargs):
   if video_path is None:

@@ -7,7 +7,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from ld_mpc_jax import evaluation, evaluation_suite
+from ld_mpc_jax.eval import evaluation, evaluation_suite
 from ld_mpc_jax.envs import metaworld_env
 
 

@@ -1,4 +1,4 @@
-"""ld_mpc_jax.evaluation_suite: pooled summaries, paired tests and tables of hand-built records;
+"""ld_mpc_jax.eval.evaluation_suite: pooled summaries, paired tests and tables of hand-built records;
 the per-cell cache of `evaluate_checkpoint` (evaluations stubbed, no environment runs)."""
 
 import math
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import checkpointing, evaluation_suite
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.eval import evaluation_suite
 
 Z95 = 1.959963984540054  # The 0.975 quantile of the standard normal.
 

@@ -1,4 +1,4 @@
-"""ld_mpc_jax.exploration: the acting planner's settings, the annealed std of the executed-action
+"""ld_mpc_jax.model.exploration: the acting planner's settings, the annealed std of the executed-action
 noise and its correlated (AR(1)) draws."""
 
 import json
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax import exploration
+from ld_mpc_jax.model import exploration
 
 
 def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():

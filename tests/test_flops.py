@@ -5,9 +5,9 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from ld_mpc_jax import mppi
+from ld_mpc_jax.plan import mppi
 from benchmarks import flops
-from ld_mpc_jax.networks import TransformerBlock
+from ld_mpc_jax.nets import TransformerBlock
 
 
 def test_dense_and_attention_hand_counts():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import checkpointing, train_state
+from ld_mpc_jax.learn import checkpointing, train_state
 from tests.golden import make_golden
 
 EXPECTED = dict(np.load(make_golden.PLANS))

@@ -117,34 +117,32 @@ def test_modules_at_most_400_lines_and_functions_at_most_60():
   assert not too_long, too_long
 
 
-# The package's layers, lowest first: a module imports only modules of its own layer or below
-# (BUILD.md, Layout). A new module must be placed here.
-LAYERS = (
-    ('ops', ('config_cache', 'diffusion', 'ops', 'registry', 'stats', 'sharding', 'legacy')),
-    ('nets', ('networks', 'networks.mlp', 'networks.transformer')),
-    ('envs', ('envs', 'envs.suite', 'envs.goals', 'envs.metaworld_env')),
-    ('model parts', ('actors', 'critics', 'proposals', 'dynamics', 'objective', 'search',
-                     'tasks')),
-    ('data', ('data', 'data.dataset', 'data.collection', 'data.replay', 'data.tdmpc2',
-              'data.multitask', 'data.sources', 'data.demos', 'data.online_buffer')),
-    ('config checks', ('config_checks', 'exploration')),
-    ('model', ('models',)),
-    ('learn', ('losses', 'train_state', 'checkpointing')),
-    ('plan', ('planner', 'mppi', 'agent')),
-    ('eval', ('evaluation', 'evaluation_suite', 'diagnostics', 'multitask_eval', 'run_files')),
-    ('runs', ('runs', 'online_seats', 'online_report', 'online', 'train', '')),
-)
+# The package's layers, lowest first, one folder each: a module imports only modules of its own
+# folder or of folders below (BUILD.md, Layout). The root holds only __init__.py.
+LAYERS = ('ops', 'nets', 'envs', 'data', 'model', 'learn', 'plan', 'eval', 'runs')
 
 
-def _layer_of() -> dict:
-  return {(f'{PACKAGE}.{m}' if m else PACKAGE): (i, name)
-          for i, (name, modules) in enumerate(LAYERS) for m in modules}
+def _layer_of(graph) -> dict:
+  """module -> (layer index, folder); the package's own __init__ is above every folder."""
+  out = {}
+  for m in graph:
+    parts = m.split('.')
+    folder = parts[1] if len(parts) > 1 else ''
+    out[m] = (LAYERS.index(folder) if folder in LAYERS else len(LAYERS), folder)
+  return out
+
+
+def test_the_root_holds_only_the_layer_folders():
+  root = os.path.join(ROOT, PACKAGE)
+  entries = {e for e in os.listdir(root) if not e.startswith(('__pycache__', '.'))}
+  assert entries == {'__init__.py', *LAYERS}, sorted(entries - {'__init__.py', *LAYERS})
+  for folder in LAYERS:
+    assert os.path.isfile(os.path.join(root, folder, '__init__.py')), folder
 
 
 def test_every_import_points_down_the_layers():
-  layer, graph = _layer_of(), import_graph()
-  assert set(graph) == set(layer), ('modules not placed in LAYERS: '
-                                    f'{sorted(set(graph) - set(layer))}')
+  graph = import_graph()
+  layer = _layer_of(graph)
   upward = [f'{m} ({layer[m][1]}) imports {n} ({layer[n][1]})'
             for m, deps in graph.items() for n in deps
             if not m.startswith(n + '.') and layer[n][0] > layer[m][0]]
@@ -153,7 +151,8 @@ def test_every_import_points_down_the_layers():
 
 def test_the_layer_check_sees_an_upward_import(monkeypatch):
   graph = import_graph()
-  graph[f'{PACKAGE}.ops'] = {f'{PACKAGE}.planner'}
+  graph[f'{PACKAGE}.ops.numerics'] = {f'{PACKAGE}.plan.planner'}
   monkeypatch.setattr(sys.modules[__name__], 'import_graph', lambda: graph)
-  with pytest.raises(AssertionError, match='ops \\(ops\\) imports ld_mpc_jax.planner'):
+  with pytest.raises(AssertionError,
+                     match='ops.numerics \\(ops\\) imports ld_mpc_jax.plan.planner \\(plan\\)'):
     test_every_import_points_down_the_layers()

@@ -1,11 +1,11 @@
-"""ld_mpc_jax.legacy: a saved config lacking model-side fields gets the values its run used, and
+"""ld_mpc_jax.ops.legacy: a saved config lacking model-side fields gets the values its run used, and
 only the fields it lacks."""
 
 import ml_collections
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import legacy
+from ld_mpc_jax.ops import legacy
 
 # What a run saved before these fields existed did (hand-written, not read from legacy).
 OLD_RUN_VALUES = {

@@ -1,19 +1,19 @@
-"""The loss terms (ld_mpc_jax.losses, and the kinds' own) against hand-computed values."""
+"""The loss terms (ld_mpc_jax.learn.losses, and the kinds' own) against hand-computed values."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax import losses
+from ld_mpc_jax.learn import losses
 
 
 def test_maxq_actor_climbs_a_toy_q(smoke_config):
   """The max-Q policy's gradient: with Q(z, a) = w . a (linear heads, z ignored), descending the
   actor loss moves the policy's mode toward sign(w) on every action dimension."""
   import optax
-  from ld_mpc_jax import models
-  from ld_mpc_jax.actors import maxq_actor_loss
+  from ld_mpc_jax.model import models
+  from ld_mpc_jax.model.actors import maxq_actor_loss
   c = smoke_config
   c.critic.actor, c.critic.hidden = 'maxq', ()
   nets = models.build_networks(c)
@@ -82,7 +82,7 @@ def test_reward_loss_hand_computed():
 
 def test_behaviour_value_loss_hand_computed():
   """Targets: window returns of the rewards bootstrapped with the EMA head's V(z_{H+1})."""
-  from ld_mpc_jax.objective import Behaviour
+  from ld_mpc_jax.model.objective import Behaviour
   config = _cfg()
   # The EMA objective's value logits all on the middle bin: V_ema = symexp(0) = 0.
   v_tgt = jnp.log(jnp.array([1e-9, 1e-9, 1.0, 1e-9, 1e-9]))
@@ -112,14 +112,14 @@ def test_weighted_sum_order_and_absent_terms():
 @pytest.mark.parametrize('kind', ['diffusion_seq', 'diffusion_step'])
 def test_diffusion_proposal_losses_hand_computed(kind):
   """x0-prediction of zeros: the loss is the mean square of the denoised actions."""
-  from ld_mpc_jax.proposals import PROPOSALS
+  from ld_mpc_jax.model.proposals import PROPOSALS
   got = PROPOSALS.get(kind).loss(_cfg(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
   want = jnp.mean(A[:, :2] ** 2) if kind == 'diffusion_seq' else jnp.mean(A ** 2)
   np.testing.assert_allclose(got, want, rtol=1e-6)
 
 
 def test_gaussian_proposal_nll_hand_computed():
-  from ld_mpc_jax.proposals import PROPOSALS, gaussian_nll
+  from ld_mpc_jax.model.proposals import PROPOSALS, gaussian_nll
   np.testing.assert_allclose(gaussian_nll(jnp.zeros(2), jnp.log(jnp.array([1.0, 2.0])),
                                           jnp.array([1.0, 2.0])),
                              np.mean([0.5, 0.5 + np.log(2.0)]), rtol=1e-6)
@@ -132,7 +132,7 @@ def test_gaussian_proposal_nll_hand_computed():
 def test_dynamics_losses_hand_computed(kind):
   """Predicting zeros: the mean square of the next latents (all H+1 of them for one-step kinds,
   z_{1:H} for the trajectory kind)."""
-  from ld_mpc_jax.dynamics import DYNAMICS
+  from ld_mpc_jax.model.dynamics import DYNAMICS
   got = DYNAMICS.get(kind).loss(_cfg(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
   want = jnp.mean(Z[:, 1:3] ** 2) if kind == 'diffusion_traj' else jnp.mean(Z[:, 1:] ** 2)
   np.testing.assert_allclose(got, want, rtol=1e-6)
@@ -140,7 +140,7 @@ def test_dynamics_losses_hand_computed(kind):
 
 @pytest.mark.parametrize('kind', ['bc', 'awr'])
 def test_regression_actor_losses_hand_computed(kind):
-  from ld_mpc_jax.actors import ACTORS
+  from ld_mpc_jax.model.actors import ACTORS
   nets = type('Nets', (), {'actor': _Zeros(jnp.zeros((2, 3, 2)))})
   weights = jnp.array([[1.0, 0.0, 2.0], [0.0, 0.0, 1.0]])
   got = ACTORS.get(kind).loss(_cfg(), nets, PARAMS, Z, A, weights, jax.random.key(0))
@@ -151,7 +151,7 @@ def test_regression_actor_losses_hand_computed(kind):
 
 def test_maxq_actor_loss_hand_computed():
   """E[alpha log pi - mean_j Q_j] with a fake actor (log pi = -1) and Q ensemble (1 and 3)."""
-  from ld_mpc_jax.actors import ACTORS
+  from ld_mpc_jax.model.actors import ACTORS
 
   class Actor(_Zeros):
     def sample(self):
@@ -176,7 +176,7 @@ def test_loss_metrics_and_total(smoke_config):
   """The logged names stay those of the single closure this replaced, and `loss` is the
   weighted sum of the logged terms."""
   from experiments.overrides import with_overrides
-  from ld_mpc_jax import models
+  from ld_mpc_jax.model import models
   expected = {
       'smoke': {'loss', 'loss_dyn', 'loss_act', 'loss_rew', 'loss_val', 'loss_actor',
                 'loss_consistency', 'loss_q', 'loss_v', 'q_mean', 'v_mean', 'advantage_std',
@@ -206,7 +206,7 @@ def test_loss_metrics_and_total(smoke_config):
 def test_rolled_and_unrolled_training_rollouts_agree(smoke_config):
   """`critic.rollout_unroll` changes the compiled program, not the latents: the smoke preset's
   rolled scan (faster to compile, for the tests) stands for the unrolled one of real runs."""
-  from ld_mpc_jax import models
+  from ld_mpc_jax.model import models
   c = smoke_config
   params = models.init_params(c, jax.random.key(0))
   z0 = jax.random.normal(jax.random.key(1), (3, c.model.latent_dim))

@@ -1,11 +1,11 @@
-"""ld_mpc_jax.networks.mlp: mish against jax's, and the MLP's layers against their formula."""
+"""ld_mpc_jax.nets.mlp: mish against jax's, and the MLP's layers against their formula."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax.networks.mlp import MLP, mish
+from ld_mpc_jax.nets.mlp import MLP, mish
 
 
 def test_mish_is_jax_mish_with_its_gradient():

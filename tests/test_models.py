@@ -5,9 +5,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax import count_params, encode, init_params, models
-from ld_mpc_jax.models import build_networks
-from ld_mpc_jax.networks import fourier_features
+from ld_mpc_jax import count_params, encode, init_params
+from ld_mpc_jax.model import models
+from ld_mpc_jax.model.models import build_networks
+from ld_mpc_jax.nets import fourier_features
 
 
 def test_fourier_features_hand_values():

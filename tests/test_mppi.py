@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax import mppi
-from ld_mpc_jax.models import count_params
+from ld_mpc_jax.plan import mppi
+from ld_mpc_jax.model.models import count_params
 
 TINY_MODEL = mppi.TDMPC2Config(latent_dim=16, enc_dim=16, mlp_dim=16, num_q=3, num_bins=11)
 TINY_MPPI = mppi.MPPIConfig(num_samples=32, num_elites=8, num_prior=4, iterations=2)

@@ -1,4 +1,4 @@
-"""ld_mpc_jax.multitask_eval: per-task tables of hand-built records, and every task evaluated as a
+"""ld_mpc_jax.eval.multitask_eval: per-task tables of hand-built records, and every task evaluated as a
 single-task agent (evaluations stubbed, no environment runs)."""
 
 import math
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open, mt10
-from ld_mpc_jax import evaluation_suite, multitask_eval, stats
+from ld_mpc_jax.eval import evaluation_suite, multitask_eval
+from ld_mpc_jax.ops import stats
 
 # Successes of held-out episodes per task (c has twice as many); the actor prior was evaluated
 # on two tasks only.

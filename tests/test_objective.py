@@ -1,10 +1,10 @@
-"""ld_mpc_jax.objective: the members of J combined (mean - pessimism x std) and the value head's
+"""ld_mpc_jax.model.objective: the members of J combined (mean - pessimism x std) and the value head's
 loss, against hand-computed values."""
 
 import jax.numpy as jnp
 import numpy as np
 
-from ld_mpc_jax import objective
+from ld_mpc_jax.model import objective
 
 
 def test_combine_is_mean_less_pessimism_times_std():

@@ -1,4 +1,4 @@
-"""ld_mpc_jax.online at smoke size: exploration noise only when acting; bad configs through the
+"""ld_mpc_jax.runs.online at smoke size: exploration noise only when acting; bad configs through the
 launcher. (The acting settings: tests/test_exploration.py and tests/test_config_checks.py.)
 
 The launched smoke runs (buffer, checkpoints, SIGKILL and resume) are tests/e2e/test_online_runs.py.
@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax import evaluation_suite, online, online_seats
-from ld_mpc_jax.models import init_params
-from ld_mpc_jax.planner import make_plan
+from ld_mpc_jax.eval import evaluation_suite
+from ld_mpc_jax.runs import online, online_seats
+from ld_mpc_jax.model.models import init_params
+from ld_mpc_jax.plan.planner import make_plan
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -135,7 +136,7 @@ def test_bad_online_config_exits_2_with_one_line(tmp_path, override, match):
 
 
 def test_fine_tuning_from_a_run_of_another_task_is_refused_naming_the_flag(tmp_path):
-  from ld_mpc_jax import checkpointing  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
   from experiments.configs import door_open  # pylint: disable=g-import-not-at-top
   offline = door_open.get_config('smoke')
   offline.task = 'push-v3'

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax import checkpointing, data, online
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax import data
+from ld_mpc_jax.runs import online
 
 
 def _config(seed, num_seeds):

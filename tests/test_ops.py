@@ -1,9 +1,9 @@
-"""ld_mpc_jax.ops: symlog / two-hot helpers and return targets against hand-computed values."""
+"""ld_mpc_jax.ops.numerics: symlog / two-hot helpers and return targets against hand-computed values."""
 
 import jax.numpy as jnp
 import numpy as np
 
-from ld_mpc_jax import ops
+from ld_mpc_jax.ops import numerics as ops
 
 
 def test_symlog_symexp_values_and_round_trip():

@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from experiments.overrides import with_overrides
-from ld_mpc_jax import encode, init_params, make_plan, models, planner, validate_config
-from ld_mpc_jax.models import build_networks
+from ld_mpc_jax import encode, init_params, make_plan, validate_config
+from ld_mpc_jax.model import models
+from ld_mpc_jax.plan import planner
+from ld_mpc_jax.model.models import build_networks
 
 
 @pytest.fixture

@@ -123,7 +123,7 @@ def test_compare_sweeps_side_of_several_files_pools_their_records(tmp_path):
 
 def test_compare_sweeps_reads_episodes_csv_and_refuses_other_goals(tmp_path, capsys):
   from experiments import compare_sweeps
-  from ld_mpc_jax import run_files
+  from ld_mpc_jax.eval import run_files
   rec = lambda ep, success, goal: dict(run=1, policy='plan', split='held_out', eval_seed=0,
                                        episode=ep, reset_seed=7, goal_id=goal, success=success,
                                        first_success=0, env_steps=0, length=0, **{'return': 0.0})

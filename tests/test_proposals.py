@@ -1,4 +1,4 @@
-"""ld_mpc_jax.proposals: teacher-forced pairs of a window, the Gaussian single-step proposal's draw
+"""ld_mpc_jax.model.proposals: teacher-forced pairs of a window, the Gaussian single-step proposal's draw
 and bounds, single-step proposals inside the planner's rollout. (Each kind's loss term is in
 tests/test_losses.py.)"""
 
@@ -9,7 +9,8 @@ import ml_collections
 import numpy as np
 
 from experiments import ablations
-from ld_mpc_jax import models, planner, proposals
+from ld_mpc_jax.model import models, proposals
+from ld_mpc_jax.plan import planner
 
 
 def test_transitions_pair_each_latent_with_its_action():

@@ -1,8 +1,8 @@
-"""ld_mpc_jax.registry: lookups, one-line errors naming the registered kinds, no duplicates."""
+"""ld_mpc_jax.ops.registry: lookups, one-line errors naming the registered kinds, no duplicates."""
 
 import pytest
 
-from ld_mpc_jax.registry import Registry
+from ld_mpc_jax.ops.registry import Registry
 
 
 def test_register_get_and_order():

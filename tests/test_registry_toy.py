@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from experiments.overrides import with_overrides
-from ld_mpc_jax import models, planner, train_state
-from ld_mpc_jax.dynamics import DYNAMICS
+from ld_mpc_jax.model import models
+from ld_mpc_jax.plan import planner
+from ld_mpc_jax.learn import train_state
+from ld_mpc_jax.model.dynamics import DYNAMICS
 
 CALLS = []  # One entry per trace of the toy module's __call__.
 

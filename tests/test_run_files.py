@@ -1,4 +1,4 @@
-"""ld_mpc_jax.run_files: CSV logs and episodes.csv written and read back, the plots their CSVs
+"""ld_mpc_jax.eval.run_files: CSV logs and episodes.csv written and read back, the plots their CSVs
 call for, provenance."""
 
 import csv
@@ -8,7 +8,7 @@ import subprocess
 
 import pytest
 
-from ld_mpc_jax import run_files
+from ld_mpc_jax.eval import run_files
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 EPISODE_FIELDS = ['policy', 'split', 'eval_seed', 'episode', 'reset_seed', 'goal_id', 'success',

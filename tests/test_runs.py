@@ -1,11 +1,13 @@
-"""ld_mpc_jax.runs: the shared loop checkpoints and evaluates at the same crossings for any job."""
+"""ld_mpc_jax.runs.loop: the shared loop checkpoints and evaluates at the same crossings for any job."""
 
 import os
 
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import checkpointing, run_files, runs
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.runs import loop as runs
 
 
 @pytest.mark.parametrize('before,after,every,expected', [

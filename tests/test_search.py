@@ -1,4 +1,4 @@
-"""ld_mpc_jax.search inside plan(): refinement, safe selection, softmax selection, acting noise."""
+"""ld_mpc_jax.model.search inside plan(): refinement, safe selection, softmax selection, acting noise."""
 
 import jax
 import jax.numpy as jnp
@@ -6,8 +6,9 @@ import numpy as np
 import ml_collections
 import pytest
 
-from ld_mpc_jax import encode, make_plan, search
-from ld_mpc_jax.search import CANDIDATE_KINDS
+from ld_mpc_jax import encode, make_plan
+from ld_mpc_jax.model import search
+from ld_mpc_jax.model.search import CANDIDATE_KINDS
 
 TARGET = jnp.array([0.6, -0.4, 0.2, -0.8])  # The toy optimum: this action at every step.
 
@@ -129,7 +130,7 @@ def test_action_noise_only_when_asked_and_no_recompile(smoke_config, smoke_param
 
 
 def test_acting_policy_has_no_noise_unless_set(smoke_config, smoke_params):
-  from ld_mpc_jax.agent import BatchAgentPolicy
+  from ld_mpc_jax.plan.agent import BatchAgentPolicy
   from ld_mpc_jax.envs import goals
   obs = np.zeros((2, 39), np.float32)
   policy = BatchAgentPolicy(smoke_config, smoke_params, 'plan', seed=0, chunk=0)
@@ -374,8 +375,8 @@ def test_confirmation_needs_safe_selection(smoke_config):
 
 def test_score_draws_batch_the_same_draws_as_one_after_another():
   """Draw i rolls with fold_in(key, i), whether the draws run in one batch or a loop."""
-  from ld_mpc_jax.planner import _make_score_draws
-  from ld_mpc_jax.objective import combine
+  from ld_mpc_jax.plan.planner import _make_score_draws
+  from ld_mpc_jax.model.objective import combine
   def roll(params, z, proposals, key):
     lats = z + jax.random.normal(key, proposals.shape[:2] + (3,))
     return proposals + lats[..., :1], lats
@@ -425,7 +426,7 @@ def test_fallback_keeps_the_actor_prior_once_the_value_drops(smoke_config, smoke
 
 
 def test_advance_guard_falls_at_the_drop_and_stays():
-  from ld_mpc_jax.planner import advance_guard, initial_guard
+  from ld_mpc_jax.plan.planner import advance_guard, initial_guard
   g = initial_guard()
   for score, fallen in [(-50.0, False), (-40.0, False), (-43.0, False), (-45.0, True),
                         (-10.0, True)]:  # Negative values: the drop is relative to |peak|.
@@ -443,7 +444,7 @@ def test_advance_guard_falls_at_the_drop_and_stays():
 
 
 def test_batch_policy_carries_the_guard_between_decisions(smoke_config, smoke_params):
-  from ld_mpc_jax import agent
+  from ld_mpc_jax.plan import agent
   c = smoke_config
   c.plan.fallback_drop, c.plan.num_prior_candidates = 0.5, 1
   act = agent.make_batch_act(c, 'plan')

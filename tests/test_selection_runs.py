@@ -3,7 +3,8 @@ checkpoint is evaluated with (evaluations stubbed; the tables: test_evaluation_s
 
 from experiments import overrides, selection_runs
 from experiments.configs import door_open
-from ld_mpc_jax import checkpointing, multitask_eval
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.eval import multitask_eval
 
 
 def test_every_variant_and_actor_variant_runs_with_its_own_settings(monkeypatch):

@@ -1,11 +1,11 @@
-"""ld_mpc_jax.sharding on this process's one device. (The 2-device update and planner, in
+"""ld_mpc_jax.ops.sharding on this process's one device. (The 2-device update and planner, in
 subprocesses: tests/e2e/test_sharding_two_devices.py.)"""
 
 import jax
 import numpy as np
 import pytest
 
-from ld_mpc_jax import sharding
+from ld_mpc_jax.ops import sharding
 
 
 def test_batch_must_split_evenly_over_devices():

@@ -6,7 +6,7 @@ import pytest
 
 from experiments.configs import door_open, mt10
 from ld_mpc_jax import envs
-from ld_mpc_jax.config_checks import validate_config
+from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.data import sources
 from ld_mpc_jax.data.dataset import Dataset, DatasetError
 from tests.tdmpc2_chunks import fake_torch, write_mt80_chunk  # pylint: disable=unused-import

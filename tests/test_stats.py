@@ -1,9 +1,9 @@
-"""ld_mpc_jax.stats: Wilson intervals, exact McNemar, pooling records."""
+"""ld_mpc_jax.ops.stats: Wilson intervals, exact McNemar, pooling records."""
 
 import numpy as np
 import pytest
 
-from ld_mpc_jax import stats
+from ld_mpc_jax.ops import stats
 
 
 def test_wilson_interval_hand_values():

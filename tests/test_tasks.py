@@ -1,4 +1,4 @@
-"""Task conditioning (ld_mpc_jax.tasks): the embedding, binding, and the multi-task loss."""
+"""Task conditioning (ld_mpc_jax.model.tasks): the embedding, binding, and the multi-task loss."""
 
 import chex
 import jax
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open, mt10
-from ld_mpc_jax import models, tasks
-from ld_mpc_jax.critics import Critics
-from ld_mpc_jax.losses import make_loss_fn
-from ld_mpc_jax.planner import make_plan
+from ld_mpc_jax.model import models, tasks
+from ld_mpc_jax.model.critics import Critics
+from ld_mpc_jax.learn.losses import make_loss_fn
+from ld_mpc_jax.plan.planner import make_plan
 
 
 @pytest.fixture(scope='module')

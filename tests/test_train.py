@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import checkpointing, run_files, runs, stats, train
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.runs import loop as runs, train
+from ld_mpc_jax.ops import stats
 from ld_mpc_jax.data import replay
 
 
@@ -169,7 +172,7 @@ def test_eval_episodes_zero_trains_without_evaluating(unevaluated_runs):
     (float('nan'), 1, '1 update step in this run, too few to time without compilation'),
     (float('nan'), 2, '2 update steps in this run, too few to time without compilation')])
 def test_report_summary_states_speed_or_that_nothing_was_trained(steps_per_s, made, expected):
-  from ld_mpc_jax import evaluation_suite
+  from ld_mpc_jax.eval import evaluation_suite
   records = [dict(run=0, policy=mode, split='held_out', eval_seed=0, episode=i,
                   success=int(i < k), decisions_per_s=30.5, **{'return': 474.7})
              for mode, k in (('plan', 47), ('actor', 40)) for i in range(50)]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ld_mpc_jax import create_train_state, make_update
-from ld_mpc_jax.train_state import ema_update
+from ld_mpc_jax.learn.train_state import ema_update
 
 
 def make_batch(config, batch_size=8, seed=0):

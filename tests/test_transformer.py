@@ -1,4 +1,4 @@
-"""ld_mpc_jax.networks.transformer: attention equals flax's, `outputs` equals the sliced full
+"""ld_mpc_jax.nets.transformer: attention equals flax's, `outputs` equals the sliced full
 output, gelu is flax's."""
 
 import flax.linen as nn
@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax.networks import SelfAttention, Transformer
-from ld_mpc_jax.networks.transformer import SHORT_SEQUENCE, gelu
+from ld_mpc_jax.nets import SelfAttention, Transformer
+from ld_mpc_jax.nets.transformer import SHORT_SEQUENCE, gelu
 
 
 @pytest.mark.parametrize('length', [1, 3, SHORT_SEQUENCE, SHORT_SEQUENCE + 1])

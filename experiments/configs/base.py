@@ -28,7 +28,7 @@ def get_config() -> ml_collections.ConfigDict:
   m.dynamics_blocks = 5
   m.objective_blocks = 10
   m.actor_hidden = (256, 256)  # TD-MPC2's policy MLP width.
-  # Model kinds (ld_mpc_jax.models): the project's model is a whole-sequence diffusion proposal
+  # Model kinds (ld_mpc_jax.model.models): the project's model is a whole-sequence diffusion proposal
   # with autoregressive latent diffusion dynamics; the others exist for the ablations.
   m.proposal_type = 'diffusion_seq'  # | 'diffusion_step' | 'mlp'
   m.dynamics_type = 'diffusion_ar'  # | 'diffusion_traj' | 'mlp'
@@ -73,11 +73,11 @@ def get_config() -> ml_collections.ConfigDict:
   # (uncertainty penalties as in MOPO and PBRL), against the optimiser's curse of an argmax.
   p.pessimism = 1.0
   p.dynamics_draws = 1  # J averaged over this many dynamics rollouts per candidate.
-  # Search (ld_mpc_jax.search). A broad Gaussian candidate set beside the proposal and the actor
+  # Search (ld_mpc_jax.model.search). A broad Gaussian candidate set beside the proposal and the actor
   # prior, centred on the previous plan (or 0): TD-MPC2's first MPPI samples, std its max_std.
   p.num_gaussian = 0
   p.gaussian_std = 2.0
-  # The first round's candidate kinds, in order (ld_mpc_jax.search.CANDIDATES; a kind registered
+  # The first round's candidate kinds, in order (ld_mpc_jax.model.search.CANDIDATES; a kind registered
   # from your own code joins here by name). The P actor-prior candidates follow them.
   p.first_round = ('proposal', 'gaussian')
   # Refinement rounds around the elites (0 = selection only): TD-MPC2's MPPI update, 6 rounds
@@ -91,7 +91,7 @@ def get_config() -> ml_collections.ConfigDict:
   p.selection = 'argmax'
   # Safe selection: keep the actor prior's own sequence unless the winner beats it by more than
   # safe_margin x the std over value members (and dynamics draws) of their score difference
-  # (SPIBB-style safe improvement; ld_mpc_jax.search.select). Needs num_prior_candidates >= 1.
+  # (SPIBB-style safe improvement; ld_mpc_jax.model.search.select). Needs num_prior_candidates >= 1.
   # Off by default: measured offline on door-open `weak`, push `medium` and reach `medium`
   # and on MT10 (docs/results.md). Margin 8 gives push `medium`'s gain back; margin 1 x E[max]
   # stays below the actor prior on MT10 peg-insert-side; margin 2 x E[max]
@@ -112,13 +112,13 @@ def get_config() -> ml_collections.ConfigDict:
   p.safe_selection = False
   p.safe_margin = 8.0
   # 'expected_max': the margin is multiplied by E[max of n standard normals] for the n
-  # candidates scored per call (1.03 at n = 4, 2.34 at n = 64; ld_mpc_jax.search.expected_max),
+  # candidates scored per call (1.03 at n = 4, 2.34 at n = 64; ld_mpc_jax.model.search.expected_max),
   # so that the winner's selection optimism, which grows about as sqrt(2 ln n), is not taken for
   # a gain at large K (the winner's curse of argmax over noisy estimates; Smith and Winkler 2006,
   # "The optimizer's curse"). 'none': margin x spread whatever K.
   p.safe_margin_scaling = 'none'
   # Confirmation: a departure must also beat the actor prior on a second, independent rollout
-  # of both sequences, by confirm_margin x the spread (ld_mpc_jax.planner, search.beats). The
+  # of both sequences, by confirm_margin x the spread (ld_mpc_jax.plan.planner, search.beats). The
   # winner's first score carries the selection's optimism, a fresh one does not: the double
   # estimator (van Hasselt 2010, "Double Q-learning"). Costs two more rollouts per call.
   p.safe_confirm = False
@@ -157,7 +157,7 @@ def get_config() -> ml_collections.ConfigDict:
   mp.min_std = 0.05
   mp.max_std = 2.0
 
-  # Critics: J's terminal value and how the actor prior is extracted (ld_mpc_jax.critics).
+  # Critics: J's terminal value and how the actor prior is extracted (ld_mpc_jax.model.critics).
   c.critic = o = ml_collections.ConfigDict()
   # IQL (Kostrikov et al. 2022): V(z) an upper expectile of Q(z, a) over the data's actions, Q by
   # one-step TD against the EMA target: the value of the best in-support policy, not of the
@@ -181,7 +181,7 @@ def get_config() -> ml_collections.ConfigDict:
   o.awr_max_weight = 100.0  # IQL's clip of the exponentiated advantage.
   # Actor 'maxq' (online): entropy bonus of the max-Q policy, TD-MPC2's entropy_coef.
   o.entropy_coef = 1e-4
-  # Actor 'maxq': its raw output -> log-std (ld_mpc_jax.actors.LOG_STD_MAPS). 'clip' starts near
+  # Actor 'maxq': its raw output -> log-std (ld_mpc_jax.model.actors.LOG_STD_MAPS). 'clip' starts near
   # std 1; 'tanh' is TD-MPC2's -10 + 6 (tanh(x) + 1), which starts near std 0.02.
   o.log_std_map = 'clip'
   # Train reward and value heads on the dynamics model's own H-step latent rollouts as well as on
@@ -208,7 +208,7 @@ def get_config() -> ml_collections.ConfigDict:
   # its policy by BC). Off: the measured demonstration runs (docs/sparse.md) clone them through
   # the diffusion proposal alone; 1.0 is TD3+BC's scale against a Q of unit scale.
   l.w_demo_bc = 0.0
-  # Behaviour value target for V(z_i) (critic.value 'behaviour', ld_mpc_jax.losses):
+  # Behaviour value target for V(z_i) (critic.value 'behaviour', ld_mpc_jax.learn.losses):
   # discounted rewards to the end of the window plus gamma^(H-i) times the EMA target network's
   # V(z_H) (TD-MPC2, DQN).
 
@@ -223,13 +223,13 @@ def get_config() -> ml_collections.ConfigDict:
   t.eval_every = 10_000
   t.checkpoint_every = 1_000
   t.max_checkpoints = 3
-  # Split each batch over all devices (jax.sharding mesh, state replicated; ld_mpc_jax.sharding).
+  # Split each batch over all devices (jax.sharding mesh, state replicated; ld_mpc_jax.ops.sharding).
   # Off: a plain single-device jit, which is what one device needs.
   t.data_parallel = False
   # Independent training seeds in one run (config.seed, config.seed + 1, ...): parameters,
   # optimiser states and keys carry a leading seed axis and the update is vmapped over it; each
   # seed has its own data order, buffer and environments and writes <workdir>/seed<seed> as a
-  # run of that seed alone would (online runs; ld_mpc_jax.online).
+  # run of that seed alone would (online runs; ld_mpc_jax.runs.online).
   t.num_seeds = 1
 
   c.data = ml_collections.ConfigDict()

@@ -1,4 +1,4 @@
-"""LD-MPC trained online on Meta-World door-open-v3 (ld_mpc_jax.online; docs/online.md).
+"""LD-MPC trained online on Meta-World door-open-v3 (ld_mpc_jax.runs.online; docs/online.md).
 
   python -m experiments.train --config=door_open_online.py --workdir=runs/online  # reference size
   python -m experiments.train --config=door_open_online.py:cpu --workdir=runs/online_cpu

@@ -6,7 +6,7 @@
   python -m experiments.evaluate_mt10 --workdir=runs/mt10_cpu   # Meta-World's own MT10 protocol
 
 The single-task configs' architecture and settings (door_open.py, same presets), with a learned
-task embedding fed to every network (ld_mpc_jax.tasks), each task's scripted dataset and
+task embedding fed to every network (ld_mpc_jax.model.tasks), each task's scripted dataset and
 batches with the same number of windows of every task.
 """
 

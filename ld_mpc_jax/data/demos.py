@@ -1,4 +1,4 @@
-"""Demonstrations as an input of online training (`online.demos`; ld_mpc_jax.online).
+"""Demonstrations as an input of online training (`online.demos`; ld_mpc_jax.runs.online).
 
 A few successful episodes, as MoDem (Hansen et al. 2022) and DEMO3 use five: Meta-World's
 scripted policy on training goals (MT1 seed `data.seed`, the goals online training uses), or the

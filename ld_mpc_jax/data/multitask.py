@@ -11,7 +11,7 @@ from typing import Dict, List
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax import tasks
+from ld_mpc_jax.envs import tasks
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import replay
 

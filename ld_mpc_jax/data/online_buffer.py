@@ -1,4 +1,4 @@
-"""The replay buffer of an online run (ld_mpc_jax.online): the offline dataset (if any), the
+"""The replay buffer of an online run (ld_mpc_jax.runs.online): the offline dataset (if any), the
 online episodes, and the demonstrations in their own buffer (ld_mpc_jax.data.demos)."""
 
 import os

@@ -17,12 +17,13 @@ from typing import Callable
 
 import ml_collections
 
-from ld_mpc_jax import envs, tasks
+from ld_mpc_jax import envs
+from ld_mpc_jax.envs import tasks
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import multitask
 from ld_mpc_jax.data import tdmpc2
-from ld_mpc_jax.registry import Registry
+from ld_mpc_jax.ops.registry import Registry
 
 TDMPC2_TASK_SET = 'mt80'  # The only TD-MPC2 task set with Meta-World tasks.
 

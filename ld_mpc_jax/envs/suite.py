@@ -8,7 +8,7 @@ observation and action sizes. `ld_mpc_jax.envs` registers Meta-World as the one 
 import dataclasses
 from typing import Any, Callable, List, Tuple
 
-from ld_mpc_jax.registry import Registry
+from ld_mpc_jax.ops.registry import Registry
 
 
 @dataclasses.dataclass(frozen=True)

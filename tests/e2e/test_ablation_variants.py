@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from experiments import ablations
-from ld_mpc_jax import models, planner
-from ld_mpc_jax.train_state import create_train_state, make_update
+from ld_mpc_jax.model import models
+from ld_mpc_jax.plan import planner
+from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
 
 def _batch(config):

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from experiments.configs import door_open
-from ld_mpc_jax import evaluation_suite
+from ld_mpc_jax.eval import evaluation_suite
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

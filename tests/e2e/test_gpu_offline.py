@@ -11,7 +11,7 @@ import jax
 import numpy as np
 import pytest
 
-from ld_mpc_jax import checkpointing
+from ld_mpc_jax.learn import checkpointing
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from experiments.configs import mt10
-from ld_mpc_jax import checkpointing, run_files, train
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.runs import train
 
 
 @pytest.mark.long

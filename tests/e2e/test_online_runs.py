@@ -14,7 +14,10 @@ import time
 import numpy as np
 import pytest
 
-from ld_mpc_jax import checkpointing, data, online, run_files
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax import data
+from ld_mpc_jax.runs import online
+from ld_mpc_jax.eval import run_files
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ENV_STEPS = 200  # Five waves of 2 episodes x 20 environment steps; the first one random.

@@ -1,4 +1,4 @@
-"""End to end, data parallel on 2 devices (ld_mpc_jax.sharding): the update gives the same loss
+"""End to end, data parallel on 2 devices (ld_mpc_jax.ops.sharding): the update gives the same loss
 and parameters as one device, the batched planner the same actions.
 
 The 2-device case runs in a subprocess with XLA_FLAGS=--xla_force_host_platform_device_count=2:
@@ -21,8 +21,8 @@ import json
 import jax
 import numpy as np
 from experiments.configs import door_open
-from ld_mpc_jax import sharding
-from ld_mpc_jax.train_state import create_train_state, make_update
+from ld_mpc_jax.ops import sharding
+from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
 c = door_open.get_config('smoke')
 c.critic.latent_rollout = False  # A third less to compile; the sharding does not depend on it.
@@ -87,8 +87,9 @@ import json
 import jax
 import numpy as np
 from experiments.configs import door_open
-from ld_mpc_jax import agent, sharding
-from ld_mpc_jax.models import init_params
+from ld_mpc_jax.plan import agent
+from ld_mpc_jax.ops import sharding
+from ld_mpc_jax.model.models import init_params
 
 c = door_open.get_config('smoke')
 c.plan.warm_start_steps = 2  # The second decision starts from the first one's plan.

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from ld_mpc_jax import run_files
+from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.data import tdmpc2
 from tests.tdmpc2_chunks import (MT80_L, fake_torch, needs_extra,  # pylint: disable=unused-import
                                  write_chunk, write_mt80_chunk)
@@ -19,7 +19,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 
 @pytest.mark.long
 def test_train_from_tdmpc2_chunks_end_to_end(fake_torch, tmp_path):
-  from ld_mpc_jax import checkpointing
+  from ld_mpc_jax.learn import checkpointing
   chunk = tmp_path / 'chunks'
   chunk.mkdir()
   obs = write_mt80_chunk(chunk / 'chunk_0.pt', ['mw-door-open', 'mw-reach', 'mw-door-open'])

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from ld_mpc_jax import run_files
+from ld_mpc_jax.eval import run_files
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

@@ -18,7 +18,8 @@ import numpy as np
 import orbax.checkpoint as ocp
 
 from experiments.configs import door_open
-from ld_mpc_jax import agent, checkpointing, train_state
+from ld_mpc_jax.plan import agent
+from ld_mpc_jax.learn import checkpointing, train_state
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SMOKE_DIR = os.path.join(HERE, 'door_open_smoke')

@@ -1,0 +1,386 @@
+"""Policies for the environment loop: the planner, the actor prior, the proposal alone, and MPPI
+on the learned model (config.mppi; the TD-MPC2-style baseline).
+
+Each is one jitted function of (params, obs, key, t, prev) that encodes the observation and
+acts, so a decision costs one dispatch. Keys follow a fixed schedule: episode e acts at decision
+t with fold_in(fold_in(key(seed), e.reset_seed), t), whether it runs alone (`make_policy`, the
+`policy(obs) -> action` interface) or with others in lockstep (`BatchAgentPolicy`, one jitted
+call for N environments), so the two give the same episodes. With a device mesh
+(`config.eval.data_parallel`), the N environments are split over the devices
+(`jax.shard_map`), each device acting for its share with replicated parameters; every
+environment keeps its keys, so the actions are those of a single device.
+"""
+
+import json
+from typing import Callable, NamedTuple, Optional, Sequence, Tuple
+
+import jax
+import jax.numpy as jnp
+from jax.sharding import Mesh, PartitionSpec
+import ml_collections
+import numpy as np
+
+from ld_mpc_jax.ops import sharding
+from ld_mpc_jax.model.models import build_networks
+from ld_mpc_jax.plan.planner import make_plan, make_propose
+from ld_mpc_jax.ops.registry import Registry
+
+# What a decision reports beside its action: int32 [4] = (kind of the winning candidate, an
+# index into search.CANDIDATES.names() or -1 for policies that do not plan; the refinement round it
+# came from; 1 if the planner departed from the actor prior's own sequence, else 0; the fallback
+# (`plan.fallback_drop`): 1 once it has handed the episode to the actor prior, 0 before, -1 for
+# policies without it).
+NO_PLAN_INFO = (-1, 0, 0, -1)
+
+# Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise []) ->
+# (action [A], carry, info [4]) is built by make_act(config, nets), not jitted; `carry` is what
+# the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
+# MPPI's mean; the planner with `plan.fallback_drop` adds its planner.Guard);
+# `uses_prev(config)`: whether it acts on the previous decision's carry.
+POLICY_MODES = Registry('policy mode', 'mode')
+
+
+class PolicyMode(NamedTuple):
+  make_act: Callable
+  uses_prev: Callable = lambda config: False
+
+
+def _encode(nets, params, obs):
+  return nets.encoder.apply({'params': params['encoder']}, obs)
+
+
+def _plan_act(config, nets):
+  """The planner (ld_mpc_jax.plan.planner); info is (kind, iteration, departed, fallen). With
+  `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
+  previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
+  plan = make_plan(config)
+  guarded, warm = config.plan.fallback_drop > 0, config.plan.warm_start_steps > 0
+
+  def act(params, obs, key, prev, noise):
+    if guarded:  # The sequence travels only to warm-start, as without the guard.
+      sequence, guard = prev if prev is not None else (None, None)
+      sequence = sequence if warm else None
+    else:
+      sequence, guard = prev, None
+    out = plan(params, _encode(nets, params, obs), key, sequence, noise, guard)
+    fallen = out.guard.fallen.astype(jnp.int32) if guarded else jnp.asarray(-1, jnp.int32)
+    info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32), fallen])
+    return out.action, (out.sequence, out.guard) if guarded else out.sequence, info
+  return act
+
+
+def _with_noise(action, noise, key):
+  """`action` plus N(0, noise^2), clipped to the bounds; exactly `action` where noise is 0."""
+  noisy = jnp.clip(action + noise * jax.random.normal(key, action.shape), -1.0, 1.0)
+  return jnp.where(noise > 0, noisy, action)
+
+
+def _actor_act(config, nets):
+  """The actor prior's mode, held over the horizon; `noise` (acting online with
+  `online.act_mode = 'actor'`, or `eval.action_noise`) is the std of Gaussian noise on its
+  action, 0 in evaluation by default."""
+  def act(params, obs, key, prev, noise):
+    a = nets.actor.apply({'params': params['actor']}, _encode(nets, params, obs))
+    a = _with_noise(a, noise, key)
+    return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), jnp.asarray(NO_PLAN_INFO,
+                                                                              jnp.int32)
+  return act
+
+
+def _mppi_act(config, nets):
+  """MPPI on the learned model (config.mppi); `prev` is its previous Gaussian mean."""
+  from ld_mpc_jax.plan.mppi import make_ldmpc_mppi  # pylint: disable=g-import-not-at-top
+  mppi_plan = make_ldmpc_mppi(config)
+
+  def act(params, obs, key, prev, noise):
+    out = mppi_plan(params, _encode(nets, params, obs), key, prev)
+    return (_with_noise(out.action, noise, jax.random.fold_in(key, 7)), out.mean,
+            jnp.asarray(NO_PLAN_INFO, jnp.int32))
+  return act
+
+
+def _proposal_act(config, nets):
+  """One sample of the proposal alone (single-step kinds: the one action, held)."""
+  propose = make_propose(config, nets)
+
+  def act(params, obs, key, prev, noise):
+    seq = jnp.clip(propose(params, _encode(nets, params, obs), key, 1)[0], -1.0, 1.0)
+    if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
+      seq = jnp.repeat(seq, config.horizon, axis=0)
+    return (_with_noise(seq[0], noise, jax.random.fold_in(key, 7)), seq,
+            jnp.asarray(NO_PLAN_INFO, jnp.int32))
+  return act
+
+
+POLICY_MODES.register('plan', PolicyMode(
+    _plan_act, lambda config: config.plan.warm_start_steps > 0 or config.plan.fallback_drop > 0))
+POLICY_MODES.register('actor', PolicyMode(_actor_act))
+POLICY_MODES.register('proposal', PolicyMode(_proposal_act))
+POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda config: True))
+MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the registry's names.
+
+
+def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
+  """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [4]),
+  not jitted. `noise`: std of Gaussian noise on the executed action of the planner or the actor
+  prior (acting only)."""
+  entry = POLICY_MODES.get(mode)
+  return entry.make_act(config, build_networks(config))
+
+
+def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
+  """Whether `mode` acts on the previous decision's sequence (warm-started planner, MPPI)."""
+  return POLICY_MODES.get(mode).uses_prev(config)
+
+
+def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
+  """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0) -> (action [A],
+  carry, info [4] int32: NO_PLAN_INFO's fields).
+
+  The decision's key is fold_in(key, t). `prev` is the previous decision's carry (or None at
+  the start of an episode); only the planner with `plan.warm_start_steps` > 0 or
+  `plan.fallback_drop` > 0 and MPPI (its Gaussian mean) use it. `carry` is what to pass as the
+  next `prev`: the sequence [H, A], or for the planner with `plan.fallback_drop` > 0 the pair
+  (sequence, planner.Guard).
+  """
+  act = _make_act_fn(config, mode)
+  jitted = jax.jit(lambda params, obs, key, t, prev, noise: act(
+      params, obs, jax.random.fold_in(key, t), prev, noise))
+  return lambda params, obs, key, t, prev, noise=0.0: jitted(
+      params, obs, key, t, prev, jnp.asarray(noise, jnp.float32))
+
+
+def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
+  """[N] keys: fold_in(key(seed), reset_seed) for each episode."""
+  seeds = jnp.asarray(np.asarray(reset_seeds, np.int64).astype(np.uint32))
+  return jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), seeds)
+
+
+def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
+                   chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
+  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise []).
+
+  -> (actions [N, A], sequences [N, H, A], infos [N, 4]): `jax.lax.map` of the
+  single-environment act over the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
+  environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
+  vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
+  With a `mesh` (sharding.make_mesh), the N environments are split over its devices
+  (`jax.shard_map`; N is padded with inactive rows to a multiple of the device count) and each
+  device maps over its share as above; `params` should be replicated (sharding.replicate).
+  """
+  act = _make_act_fn(config, mode)
+
+  def one(params, t, noise, has_prev, inputs):
+    obs, key, prev, active = inputs
+    key = jax.random.fold_in(key, t)
+    prev = prev if has_prev else None
+    run = lambda: act(params, obs, key, prev, noise)
+    zeros = lambda: jax.tree_util.tree_map(jnp.zeros_like, jax.eval_shape(run))
+    return jax.lax.cond(active, run, zeros)
+
+  def local_act(has_prev, params, obs, keys, t, prev, active, noise):
+    n = obs.shape[0]
+    return jax.lax.map(lambda x: one(params, t, noise, has_prev, x), (obs, keys, prev, active),
+                       batch_size=min(chunk or n, n))
+
+  def batch_act(params, obs, keys, t, prev, active, noise=0.0):
+    noise = jnp.asarray(noise, jnp.float32)
+    n = obs.shape[0]
+    has_prev = prev is not None
+    if not has_prev:  # Placeholders of the carry's shapes (the first decision ignores them).
+      carry = jax.eval_shape(lambda: act(params, obs[0], keys[0], None, noise)[1])
+      prev = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape, x.dtype), carry)
+    if mesh is None:
+      return local_act(has_prev, params, obs, keys, t, prev, active, noise)
+    pad = -n % mesh.size  # Inactive rows, so that every device gets the same share.
+    grow = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
+    obs, keys, prev = grow(obs), grow(keys), jax.tree_util.tree_map(grow, prev)
+    active = jnp.concatenate([active, jnp.zeros(pad, bool)])
+    split, whole = PartitionSpec(sharding.BATCH_AXIS), PartitionSpec()
+    # check_vma off: the replication check of shard_map does not follow the lax.cond above.
+    out = jax.shard_map(lambda *args: local_act(has_prev, *args), mesh=mesh,
+                        in_specs=(whole, split, split, whole, split, split, whole),
+                        out_specs=split, check_vma=False)(params, obs, keys, t, prev, active,
+                                                          noise)
+    return jax.tree_util.tree_map(lambda x: x[:n], out)
+
+  return jax.jit(batch_act)
+
+
+_BATCH_ACTS = {}
+
+
+def _compile_single(act, params, obs: np.ndarray, key, warm: bool) -> None:
+  """Compiles a `make_act` function's first (cold) and later (warm) decisions."""
+  obs = jnp.asarray(obs, jnp.float32)
+  _, sequence, _ = act(params, obs, key, 0, None)
+  jax.block_until_ready(act(params, obs, key, 1, sequence if warm else None))
+
+
+class BatchAgentPolicy:
+  """N environments in lockstep with one jitted call per decision (an evaluation BatchPolicy).
+
+  Each environment keeps its own previous sequence (warm start), cleared when a wave of
+  episodes starts, and its own key schedule (module docstring). `chunk` as in `make_batch_act`;
+  `chunk` = 0 instead calls the single-environment act once per active environment (the
+  fastest for the planner on a 2-core CPU, where a K = 64 plan already fills the cores). With a
+  `mesh`, the environments are split over its devices (`make_batch_act`), and `chunk` = 0 maps
+  one environment at a time on each device.
+  """
+
+  def __init__(self, config: ml_collections.ConfigDict, params, mode: str = 'plan',
+               seed: int = 0, chunk: Optional[int] = None, mesh: Optional[Mesh] = None):
+    self.seed, self.mesh = seed, mesh
+    self.set_params(params)
+    if mesh is not None:
+      chunk = 1 if chunk == 0 else chunk
+    self.warm = uses_prev(config, mode)
+    self.per_env = chunk == 0  # One jitted call per environment (the single-env act).
+    self.action_dim = config.action_dim
+    # One jitted function per setting, compiled once per process; the task name does not change
+    # the function, so the tasks of a multi-task agent (tasks.bind) share it.
+    spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
+    key = (json.dumps(spec, sort_keys=True, default=str), mode, chunk, mesh)
+    if key not in _BATCH_ACTS:
+      _BATCH_ACTS[key] = (make_act(config, mode) if self.per_env
+                          else make_batch_act(config, mode, chunk, mesh))
+    self.act = _BATCH_ACTS[key]
+    self.keys = self.prev = None
+    # Std of the noise on the executed action (the planner, while acting; 0 in evaluation).
+    self.action_noise = 0.0
+    self.last_info = None  # [N, 4] int32 of the last decision (NO_PLAN_INFO's fields).
+
+  def set_params(self, params) -> None:
+    """The parameters to act with from now on (replicated over the mesh, if any; copied to
+    the devices only when they are new parameters)."""
+    if self.mesh is None:
+      self.params = params
+    elif params is not getattr(self, '_source', None):
+      self._source, self.params = params, sharding.replicate(params, self.mesh)
+
+  def start(self, episodes) -> None:
+    self.keys = episode_keys(self.seed, [ep.reset_seed for ep in episodes])
+    self.prev = None
+
+  def warmup(self, obs: np.ndarray) -> None:
+    """Compiles the first (cold) and later (warm) decisions for this batch size."""
+    if self.per_env:
+      _compile_single(self.act, self.params, obs[0], episode_keys(self.seed, [0])[0], self.warm)
+      return
+    obs = jnp.asarray(obs, jnp.float32)
+    keys = episode_keys(self.seed, np.arange(obs.shape[0]))
+    active = jnp.ones(obs.shape[0], bool)
+    _, seq, _ = self.act(self.params, obs, keys, 0, None, active, self.action_noise)
+    jax.block_until_ready(self.act(self.params, obs, keys, 1, seq if self.warm else None, active,
+                                   self.action_noise))
+
+  def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
+    if self.per_env:
+      return self._per_env(obs, t, active)
+    actions, sequences, infos = self.act(self.params, jnp.asarray(obs, jnp.float32), self.keys,
+                                         t, self.prev, jnp.asarray(active), self.action_noise)
+    if self.warm:
+      self.prev = sequences
+    self.last_info = np.asarray(infos)
+    return np.asarray(actions)
+
+  def _per_env(self, obs, t, active):
+    if self.prev is None:
+      self.prev = [None] * obs.shape[0]
+    actions = np.zeros((obs.shape[0], self.action_dim), np.float32)
+    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (obs.shape[0], 1))
+    for i in np.flatnonzero(active):
+      action, sequence, info = self.act(self.params, jnp.asarray(obs[i], jnp.float32),
+                                        self.keys[i], t, self.prev[i], self.action_noise)
+      if self.warm:
+        self.prev[i] = sequence
+      actions[i], infos[i] = np.asarray(action), np.asarray(info)
+    self.last_info = infos
+    return actions
+
+
+def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', seed: int = 0
+                ) -> Tuple[Callable[[np.ndarray], np.ndarray], Callable[..., None]]:
+  """(policy, reset) for one episode at a time: policy(obs [obs_dim]) -> action [A].
+
+  `reset(episode)` starts an episode: it forgets the previous sequence and sets the episode's
+  key schedule from `episode.reset_seed` (module docstring; `reset()` without an episode keeps
+  counting decisions under the last key). `policy.warmup(obs)` compiles it.
+  """
+  act = make_act(config, mode)
+  warm = uses_prev(config, mode)
+  state = {'t': 0, 'prev': None, 'key': jax.random.key(seed)}
+
+  def policy(obs: np.ndarray) -> np.ndarray:
+    action, sequence, _ = act(params, jnp.asarray(obs, jnp.float32), state['key'], state['t'],
+                              state['prev'])
+    state['t'] += 1
+    if warm:
+      state['prev'] = sequence
+    return np.asarray(action)
+
+  def reset(episode=None) -> None:
+    state['prev'] = None
+    if episode is not None:
+      state['key'] = episode_keys(seed, [episode.reset_seed])[0]
+      state['t'] = 0
+
+  policy.warmup = lambda obs: _compile_single(act, params, obs, state['key'], warm)
+  return policy, reset
+
+
+def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
+  """Returns jitted act(params [S, ...], obs [S, obs_dim], keys [S], t [], prev, noise []) ->
+  (actions [S, A], carries, infos [S, 4]): `make_act` vmapped over a leading seed axis of the
+  parameters (S agents of `train.num_seeds`, each on its own environment and key)."""
+  act = _make_act_fn(config, mode)
+  one = lambda params, obs, key, t, prev, noise: act(params, obs, jax.random.fold_in(key, t),
+                                                     prev, noise)
+  jitted = jax.jit(jax.vmap(one, in_axes=(0, 0, 0, None, 0, None)))
+  return lambda params, obs, keys, t, prev, noise=0.0: jitted(
+      params, obs, keys, t, prev, jnp.asarray(noise, jnp.float32))
+
+
+class SeedsAgentPolicy:
+  """S agents (stacked parameters [S, ...]) acting on N environments each in lockstep: one
+  jitted call per environment and decision for all S agents (`make_seeds_act`); each agent's
+  episodes keep the key schedule of `BatchAgentPolicy` with its own seed, so an agent acts as
+  it would alone (to float tolerance: the vmapped plan may round differently)."""
+
+  def __init__(self, config: ml_collections.ConfigDict, params, mode: str, seeds: Sequence[int]):
+    self.params, self.seeds = params, list(seeds)
+    self.warm = uses_prev(config, mode)
+    self.action_dim = config.action_dim
+    spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
+    key = (json.dumps(spec, sort_keys=True, default=str), mode, 'seeds')
+    if key not in _BATCH_ACTS:
+      _BATCH_ACTS[key] = make_seeds_act(config, mode)
+    self.act = _BATCH_ACTS[key]
+    self.keys = self.prev = None
+    self.action_noise = 0.0
+    self.last_info = None  # [S, N, 4] int32 of the last decision.
+
+  def set_params(self, params) -> None:
+    self.params = params
+
+  def start(self, episodes) -> None:
+    """episodes[s]: agent s's episodes of the wave (goals.Episode, one per environment)."""
+    self.keys = jnp.stack([episode_keys(seed, [ep.reset_seed for ep in eps])
+                           for seed, eps in zip(self.seeds, episodes)])  # [S, N]
+    self.prev = None
+
+  def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
+    """obs [S, N, obs_dim], active [N] -> actions [S, N, A] (zeros where inactive)."""
+    s, n = obs.shape[:2]
+    if self.prev is None:
+      self.prev = [None] * n
+    actions = np.zeros((s, n, self.action_dim), np.float32)
+    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (s, n, 1))
+    for i in np.flatnonzero(active):
+      action, carry, info = self.act(self.params, jnp.asarray(obs[:, i], jnp.float32),
+                                     self.keys[:, i], t, self.prev[i], self.action_noise)
+      if self.warm:
+        self.prev[i] = carry
+      actions[:, i], infos[:, i] = np.asarray(action), np.asarray(info)
+    self.last_info = infos
+    return actions
