@@ -5,7 +5,7 @@
   python -m experiments.benchmark_training --configs=door_open.py:smoke --repeats=2 --out=b.json
   python -m experiments.benchmark_training --data_parallel       # batch split over all devices
   python -m experiments.benchmark_training --online_seeds=1,3,5 \
-      --configs=door_open_online.py:cpu_tanh --online_env_steps=4000  # seeds in one online run
+      --configs=door_open_online.py:cpu --online_env_steps=4000  # seeds in one online run
 
 Each --configs entry is a config file with an optional :preset, as for experiments.train.
 Parameters are random and batches synthetic. Writes a JSON list, one entry per config (name,

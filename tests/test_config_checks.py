@@ -71,6 +71,7 @@ def test_the_acting_search_is_checked_with_a_message_naming_it():
   with pytest.raises(ValueError, match='online.act_iterations must be an integer >= 0'):
     config_checks.validate_config(c)
   c.online.act_iterations, c.online.act_num_gaussian = 3, 0
+  c.plan.num_gaussian = 32
   c.plan.num_elites = 40  # Above the acting first round (24 + 8), not the evaluation's (+ 32).
   with pytest.raises(ValueError, match='while acting .*num_elites'):
     config_checks.validate_config(c)

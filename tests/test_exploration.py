@@ -26,16 +26,16 @@ def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():
 
 
 def test_acting_searches_with_its_own_settings_and_evaluation_with_the_plans():
-  c = door_open_online.get_config('cpu_correlated')
+  c = door_open_online.get_config('cpu')
   assert (c.online.act_num_gaussian, c.online.act_iterations) == (32, 3)  # As the presets act.
-  c.plan.num_gaussian, c.plan.iterations = 0, 0  # Evaluation: proposal and actor prior only.
+  assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)  # Evaluation: proposal and prior.
   acting = exploration.acting_config(c)
   assert (acting.plan.num_gaussian, acting.plan.iterations) == (32, 3)
   assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)
 
 
 def test_acting_keeps_the_safe_selection_gates_only_when_asked():
-  c = door_open_online.get_config('cpu_correlated')
+  c = door_open_online.get_config('cpu')
   c.plan.safe_selection, c.plan.safe_confirm, c.plan.fallback_drop = True, True, 0.1
   acting = exploration.acting_config(c)  # online.act_safe_selection is off in the presets.
   assert not (acting.plan.safe_selection or acting.plan.safe_confirm)
@@ -45,18 +45,19 @@ def test_acting_keeps_the_safe_selection_gates_only_when_asked():
   assert acting.plan.safe_confirm and acting.plan.fallback_drop == 0.1
 
 
-def test_cpu_tanh_is_cpu_correlated_with_tanh_and_evaluation_without_the_search():
-  base, tanh = (json.loads(door_open_online.get_config(p).to_json_best_effort())
-                for p in ('cpu_correlated', 'cpu_tanh'))
-  changed = {(section, k) for section in base if isinstance(base[section], dict)
-             for k in base[section] if base[section][k] != tanh[section][k]}
-  assert changed == {('critic', 'log_std_map'), ('plan', 'num_gaussian'), ('plan', 'iterations')}
-  assert {k: v for k, v in base.items() if not isinstance(v, dict)} == {
-      k: v for k, v in tanh.items() if not isinstance(v, dict)}
-  c = door_open_online.get_config('cpu_tanh')
+def test_the_cpu_preset_evaluates_without_the_search_it_acts_with():
+  c = door_open_online.get_config('cpu')
   assert (c.critic.log_std_map, c.plan.num_gaussian, c.plan.iterations) == ('tanh', 0, 0)
   acting = exploration.acting_config(c)
   assert (acting.plan.num_gaussian, acting.plan.iterations) == (32, 3)  # Acting still searches.
+  assert (acting.plan.pessimism, c.online.exec_noise_corr, c.gamma) == (-1.0, 0.85, 0.95)
+
+
+def test_removed_presets_say_what_to_use():
+  with pytest.raises(ValueError, match="preset 'cpu_tanh' is now ':cpu'"):
+    door_open_online.get_config('cpu_tanh')
+  with pytest.raises(ValueError, match="'cpu_optimistic' was removed .*e421b33"):
+    door_open_online.get_config('cpu_optimistic')
 
 
 def test_executed_noise_anneals_linearly():
@@ -72,7 +73,7 @@ def test_executed_noise_anneals_linearly():
 def test_correlated_noise_has_the_annealed_std_and_its_correlation():
   """AR(1) executed-action noise (`online.exec_noise_corr`): stationary std = executed_noise,
   lag-one autocorrelation = the configured correlation."""
-  c = door_open_online.get_config('cpu_correlated')
+  c = door_open_online.get_config('cpu')
   c.online.exec_noise_start = c.online.exec_noise_end = 0.3
   std = exploration.executed_noise(c, 5_000, 1_600)
   rng, noise, draws = np.random.default_rng(0), np.zeros((4, 4)), []

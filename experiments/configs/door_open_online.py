@@ -93,24 +93,34 @@ def online_settings() -> ml_collections.ConfigDict:
   return o
 
 
-def _budget(c: ml_collections.ConfigDict) -> None:
-  """The `:cpu` online preset: 100k environment steps at 0.5 updates per step in about an hour
-  on a 2-core CPU (docs/results.md), with a planner that searches and values that extrapolate."""
+def _cpu(c: ml_collections.ConfigDict) -> None:
+  """The `:cpu` online preset: 100k simulator steps at 0.5 updates per step on a 2-core CPU, a
+  planner that searches while acting, values that extrapolate, optimism and correlated noise while
+  acting (docs/results.md has what each of these changed; it was `:cpu_tanh` until commit
+  e421b33)."""
   door_open.resize(c, width=64, heads=4, blocks=1)  # 50k updates must fit (docs/online.md).
   c.model.actor_hidden = c.critic.hidden = (64, 64)
   c.model.dropout = 0.0
   c.train.warmup_steps = 100
   p = c.plan
-  # First round: 16 proposal sequences, 32 broad Gaussian ones, 8 actor-prior ones (TD-MPC2
-  # mixes 24 policy rollouts into 512 samples); then 3 MPPI rounds of 32 around 8 elites
-  # (TD-MPC2: 6 rounds of 512 around 64), at this CPU's budget.
+  # First round: 16 proposal sequences, 8 actor-prior ones; while acting also 32 broad Gaussian
+  # ones and 3 MPPI rounds of 32 around 8 elites (TD-MPC2 mixes 24 policy rollouts into 512
+  # samples, 6 rounds around 64 elites), at this CPU's budget. Evaluation plans with the proposal
+  # and the actor prior only: the broad candidates and the MPPI rounds pick sequences the
+  # objective overrates (push: 0.61 with them, 0.77 without, on the same checkpoints).
   p.num_candidates, p.num_prior_candidates = 24, 8
-  p.num_gaussian = 32
-  p.iterations, p.num_refine, p.num_elites = 3, 32, 8
-  c.online.act_num_gaussian, c.online.act_iterations = p.num_gaussian, p.iterations
-  # TD-MPC2's targets and policy: values of the current policy, not of the buffer's actions.
+  p.iterations, p.num_refine, p.num_elites = 0, 32, 8
+  p.num_gaussian = 0
+  c.online.act_num_gaussian, c.online.act_iterations = 32, 3
+  # TD-MPC2's targets and policy: values of the current policy, not of the buffer's actions, and
+  # its log-std map for the max-Q policy (a tanh into [log_std_min, log_std_max], not a clip:
+  # the gradient does not vanish at the bounds).
   c.critic.td_target = 'policy'
   c.critic.actor = 'maxq'
+  c.critic.log_std_map = 'tanh'
+  # TD-MPC2's discount heuristic (episode_length / 5 - 1) / (episode_length / 5), clipped to
+  # [0.95, 0.995]: 0.95 for its 100-decision Meta-World episodes.
+  c.gamma = 0.95
   o = c.online
   # TD-MPC2's training episodes: 100 decisions at action repeat 2 (evaluation keeps
   # Meta-World's 500 steps), so 500 resets in 100k steps instead of 200.
@@ -118,77 +128,42 @@ def _budget(c: ml_collections.ConfigDict) -> None:
   o.seed_steps = 1_600  # 2 waves of 4 random-action episodes (TD-MPC2: 5 episodes).
   o.update_ratio = 0.5  # TD-MPC2: one update per decision.
   o.updates_per_call = 8
-  o.exec_noise_start, o.exec_noise_end = 0.3, 0.05  # Down to TD-MPC2's min_std.
+  # Optimism in the face of uncertainty while acting (UCB over the value ensemble; evaluation
+  # keeps plan.pessimism): the door's unvisited angles are where the members disagree.
+  o.act_pessimism = -1.0
+  # Executed-action noise down to TD-MPC2's min_std, correlated over decisions (DDPG's
+  # Ornstein-Uhlenbeck theta = 0.15 per decision): noise that keeps pushing one way for several
+  # decisions can swing a door open.
+  o.exec_noise_start, o.exec_noise_end = 0.3, 0.05
+  o.exec_noise_corr = 0.85
   o.plan_chunk = 0
   c.eval.splits = ('held_out',)  # The headline split; train goals at the end cost 10 minutes.
 
 
-def _optimism(c: ml_collections.ConfigDict) -> None:
-  """`:cpu_optimistic`: `:cpu` acting on an optimistic value (two of :cpu's three seeds parked
-  at the handle with the door ajar, lab/log.md) and TD-MPC2's discount for its episode shape."""
-  _budget(c)
-  # Optimism in the face of uncertainty (UCB over the value ensemble while acting; evaluation
-  # keeps plan.pessimism): the door's unvisited angles are where the members disagree.
-  c.online.act_pessimism = -1.0
-  # TD-MPC2's discount heuristic (episode_length / 5 - 1) / (episode_length / 5), clipped to
-  # [0.95, 0.995]: 0.95 for its 100-decision Meta-World episodes (ours: online.episode_steps=200
-  # at action repeat 2).
-  c.gamma = 0.95
-
-
-def _correlated(c: ml_collections.ConfigDict) -> None:
-  """`:cpu_correlated`: `:cpu_optimistic` with the executed-action noise correlated over
-  decisions, its one change (seed 1 of `:cpu_optimistic` parked with the door ajar; noise that
-  keeps pushing one way for several decisions can swing it open)."""
-  _optimism(c)
-  c.online.exec_noise_corr = 0.85  # DDPG's Ornstein-Uhlenbeck theta = 0.15 per decision.
-
-
-def _tanh(c: ml_collections.ConfigDict) -> None:
-  """`:cpu_tanh`: `:cpu_correlated` with TD-MPC2's log-std map for the max-Q policy, evaluating
-  without the broad search (acting keeps it). On push, the two together lifted held-out success
-  at 100k from 0.59 to 0.77 over three training seeds, level with the actor prior (docs/results.md)."""
-  _correlated(c)
-  # TD-MPC2's map of the policy's log-std into [log_std_min, log_std_max] (a tanh), instead of a
-  # clip: the gradient does not vanish at the bounds.
-  c.critic.log_std_map = 'tanh'
-  # Evaluation plans with the diffusion proposal and the actor prior only: the broad Gaussian
-  # candidates and the MPPI rounds pick sequences the objective overrates (push: 0.61 with them,
-  # 0.77 without, on the same checkpoints). Acting keeps both (online.act_num_gaussian = 32,
-  # online.act_iterations = 3 from _budget): they widen what is tried.
-  c.plan.num_gaussian = 0
-  c.plan.iterations = 0
-
-
-PRESETS = ('', 'reference', 'cpu', 'cpu_optimistic', 'cpu_correlated', 'cpu_tanh', 'cpu_v1',
-           'finetune', 'smoke')
+PRESETS = ('', 'reference', 'cpu', 'finetune', 'smoke')
+# Presets that were removed or renamed, and what to use; their results stay in docs/results.md,
+# and the last commit that has them is e421b33 (big_vision's "last known good commit").
+REMOVED = {
+    'cpu_tanh': "is now ':cpu'",
+    'cpu_optimistic': "was removed (commit e421b33 has it); use ':cpu'",
+    'cpu_correlated': "was removed (commit e421b33 has it); use ':cpu'",
+    'cpu_v1': "was removed (commit e421b33 has it); use ':cpu'",
+}
 
 
 def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
+  if preset in REMOVED:
+    raise ValueError(f'preset {preset!r} {REMOVED[preset]}')
   if preset not in (None,) + PRESETS:
     raise ValueError(f"unknown preset {preset!r}: use one of {', '.join(map(repr, PRESETS))}")
-  size = {'cpu': 'cpu', 'cpu_optimistic': 'cpu', 'cpu_correlated': 'cpu', 'cpu_tanh': 'cpu',
-          'finetune': 'cpu', 'smoke': 'smoke'}.get(preset)
+  size = {'cpu': 'cpu', 'finetune': 'cpu', 'smoke': 'smoke'}.get(preset)
   c = door_open.get_config(size)
   c.online = o = online_settings()
   # Observation statistics of random-action seed episodes do not cover the states the agent
   # reaches later (the door barely moves in them): raw observations from scratch, as TD-MPC2.
   c.model.normalize_obs = False
   if preset == 'cpu':
-    _budget(c)
-  elif preset == 'cpu_optimistic':
-    _optimism(c)
-  elif preset == 'cpu_correlated':
-    _correlated(c)
-  elif preset == 'cpu_tanh':
-    _tanh(c)
-  elif preset == 'cpu_v1':  # The first :cpu preset (0.1 updates per step; lab/log.md).
-    c = door_open.get_config('cpu')
-    c.online = o = online_settings()
-    c.model.normalize_obs = False
-    o.act_pessimism = c.plan.pessimism
-    o.plan_chunk = 0
-    o.update_ratio = 0.1
+    _cpu(c)
   elif preset == 'finetune':
     c.model.normalize_obs = True  # The offline checkpoint's networks (its data's statistics).
     o.act_pessimism = c.plan.pessimism  # As measured (docs/results.md): acting as it evaluates.
