@@ -49,7 +49,6 @@ def test_online_batch_is_not_checked_without_seed_updates():
 
 
 @pytest.mark.parametrize('overrides, match', [
-    (dict(reward='sparse', init_from='runs/x'), 'mix the offline'),
     (dict(reward='shaped'), "'dense' or 'sparse'"),
     (dict(updates_per_call=0), 'updates_per_call must be an integer'),
     (dict(exec_noise_start=-0.1), 'must be >= 0'),

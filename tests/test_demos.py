@@ -118,3 +118,11 @@ def test_demo_bc_loss_averages_the_actor_error_over_demo_windows_only():
   np.testing.assert_allclose(demo_bc_loss(nets, params, z, action, demo),
                              (per_window[0] + per_window[2]) / 2, rtol=1e-5)
   assert float(demo_bc_loss(nets, params, z, action, jnp.zeros(3))) == 0.0
+
+
+def test_a_sparse_fine_tuning_run_sees_its_offline_data_with_the_sparse_reward():
+  ds = data.Dataset.from_episodes([_episode(12, 0.0, success_from=7), _episode(5, 1.0)])
+  sparse = demos.sparse_dataset(ds)
+  np.testing.assert_array_equal(sparse.rewards, ds.successes.astype(np.float32))
+  assert sparse.rewards.sum() == 5.0 and ds.rewards.sum() > 5.0  # The dense copy is untouched.
+  np.testing.assert_array_equal(sparse.observations, ds.observations)

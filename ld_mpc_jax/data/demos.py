@@ -7,6 +7,7 @@ and every batch draws a share of its windows from them, annealed linearly over t
 (`demo_share`; MoDem: from 50% to 25%).
 """
 
+import dataclasses
 import warnings
 from typing import Dict, List
 
@@ -26,6 +27,13 @@ def with_reward(episodes: List[Episode], kind: str) -> List[Episode]:
   if kind == 'dense':
     return episodes
   return [dict(ep, reward=ep['success'].astype(np.float32)) for ep in episodes]
+
+
+def sparse_dataset(ds: dataset_lib.Dataset) -> dataset_lib.Dataset:
+  """A copy of `ds` whose reward is 1.0 exactly on its solved steps (its success flags), as an
+  online run with `online.reward='sparse'` records its own: the offline data of a sparse
+  fine-tuning run (`online.init_from`)."""
+  return dataclasses.replace(ds, rewards=ds.successes.astype(np.float32))
 
 
 def collect_demos(task: str, num: int, seed: int, goal_seed: int, action_repeat: int,

@@ -215,9 +215,6 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   o = config.online
   if o.reward not in ('dense', 'sparse'):
     raise ValueError(f"config.online.reward must be 'dense' or 'sparse', got {o.reward!r}")
-  if o.reward == 'sparse' and o.init_from:
-    raise ValueError("config.online.reward='sparse' with config.online.init_from would mix the "
-                     "offline data's dense rewards with sparse ones; fine-tune with 'dense'")
   if o.updates_per_call > 1 and config.train.data_parallel:
     raise ValueError('config.online.updates_per_call > 1 is not supported with '
                      'config.train.data_parallel; set one of them off')

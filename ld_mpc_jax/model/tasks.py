@@ -29,7 +29,8 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-# The config-level helpers live with the environments (data and evaluation use them too).
+# The config-level helpers live with the environments (data and evaluation use them too); they
+# are re-exported here for the model's callers.
 from ld_mpc_jax.envs.tasks import check_tasks, is_multitask, num_tasks, task_config, task_names
 
 # The layers that read a network's input (the observation for the encoder, a latent for the

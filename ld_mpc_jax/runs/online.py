@@ -33,7 +33,7 @@ import json
 import os
 import sys
 import time
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, Optional
 
 import jax
 import jax.numpy as jnp
@@ -44,14 +44,13 @@ import tqdm
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data, envs
 from ld_mpc_jax.runs import loop as runs, online_report
-from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.exploration import acting_config, executed_noise
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, seed_slice, stack_states
 
-from ld_mpc_jax.data.demos import demo_share, get_demos
-from ld_mpc_jax.data.online_buffer import BUFFER_DIR, Buffer, buffer_path
+from ld_mpc_jax.data.demos import demo_share, sparse_dataset
+from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
 from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy, seat_configs
 
 
@@ -303,6 +302,8 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
   offline = data.load_for_config(config) if source is not None else None
   if offline is not None:
     runs.check_config_for_data(config, offline)
+    if config.online.reward == 'sparse':  # Its data with the reward the run records.
+      offline = sparse_dataset(offline)
   if not config.online.update_ratio:  # Once, before any work.
     print('warning: config.online.update_ratio=0: no updates; the agent is evaluated as it '
           f"starts ({'the offline run' if source is not None else 'untrained'})", file=sys.stderr)

@@ -55,7 +55,7 @@ def _buffer(workdir, step):
 
 @pytest.mark.long  # Its fixture runs the smoke job.
 def test_smoke_run_acts_fills_the_buffer_updates_and_checkpoints(finished):
-  waves = run_files.read_csv(os.path.join(finished, online.ONLINE_CSV))
+  waves = run_files.read_csv(os.path.join(finished, run_files.ONLINE_CSV))
   assert [int(w['env_steps']) for w in waves] == [40, 80, 120, 160, 200]
   assert [w['acting'] for w in waves] == ['random'] + ['planner'] * 4
   # update_ratio 0.1: floor(0.1 x environment steps) updates, none before the seed wave is in.
@@ -72,7 +72,7 @@ def test_smoke_run_acts_fills_the_buffer_updates_and_checkpoints(finished):
       'buffer_120.npz', 'buffer_160.npz', 'buffer_200.npz']  # Each beside its orbax step.
   config, _, step = checkpointing.load_for_evaluation(finished)
   assert step == 20 and config.online.enabled  # TrainState.step counts updates.
-  losses = run_files.read_csv(os.path.join(finished, online.LOSSES_CSV))
+  losses = run_files.read_csv(os.path.join(finished, run_files.LOSSES_CSV))
   assert [int(r['env_steps']) for r in losses] == [80, 120, 160, 200]
   assert all(np.isfinite(float(r['loss'])) for r in losses)
   with open(os.path.join(finished, 'report.json')) as f:
@@ -111,7 +111,7 @@ def test_sigkill_and_resume_restore_buffer_and_step_counter_exactly(finished, la
   for name in ('env_steps', 'updates', 'episodes'):
     assert got.metadata['online'][name] == want.metadata['online'][name], name
   assert got.metadata['sampler_rng'] == want.metadata['sampler_rng']
-  waves = run_files.read_csv(os.path.join(workdir, online.ONLINE_CSV))
+  waves = run_files.read_csv(os.path.join(workdir, run_files.ONLINE_CSV))
   assert int(waves[-1]['env_steps']) == ENV_STEPS
   steps = [int(w['env_steps']) for w in waves]  # Rows logged after the checkpoint came once.
   assert steps == sorted(set(steps)), steps
