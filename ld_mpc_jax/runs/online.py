@@ -117,6 +117,8 @@ class OnlineJob:
     self.per_call = o.updates_per_call
     self.update = make_seeds_update(config, len(self.seats), self.per_call)
     self.keys = jnp.stack([seat.update_key for seat in self.seats])
+    # Each seed's update key at an update count: one jitted call, not one per seed.
+    self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.act_config = acting_config(config)
     self.metrics, self.last, self.noise_std = {}, None, 0.0
     self.runs = SeatRuns(self.seats)
@@ -147,8 +149,8 @@ class OnlineJob:
       allowed = {s for s in allowed if s <= min(steps)}  # One seed fell back further.
     for seat in self.seats:
       counters = seat.buffer.load(buffer_path(seat.run.workdir, seat.run.step))
-      if seat.index == 0:
-        self.counters = counters
+      if seat.index == 0:  # Buffers saved before demonstrations existed lack the counter.
+        self.counters = dict(counters, pretrain_updates=counters.get('pretrain_updates', 0))
     return states
 
   @property
@@ -181,7 +183,7 @@ class OnlineJob:
       self.state = self.state.replace(  # Copies: the update donates both trees.
           params=params, ema_params=jax.tree_util.tree_map(jnp.copy, params))
       c['normalized'], self._views = True, None
-    if self.config.online.demos and c.get('pretrain_updates', 0) < o.demo_pretrain_updates:
+    if self.config.online.demos and c['pretrain_updates'] < o.demo_pretrain_updates:
       self._updates(o.demo_pretrain_updates, 'pretrain_updates', share=1.0)
     self._updates(int(o.update_ratio * c['env_steps']), 'updates',
                   share=demo_share(self.config, c['env_steps']))
@@ -190,15 +192,13 @@ class OnlineJob:
     """Updates until counters[counter] reaches `target`, `online.updates_per_call` per jitted
     call, a `share` of each batch from the demonstrations (`Buffer.sample`)."""
     c, batch, n = self.counters, self.config.train.batch_size, self.per_call
-    c.setdefault(counter, 0)
-    fold = jax.vmap(jax.random.fold_in, in_axes=(0, None))
     while c[counter] + n <= target:
       per_seat = [seat.buffer.sample(batch, n, share) for seat in self.seats]
       shape = (n, batch) if n > 1 else (batch,)
       windows = {k: np.stack([w[k].reshape(shape + w[k].shape[1:]) for w in per_seat])
                  for k in per_seat[0]}
-      step = c['updates'] + c.get('pretrain_updates', 0)  # One key per update made.
-      self.state, self.metrics = self.update(self.state, windows, fold(self.keys, step))
+      step = c['updates'] + c['pretrain_updates']  # One key per update made.
+      self.state, self.metrics = self.update(self.state, windows, self._fold(self.keys, step))
       c[counter] += n
       self._views = None
 
