@@ -50,6 +50,9 @@ _EVAL_EPISODES = flags.DEFINE_integer('eval_episodes', 50, 'Protocol episodes.')
 _OUT = flags.DEFINE_string('out', None, 'Where to write the JSON result.')
 _RUN = flags.DEFINE_string('run', None, 'An online training workdir with demonstrations: BC on '
                            'its demonstrations, evaluated on its final evaluation episodes.')
+_NOISE = flags.DEFINE_list('noise_stds', [], 'Also evaluate under these observation-noise stds '
+                           '(the same episodes; records in the JSON\'s noise_sweep, as '
+                           'experiments.evaluate --noise_sweep writes them).')
 _SPLIT = flags.DEFINE_enum('split', 'held_out', list(envs.SUITE.goal_splits),
                            "Evaluation goals: 'held_out' (absent from the data) or 'train'.")
 
@@ -58,7 +61,10 @@ def train_bc(ds, steps, batch_size, lr, hidden, seed):
   """Fits tanh(MLP(normalised obs)) to actions; returns policy, final loss."""
   mask = ds.transition_mask()
   mean = ds.observations[mask].mean(0)
-  std = ds.observations[mask].std(0) + 1e-3
+  std = ds.observations[mask].std(0)
+  # Features constant in the data are left out (as the encoder's model.obs_mask_constant):
+  # their (x - mean) / 1e6 is ~0 for any reading, noise included; the others as before.
+  std = np.where(std <= 1e-6, 1e6, std + 1e-3)
   net = MLP((hidden, hidden, ds.act_dim))
   params = net.init(jax.random.PRNGKey(seed), jnp.zeros((1, ds.obs_dim)))
   tx = optax.adam(lr)
@@ -140,6 +146,15 @@ def main(argv):
                 **{k: res[k] for k in ('success_rate', 'success_ci95',
                                        'mean_return', 'mean_length',
                                        'decisions_per_s', 'num_episodes')})
+  if _NOISE.value:  # Records as evaluate's noise sweep names them, so that they pair with it.
+    sweep = []
+    for std in [float(x) for x in _NOISE.value]:
+      out = evaluation.evaluate(policy, task, episodes=episodes, obs_noise_std=std,
+                                action_repeat=ds.metadata['action_repeat'])
+      sweep += [dict(ep.record(), run=seed, policy='bc', success=int(o), obs_noise=std)
+                for ep, o in zip(episodes, out['outcomes'])]
+      print(f"bc, obs noise {std}: {out['success_rate']:.2f}")
+    report['noise_sweep'] = dict(records=sweep)
   text = json.dumps(report, indent=1)
   print(text)
   if _OUT.value:

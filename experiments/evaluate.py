@@ -10,8 +10,11 @@ call per decision). Prints pooled success with Wilson intervals and exact McNema
 policies, and writes the per-episode records and the summary to <workdir>/evaluation.json
 (or --out; an existing file is kept unless --overwrite; written once the policies are evaluated,
 then again with the noise sweep and video).
-Optionally an observation-noise sweep of the planner (held-out goals) and a short video (mp4 with
-imageio-ffmpeg; rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless machine).
+Optionally an observation-noise sweep (--noise_sweep: every policy of --modes at each std of
+eval.noise_stds on the same held-out episodes, noise on eval.obs_noise_dims; <out>_noise.md and
+<out>_noise.png beside the JSON, whose `noise_sweep` keeps the per-episode records; pool three
+training seeds' JSONs with experiments.pool_evals) and a short video (mp4 with imageio-ffmpeg;
+rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless machine).
 """
 
 import json
@@ -27,7 +30,8 @@ _SPLITS = flags.DEFINE_list('splits', ['held_out', 'train'], 'Goal splits, held_
 _SEEDS = flags.DEFINE_list('seeds', ['0'], 'Evaluation seeds (pooled).')
 _EPISODES = flags.DEFINE_integer('episodes', None, 'Episodes per policy, split and seed '
                                  '(default: config).')
-_NOISE = flags.DEFINE_bool('noise_sweep', False, 'Observation-noise sweep of the planner.')
+_NOISE = flags.DEFINE_bool('noise_sweep', False, 'Observation-noise sweep of every --modes '
+                            'policy at eval.noise_stds (held-out goals): table and plot.')
 _VIDEO = flags.DEFINE_bool('video', False, 'Render a 2-episode video of the planner.')
 _OVERRIDE = flags.DEFINE_multi_string('set', [], 'Config override, e.g. plan.action_steps=4.')
 _OUT = flags.DEFINE_string('out', None, 'JSON output (default: <workdir>/evaluation.json).')
@@ -76,16 +80,18 @@ def main(argv):
   out = {'step': step, 'episodes': episodes, 'seeds': seeds, 'overrides': _OVERRIDE.value,
          'git_commit': git_commit(), 'summary': summary, 'records': records}
   _write(path, out)  # The records are kept should the extras below fail.
-  if _NOISE.value:
-    out['noise_sweep'] = {}
-    for std in config.eval.noise_stds:
-      r = {s: run_evaluation(config, params, 'plan', episodes, s, obs_noise_std=std)
-           for s in seeds}
-      pooled = evaluation_suite.stats.summarize([x for v in r.values() for x in v['records']])
-      out['noise_sweep'][str(std)] = pooled
-      lo, hi = pooled['success_ci95']
-      print(f"obs noise {std}: planner {pooled['successes']}/{pooled['episodes']} = "
-            f"{pooled['success_rate']:.2f} [{lo:.2f}, {hi:.2f}] (held-out goals)")
+  if _NOISE.value:  # Every policy of --modes at every eval.noise_stds, held-out goals.
+    from ld_mpc_jax.eval import noise_sweep
+    records = noise_sweep.run_sweep(config, params, _WORKDIR.value, step, _MODES.value, seeds,
+                                    episodes, config.eval.noise_stds, run=config.seed)
+    rows = noise_sweep.table(records)
+    out['noise_sweep'] = dict(dims=config.eval.obs_noise_dims, rows=rows, records=records)
+    stem = os.path.splitext(path)[0]
+    with open(stem + '_noise.md', 'w') as f:
+      f.write(noise_sweep.markdown(rows))
+    noise_sweep.plot(rows, stem + '_noise.png', f'{config.task}, noise on '
+                     f'{config.eval.obs_noise_dims} dimensions')
+    print(noise_sweep.markdown(rows) + f'wrote {stem}_noise.md and {stem}_noise.png')
   if _VIDEO.value:
     try:  # `video`: its own name; `path` is the JSON's.
       video = run_evaluation(config, params, 'plan', 2, seeds[0], video_path=video)['video_path']

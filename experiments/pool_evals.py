@@ -4,6 +4,7 @@
   python -m experiments.pool_evals runs/online/ft_seed{0,1,2}/episodes.csv
   python -m experiments.pool_evals run/seed0/episodes.csv.gz+bc/seed0.json.gz ...  # with BC
   python -m experiments.pool_evals runs/seed0_first.json+runs/seed0_more.json runs/seed1.json
+  python -m experiments.pool_evals --noise_plot=noise.png runs/s{0,1,2}/evaluation.json  # sweeps
 
 A file is an `experiments.evaluate --out` JSON, an `experiments.compare_selection --out` JSON or
 a run's own `episodes.csv` (training or online fine-tuning). Each file's records count once. A
@@ -110,6 +111,8 @@ def main(paths: list) -> None:
   if any(p in ('-h', '--help', '-help') for p in paths):
     print(__doc__.strip())
     return
+  plot_path = next((p.split('=', 1)[1] for p in paths if p.startswith('--noise_plot=')), None)
+  paths = [p for p in paths if not p.startswith('--noise_plot=')]
   options = [p for p in paths if p.startswith('-')]
   if options:
     cli.fail(f'pool_evals takes file paths only, not options: {" ".join(options)} (see --help)')
@@ -125,6 +128,19 @@ def main(paths: list) -> None:
       print(f'The per-task table has the multi-task files\' records only; the pooled table '
             f'below has all {len(records)} records.\n')
   print(evaluation_suite.markdown(pool(results, paths)), end='')
+  noisy = [{**r, 'run': name} for name in paths for part in name.split('+')
+           if not part.endswith(('.csv', '.csv.gz'))
+           for r in read_json(part).get('noise_sweep', {}).get('records', [])]
+  if noisy:
+    from ld_mpc_jax.eval import noise_sweep  # pylint: disable=g-import-not-at-top
+    rows = noise_sweep.table(noisy)
+    print('\nObservation-noise sweep, pooled (held-out goals):\n\n' + noise_sweep.markdown(rows),
+          end='')
+    if plot_path:
+      print(f'wrote {noise_sweep.plot(rows, plot_path)}')
+  elif plot_path:
+    cli.fail('--noise_plot: none of the files has a noise sweep (experiments.evaluate '
+             '--noise_sweep)')
 
 
 if __name__ == '__main__':

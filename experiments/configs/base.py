@@ -35,6 +35,13 @@ def get_config() -> ml_collections.ConfigDict:
   # Standardise observations by the dataset's mean and std (stored with the parameters), as
   # offline RL does for state inputs (IQL, TD3+BC); Meta-World features differ in scale.
   m.normalize_obs = True
+  # Leave out of that standardisation the dimensions that are constant in the data (17 of
+  # door-open's 39: the zero-padded second-object slots, heights that never change): their std
+  # is set to MASKED_OBS_STD (ld_mpc_jax.model.models), so whatever they read, noise included,
+  # reaches the encoder as ~0. With the old std floor of 0.01, sensor noise of 1 cm reached the
+  # networks there as unit-variance input never seen in training (issue 71; TD-MPC2 and
+  # DreamerV3 do not z-score states at all). Runs saved before the field: off.
+  m.obs_mask_constant = True
   m.task_dim = 96  # Task embedding size of a multi-task config (config.tasks); TD-MPC2's.
   # RMS-normalise the dynamics model's samples like the encoder's output, so that the objective
   # scores latents on the manifold it was trained on (TD-MPC2 normalises both with SimNorm).
@@ -146,6 +153,12 @@ def get_config() -> ml_collections.ConfigDict:
   # Acting as a policy, the planner carries this state between decisions (planner.Guard).
   p.fallback_drop = 0.0
   p.fallback_floor = 0.0
+  # Filter the latent between decisions with the model itself: z_t = rms(f z'_t + (1 - f) enc(o_t)),
+  # z'_t the dynamics model's one-step prediction from the previous decision's latent and the
+  # executed action (a complementary filter, the steady-state form of a Kalman update;
+  # Dreamer and PlaNet filter their latent state with the model the same way). Against
+  # observation noise (issue 71). 0: the encoder's latent alone; every policy mode.
+  p.latent_filter = 0.0
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
@@ -208,6 +221,10 @@ def get_config() -> ml_collections.ConfigDict:
   # its policy by BC). Off: the measured demonstration runs (docs/sparse.md) clone them through
   # the diffusion proposal alone; 1.0 is TD3+BC's scale against a Q of unit scale.
   l.w_demo_bc = 0.0
+  # Noise augmentation (train.obs_noise_aug > 0 only): |enc(o + noise) - sg(enc(o))|^2, the
+  # encoder taught to map a noisy observation to the clean one's latent (a denoising invariance
+  # term, as in data-augmented RL such as DrQ, with the target from the clean observation).
+  l.w_noise_inv = 1.0
   # Behaviour value target for V(z_i) (critic.value 'behaviour', ld_mpc_jax.learn.losses):
   # discounted rewards to the end of the window plus gamma^(H-i) times the EMA target network's
   # V(z_H) (TD-MPC2, DQN).
@@ -231,6 +248,10 @@ def get_config() -> ml_collections.ConfigDict:
   # seed has its own data order, buffer and environments and writes <workdir>/seed<seed> as a
   # run of that seed alone would (online runs; ld_mpc_jax.runs.online).
   t.num_seeds = 1
+  # Std of Gaussian noise on the training observations the models condition on (0: none);
+  # the latent consistency, dynamics-consistency and value targets come from the clean
+  # observations (issue 71). Evaluation adds noise only with eval.obs_noise.
+  t.obs_noise_aug = 0.0
 
   c.data = ml_collections.ConfigDict()
   c.data.preset = 'mixed'
@@ -261,6 +282,12 @@ def get_config() -> ml_collections.ConfigDict:
   # action bounds); 0, the Meta-World protocol. A robustness probe: how many of a deterministic
   # policy's successes survive a small perturbation of what it does.
   e.action_noise = 0.0
+  # Std of Gaussian noise on every observation a policy sees in evaluation (seeded per
+  # episode, so every policy sees the same noise while their episodes agree); 0: the Meta-World
+  # protocol. `obs_noise_dims`: 'all' dimensions, or 'informative' ones only (those not
+  # constant in the training data: a sensor does not read a zero-padded slot).
+  e.obs_noise = 0.0
+  e.obs_noise_dims = 'all'
   # Environments stepped in lockstep: one jitted policy call per decision for all of them.
   e.batch_size = 50
   # Planner environments per vmap inside that call (jax.lax.map's batch_size; 0: one jitted

@@ -19,7 +19,7 @@ Meta-World.
 """
 
 import functools
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import gymnasium as gym
 import numpy as np
@@ -86,7 +86,8 @@ class MetaWorldWrapper(gym.Wrapper):
   Attributes:
     action_repeat: environment steps per decision.
     max_episode_steps: episode limit in environment steps.
-    obs_noise_std: std of Gaussian noise added to every returned observation.
+    obs_noise_std: std of Gaussian noise added to every returned observation: one for every
+      dimension, or one per dimension ([obs_dim]; 0 leaves a dimension exact).
     terminate_on_success: end the episode at the first successful sub-step.
     random_goals: resets without a goal draw a fresh goal configuration from the task's whole
       random-reset space (seeded by the reset's seed), as TD-MPC2 trains
@@ -96,7 +97,7 @@ class MetaWorldWrapper(gym.Wrapper):
 
   def __init__(self, env: gym.Env, seed: int, action_repeat: int = 2,
                max_episode_steps: int = METAWORLD_MAX_PATH_LENGTH,
-               obs_noise_std: float = 0.0,
+               obs_noise_std: Union[float, np.ndarray] = 0.0,
                terminate_on_success: bool = False,
                random_goals: bool = False):
     super().__init__(env)
@@ -105,11 +106,12 @@ class MetaWorldWrapper(gym.Wrapper):
     if max_episode_steps < 1:
       raise ValueError(
           f'max_episode_steps must be >= 1, got {max_episode_steps}')
-    if obs_noise_std < 0:
+    if np.any(np.asarray(obs_noise_std) < 0):
       raise ValueError(f'obs_noise_std must be >= 0, got {obs_noise_std}')
     self.action_repeat = int(action_repeat)
     self.max_episode_steps = int(max_episode_steps)
-    self.obs_noise_std = float(obs_noise_std)
+    self.obs_noise_std = (float(obs_noise_std) if np.ndim(obs_noise_std) == 0
+                          else np.asarray(obs_noise_std, np.float64))
     self.terminate_on_success = bool(terminate_on_success)
     self.random_goals = bool(random_goals)
     self._noise_rng = np.random.default_rng(seed)
@@ -133,7 +135,7 @@ class MetaWorldWrapper(gym.Wrapper):
 
   def _noisy(self, obs: np.ndarray) -> np.ndarray:
     obs = np.asarray(obs, dtype=np.float64)
-    if self.obs_noise_std > 0:
+    if np.any(self.obs_noise_std > 0):
       obs = obs + self.obs_noise_std * self._noise_rng.standard_normal(
           obs.shape)
     return obs
@@ -211,7 +213,7 @@ class MetaWorldWrapper(gym.Wrapper):
 
 def make_env(task: str, seed: int, action_repeat: int = 2,
              max_episode_steps: int = METAWORLD_MAX_PATH_LENGTH,
-             obs_noise_std: float = 0.0,
+             obs_noise_std: Union[float, np.ndarray] = 0.0,
              terminate_on_success: bool = False,
              random_goals: bool = False,
              render_mode: Optional[str] = None,
@@ -226,7 +228,8 @@ def make_env(task: str, seed: int, action_repeat: int = 2,
     action_repeat: environment steps per decision (TD-MPC2 uses 2).
     max_episode_steps: episode limit in ENVIRONMENT steps; with action_repeat=2
       and 500 steps an episode has at most 250 decisions.
-    obs_noise_std: std of Gaussian noise added to observations (seeded).
+    obs_noise_std: std of Gaussian noise added to observations (seeded per episode): a float,
+      or one per dimension.
     terminate_on_success: end episodes at the first success (evaluation).
     random_goals: resets without a goal draw a fresh goal configuration
       (MetaWorldWrapper), not one of the 50.

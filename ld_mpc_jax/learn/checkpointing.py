@@ -19,7 +19,8 @@ CONFIG_FILE = 'config.json'
 # Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
 _EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
                       baselines=('actor', 'proposal'), data_parallel=False,
-                      key_seed=-1, action_noise=0.0)
+                      key_seed=-1, action_noise=0.0, obs_noise=0.0,
+                      obs_noise_dims='all')
 # Planner settings of experiments/configs/base.py for configs saved before they existed; the
 # values mean what those runs did (no pessimism before `plan.pessimism` existed, no search).
 _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
@@ -28,11 +29,11 @@ _PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
                       selection='argmax', safe_selection=False, safe_margin=1.0,
                       safe_margin_scaling='none', safe_confirm=False, confirm_draws=1,
                       confirm_margin=-1.0, fallback_drop=0.0, fallback_floor=0.0,
-                      first_round=('proposal', 'gaussian'))
+                      first_round=('proposal', 'gaussian'), latent_filter=0.0)
 
 # Data, training and model settings of experiments/configs/base.py for configs saved before they
 # existed, with the values those runs used (one device, no observation normalisation).
-_TRAIN_DEFAULTS = dict(data_parallel=False, num_seeds=1)
+_TRAIN_DEFAULTS = dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0)
 
 
 def _data_defaults() -> dict:

@@ -18,7 +18,11 @@ like every other position.
   L_q, L_v the critics' TD and expectile losses (ld_mpc_jax.model.critics), when the model has them;
   L_demo_bc behaviour cloning of the actor prior on the demonstrations' windows (batch['demo']
            [B], 1.0 on a demonstration's window; online runs with `online.demos`, MoDem), on
-           detached latents, + w_demo_bc L_demo_bc in L.
+           detached latents, + w_demo_bc L_demo_bc in L;
+  L_noise_inv with `train.obs_noise_aug` > 0 the models see enc(o + noise) (noise ~ N(0, aug^2)
+           on every observation of the window) and this term, |enc(o + noise) - sg(enc(o))|^2,
+           pulls a noisy observation's latent onto the clean one's; the consistency and value
+           targets are encoded from the clean o (+ w_noise_inv L_noise_inv in L).
 Metrics: 'loss' and 'loss_<term>' for each term the config uses, plus the critics' and the
 value kind's own metrics.
 """
@@ -37,7 +41,7 @@ from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
 # Loss weight of each term (config.loss.<weight>), in the order they are summed.
 WEIGHTS = (('dyn', 'w_dyn'), ('act', 'w_act'), ('rew', 'w_rew'), ('val', 'w_val'),
            ('actor', 'w_actor'), ('consistency', 'w_consistency'), ('q', 'w_q'), ('v', 'w_v'),
-           ('demo_bc', 'w_demo_bc'))
+           ('demo_bc', 'w_demo_bc'), ('noise_inv', 'w_noise_inv'))
 
 
 def reward_loss(r_logits: jnp.ndarray, reward: jnp.ndarray, num_bins: int, vmin: float,
@@ -128,19 +132,26 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   model_rollout = (make_model_rollout(config, nets) if config.critic.latent_rollout
                    else None)
   objective_terms = make_objective_terms(config, nets)
+  aug = config.train.obs_noise_aug
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
     k_dyn, k_act, k_drop, k_roll, k_pi = jax.random.split(key, 5)
     drop = lambda i: {'dropout': jax.random.fold_in(k_drop, i)}  # One stream per network.
-    z = nets.encoder.apply({'params': params['encoder']}, obs)  # [B, H+2, D]
-    z_ema = sg(nets.encoder.apply({'params': target_params['encoder']}, obs))
-    terms = {'dyn': dyn.loss(config, nets.dynamics, params, z, action, k_dyn, drop(0)),
-             'act': proposal.loss(config, nets.proposal, params, z, action, k_act, drop(1))}
+    encode = lambda p, o: nets.encoder.apply({'params': p['encoder']}, o)
+    z = z_clean = encode(params, obs)  # [B, H+2, D]
+    terms = {}
+    if aug > 0:  # A separate stream: the other keys stay those of a run without it.
+      noise = jax.random.normal(jax.random.fold_in(key, 101), obs.shape, obs.dtype)
+      z, z_clean = encode(params, obs + aug * noise), sg(z_clean)
+      terms['noise_inv'] = consistency_loss(z, z_clean)
+    z_ema = sg(encode(target_params, obs))
+    terms |= {'dyn': dyn.loss(config, nets.dynamics, params, z, action, k_dyn, drop(0)),
+              'act': proposal.loss(config, nets.proposal, params, z, action, k_act, drop(1))}
     z_sets = (z,)
     if model_rollout is not None:  # The objective also learns on the latents it scores.
       z_roll = model_rollout(params, z[:, 0], action[:, :h], k_roll)
-      terms['consistency'] = consistency_loss(z_roll[:, 1:], z[:, 1:h + 1])
+      terms['consistency'] = consistency_loss(z_roll[:, 1:], z_clean[:, 1:h + 1])
       z_sets = (z, sg(z_roll))
     obj_terms, metrics = objective_terms(params, target_params, z_sets, z_ema, action, reward,
                                          drop(2))

@@ -44,7 +44,7 @@ def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
   """
   params = init_params(config, key)
   if obs is not None and config.model.normalize_obs:
-    params = set_obs_normalization(params, obs)
+    params = set_obs_normalization(params, obs, config.model.obs_mask_constant)
   tx = make_optimizer(config)
 
   @jax.jit  # One program, not one small compiled operation per leaf.

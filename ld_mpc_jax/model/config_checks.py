@@ -77,6 +77,8 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      'config.train.data_parallel and config.eval.data_parallel off')
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
+  if 'obs_noise_aug' in t and not 0.0 <= t.obs_noise_aug < float('inf'):
+    raise ValueError(f'config.train.obs_noise_aug must be a std >= 0, got {t.obs_noise_aug!r}')
   if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
     raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
                      f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
@@ -99,6 +101,8 @@ def _validate_plan(config: ml_collections.ConfigDict) -> None:
                      f'got {p.warm_start_steps!r}')
   if not 0.0 < p.warm_start_t <= 1.0:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
+  if 'latent_filter' in p and not 0.0 <= p.latent_filter < 1.0:
+    raise ValueError(f'config.plan.latent_filter must be in [0, 1), got {p.latent_filter}')
 
 
 def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
@@ -118,8 +122,12 @@ def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
     for name, least in (('batch_size', 1), ('plan_chunk', 0), ('key_seed', -1)):
       if name in e and (not isinstance(e[name], int) or e[name] < least):
         raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
-    if 'action_noise' in e and not 0.0 <= float(e.action_noise) < float('inf'):
-      raise ValueError(f'config.eval.action_noise must be a std >= 0, got {e.action_noise!r}')
+    for name in ('action_noise', 'obs_noise'):
+      if name in e and not 0.0 <= float(e[name]) < float('inf'):
+        raise ValueError(f'config.eval.{name} must be a std >= 0, got {e[name]!r}')
+    if 'obs_noise_dims' in e and e.obs_noise_dims not in ('all', 'informative'):
+      raise ValueError(f"config.eval.obs_noise_dims must be 'all' or 'informative', "
+                       f'got {e.obs_noise_dims!r}')
   if 'data' in config:
     from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
     sources.SOURCES.check(config.data.source)
@@ -137,6 +145,9 @@ def _validate_variant(config: ml_collections.ConfigDict) -> None:
     raise ValueError(f'config.model.dynamics_type {m.dynamics_type} needs whole action sequences '
                      f'up front, but proposal_type {m.proposal_type!r} proposes one action per '
                      'latent')
+  if not dyn.one_step and 'latent_filter' in p and p.latent_filter > 0:
+    raise ValueError('config.plan.latent_filter needs a one-step dynamics_type (its one-step '
+                     f'prediction), not {m.dynamics_type}')
   if not dyn.one_step and p.num_prior_candidates:
     raise ValueError('config.plan.num_prior_candidates must be 0 with dynamics_type '
                      f'{m.dynamics_type}: actor-prior candidates need a step-by-step rollout')

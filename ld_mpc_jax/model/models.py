@@ -16,6 +16,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import ml_collections
+import numpy as np
 
 from ld_mpc_jax.model import actors, dynamics, objective, proposals, tasks
 from ld_mpc_jax.ops import config_cache
@@ -51,18 +52,41 @@ class Encoder(nn.Module):
 
 
 # Smallest per-feature standard deviation used for normalisation: features that are constant in
-# the data (unused object slots) are then only centred.
+# the data (unused object slots) are then only centred, unless they are masked (below).
 OBS_STD_FLOOR = 1e-2
+# The std given to features constant in the data with `model.obs_mask_constant`: (x - mean) /
+# 1e6 is ~0 for any reading a sensor can give, noise included. Finite, so that the optimiser's
+# and the EMA's arithmetic on the (never trained) statistics stays finite.
+MASKED_OBS_STD = 1e6
+# A feature is constant in the data when its std is at most this (float32 round-off of a
+# constant column is ~1e-7 of its value).
+CONSTANT_OBS_STD = 1e-6
 
 
-def set_obs_normalization(params: dict, obs: jnp.ndarray) -> dict:
-  """params with the encoder's obs_mean/obs_std set from observations [N, obs_dim]."""
+def set_obs_normalization(params: dict, obs: jnp.ndarray, mask_constant: bool = False) -> dict:
+  """params with the encoder's obs_mean/obs_std set from observations [N, obs_dim]; with
+  `mask_constant`, features constant in `obs` get MASKED_OBS_STD (left out of the input)."""
   if 'obs_mean' not in params['encoder']:
     raise ValueError('the encoder has no observation normalisation (config.model.normalize_obs)')
   obs = jnp.asarray(obs, jnp.float32)
-  encoder = dict(params['encoder'], obs_mean=obs.mean(0),
-                 obs_std=jnp.maximum(obs.std(0), OBS_STD_FLOOR))
+  std = obs.std(0)
+  floored = jnp.maximum(std, OBS_STD_FLOOR)
+  if mask_constant:
+    floored = jnp.where(std <= CONSTANT_OBS_STD, MASKED_OBS_STD, floored)
+  encoder = dict(params['encoder'], obs_mean=obs.mean(0), obs_std=floored)
   return dict(params, encoder=encoder)
+
+
+def informative_dims(params: dict) -> Optional[np.ndarray]:
+  """bool [obs_dim]: the observation features that varied in the encoder's training data: those
+  not masked; for parameters without masked features (saved before `model.obs_mask_constant`),
+  those above the std floor. None without observation normalisation (nothing to tell)."""
+  encoder = params['encoder']
+  if 'obs_std' not in encoder:
+    return None
+  std = np.asarray(encoder['obs_std'])
+  masked = std >= MASKED_OBS_STD
+  return ~masked if masked.any() else std > OBS_STD_FLOOR
 
 
 class SequenceObjective(nn.Module):

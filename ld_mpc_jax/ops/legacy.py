@@ -21,10 +21,11 @@ LEGACY_CRITIC = dict(value='behaviour', actor='bc', latent_rollout=False, num_va
 # section -> {field: value for runs saved before it existed}.
 MODEL_FIELDS = {
     'model': dict(proposal_type='diffusion_seq', dynamics_type='diffusion_ar',
-                  normalize_obs=False, normalize_dynamics=False, task_dim=96),
+                  normalize_obs=False, normalize_dynamics=False, task_dim=96,
+                  obs_mask_constant=False),
     'critic': dict(td_target='one_step', entropy_coef=1e-4, log_std_map='clip',
                    rollout_unroll=True),
-    'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0, w_demo_bc=0.0),
+    'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0, w_demo_bc=0.0, w_noise_inv=0.0),
 }
 TASK_DIM = MODEL_FIELDS['model']['task_dim']  # Before it was a field (TD-MPC2's width).
 

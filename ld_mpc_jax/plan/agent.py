@@ -12,7 +12,7 @@ environment keeps its keys, so the actions are those of a single device.
 """
 
 import json
-from typing import Callable, NamedTuple, Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence, Tuple
 
 import jax
 import jax.numpy as jnp
@@ -21,116 +21,8 @@ import ml_collections
 import numpy as np
 
 from ld_mpc_jax.ops import sharding
-from ld_mpc_jax.model.models import build_networks
-from ld_mpc_jax.plan.planner import make_plan, make_propose
-from ld_mpc_jax.ops.registry import Registry
-
-# What a decision reports beside its action: int32 [4] = (kind of the winning candidate, an
-# index into search.CANDIDATES.names() or -1 for policies that do not plan; the refinement round it
-# came from; 1 if the planner departed from the actor prior's own sequence, else 0; the fallback
-# (`plan.fallback_drop`): 1 once it has handed the episode to the actor prior, 0 before, -1 for
-# policies without it).
-NO_PLAN_INFO = (-1, 0, 0, -1)
-
-# Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise []) ->
-# (action [A], carry, info [4]) is built by make_act(config, nets), not jitted; `carry` is what
-# the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
-# MPPI's mean; the planner with `plan.fallback_drop` adds its planner.Guard);
-# `uses_prev(config)`: whether it acts on the previous decision's carry.
-POLICY_MODES = Registry('policy mode', 'mode')
-
-
-class PolicyMode(NamedTuple):
-  make_act: Callable
-  uses_prev: Callable = lambda config: False
-
-
-def _encode(nets, params, obs):
-  return nets.encoder.apply({'params': params['encoder']}, obs)
-
-
-def _plan_act(config, nets):
-  """The planner (ld_mpc_jax.plan.planner); info is (kind, iteration, departed, fallen). With
-  `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
-  previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
-  plan = make_plan(config)
-  guarded, warm = config.plan.fallback_drop > 0, config.plan.warm_start_steps > 0
-
-  def act(params, obs, key, prev, noise):
-    if guarded:  # The sequence travels only to warm-start, as without the guard.
-      sequence, guard = prev if prev is not None else (None, None)
-      sequence = sequence if warm else None
-    else:
-      sequence, guard = prev, None
-    out = plan(params, _encode(nets, params, obs), key, sequence, noise, guard)
-    fallen = out.guard.fallen.astype(jnp.int32) if guarded else jnp.asarray(-1, jnp.int32)
-    info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32), fallen])
-    return out.action, (out.sequence, out.guard) if guarded else out.sequence, info
-  return act
-
-
-def _with_noise(action, noise, key):
-  """`action` plus N(0, noise^2), clipped to the bounds; exactly `action` where noise is 0."""
-  noisy = jnp.clip(action + noise * jax.random.normal(key, action.shape), -1.0, 1.0)
-  return jnp.where(noise > 0, noisy, action)
-
-
-def _actor_act(config, nets):
-  """The actor prior's mode, held over the horizon; `noise` (acting online with
-  `online.act_mode = 'actor'`, or `eval.action_noise`) is the std of Gaussian noise on its
-  action, 0 in evaluation by default."""
-  def act(params, obs, key, prev, noise):
-    a = nets.actor.apply({'params': params['actor']}, _encode(nets, params, obs))
-    a = _with_noise(a, noise, key)
-    return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), jnp.asarray(NO_PLAN_INFO,
-                                                                              jnp.int32)
-  return act
-
-
-def _mppi_act(config, nets):
-  """MPPI on the learned model (config.mppi); `prev` is its previous Gaussian mean."""
-  from ld_mpc_jax.plan.mppi import make_ldmpc_mppi  # pylint: disable=g-import-not-at-top
-  mppi_plan = make_ldmpc_mppi(config)
-
-  def act(params, obs, key, prev, noise):
-    out = mppi_plan(params, _encode(nets, params, obs), key, prev)
-    return (_with_noise(out.action, noise, jax.random.fold_in(key, 7)), out.mean,
-            jnp.asarray(NO_PLAN_INFO, jnp.int32))
-  return act
-
-
-def _proposal_act(config, nets):
-  """One sample of the proposal alone (single-step kinds: the one action, held)."""
-  propose = make_propose(config, nets)
-
-  def act(params, obs, key, prev, noise):
-    seq = jnp.clip(propose(params, _encode(nets, params, obs), key, 1)[0], -1.0, 1.0)
-    if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
-      seq = jnp.repeat(seq, config.horizon, axis=0)
-    return (_with_noise(seq[0], noise, jax.random.fold_in(key, 7)), seq,
-            jnp.asarray(NO_PLAN_INFO, jnp.int32))
-  return act
-
-
-POLICY_MODES.register('plan', PolicyMode(
-    _plan_act, lambda config: config.plan.warm_start_steps > 0 or config.plan.fallback_drop > 0))
-POLICY_MODES.register('actor', PolicyMode(_actor_act))
-POLICY_MODES.register('proposal', PolicyMode(_proposal_act))
-POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda config: True))
-MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the registry's names.
-
-
-def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
-  """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [4]),
-  not jitted. `noise`: std of Gaussian noise on the executed action of the planner or the actor
-  prior (acting only)."""
-  entry = POLICY_MODES.get(mode)
-  return entry.make_act(config, build_networks(config))
-
-
-def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
-  """Whether `mode` acts on the previous decision's sequence (warm-started planner, MPPI)."""
-  return POLICY_MODES.get(mode).uses_prev(config)
+from ld_mpc_jax.plan.modes import (  # noqa: F401 (the modes' names, re-exported)
+    MODES, NO_PLAN_INFO, POLICY_MODES, PolicyMode, make_act_fn, uses_prev)
 
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
@@ -143,7 +35,7 @@ def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   next `prev`: the sequence [H, A], or for the planner with `plan.fallback_drop` > 0 the pair
   (sequence, planner.Guard).
   """
-  act = _make_act_fn(config, mode)
+  act = make_act_fn(config, mode)
   jitted = jax.jit(lambda params, obs, key, t, prev, noise: act(
       params, obs, jax.random.fold_in(key, t), prev, noise))
   return lambda params, obs, key, t, prev, noise=0.0: jitted(
@@ -168,7 +60,7 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
   (`jax.shard_map`; N is padded with inactive rows to a multiple of the device count) and each
   device maps over its share as above; `params` should be replicated (sharding.replicate).
   """
-  act = _make_act_fn(config, mode)
+  act = make_act_fn(config, mode)
 
   def one(params, t, noise, has_prev, inputs):
     obs, key, prev, active = inputs
@@ -333,7 +225,7 @@ def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Cal
   """Returns jitted act(params [S, ...], obs [S, obs_dim], keys [S], t [], prev, noise []) ->
   (actions [S, A], carries, infos [S, 4]): `make_act` vmapped over a leading seed axis of the
   parameters (S agents of `train.num_seeds`, each on its own environment and key)."""
-  act = _make_act_fn(config, mode)
+  act = make_act_fn(config, mode)
   one = lambda params, obs, key, t, prev, noise: act(params, obs, jax.random.fold_in(key, t),
                                                      prev, noise)
   jitted = jax.jit(jax.vmap(one, in_axes=(0, 0, 0, None, 0, None)))

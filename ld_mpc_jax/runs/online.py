@@ -178,7 +178,8 @@ class OnlineJob:
     if not c.get('normalized', True):  # Counters; fine-tuning starts normalized (no key).
       params = stack_states([set_obs_normalization(
           seed_slice(self.state.params, s.index),
-          np.concatenate([ep['obs'] for ep in s.buffer.episodes + s.buffer.demos]))
+          np.concatenate([ep['obs'] for ep in s.buffer.episodes + s.buffer.demos]),
+          self.config.model.obs_mask_constant)
                              for s in self.seats])
       self.state = self.state.replace(  # Copies: the update donates both trees.
           params=params, ema_params=jax.tree_util.tree_map(jnp.copy, params))
