@@ -20,7 +20,8 @@ def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():
           acting.plan.safe_selection) == (0.3, 0.4, -0.5, False)
   assert c.plan.to_dict() == plan  # The evaluation's config is left as it was.
   others = lambda p: {k: v for k, v in p.items() if k not in (
-      'action_noise_std', 'prior_noise_std', 'pessimism', 'safe_selection')}
+      'action_noise_std', 'prior_noise_std', 'pessimism', 'safe_selection', 'safe_confirm',
+      'fallback_drop')}  # The gates: inert without safe selection, and zeroed with it off.
   assert others(acting.plan.to_dict()) == others(plan)
   assert acting.online.to_dict() == c.online.to_dict()
 

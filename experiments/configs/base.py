@@ -109,36 +109,38 @@ def get_config() -> ml_collections.ConfigDict:
   # (safe_confirm, confirm_draws=8, confirm_margin=1) and the fallback (fallback_drop=0.1,
   # fallback_floor=1000): on door-open `weak` and `medium`, push and reach `medium` and MT10
   # (three seeds each) at most one episode of 50 behind the actor prior on any seed and task,
-  # 1910/2100 against 1821/2100 pooled (docs/results.md). Off by default: it needs actor-prior candidates,
-  # costs eight rollout pairs per decision, and a checkpoint keeps the settings it trained with.
-  # The margin 8
+  # 1910/2100 against 1821/2100 pooled (docs/results.md). The fields below default to that
+  # recommended setting, and confirmation and fallback act only with safe selection
+  # (search.gates), so `plan.safe_selection=True` alone switches it on. Safe selection itself is
+  # off by default: it needs actor-prior candidates, costs eight rollout pairs per decision, and
+  # a checkpoint keeps the settings it trained with. Margin 8 alone (no scaling, no gates)
   # was chosen on door-open `weak` on training seed 0
   # (departures from the actor prior: 98% with the argmax, 91% at margin 2, 34% at 8) and held
   # on seeds 1 and 2; the members' disagreement is far smaller than the error the argmax over
   # K candidates selects for.
   p.safe_selection = False
-  p.safe_margin = 8.0
+  p.safe_margin = 2.0  # The recommended setting's (with 'expected_max' below).
   # 'expected_max': the margin is multiplied by E[max of n standard normals] for the n
   # candidates scored per call (1.03 at n = 4, 2.34 at n = 64; ld_mpc_jax.model.search.expected_max),
   # so that the winner's selection optimism, which grows about as sqrt(2 ln n), is not taken for
   # a gain at large K (the winner's curse of argmax over noisy estimates; Smith and Winkler 2006,
   # "The optimizer's curse"). 'none': margin x spread whatever K.
-  p.safe_margin_scaling = 'none'
+  p.safe_margin_scaling = 'expected_max'
   # Confirmation: a departure must also beat the actor prior on a second, independent rollout
   # of both sequences, by confirm_margin x the spread (ld_mpc_jax.plan.planner, search.beats). The
   # winner's first score carries the selection's optimism, a fresh one does not: the double
   # estimator (van Hasselt 2010, "Double Q-learning"). Costs two more rollouts per call.
-  p.safe_confirm = False
+  p.safe_confirm = True  # With safe selection only (search.gates).
   # Fresh rollouts of the pair that confirmation scores: the gain must hold on their mean, by
   # confirm_margin x the spread over members and rollouts together, so that it counts the
   # dynamics' draw-to-draw noise, which the members share and their spread alone misses. 1: one
   # rollout, the spread over members only. Costs 2 x confirm_draws rollouts per call, not K x.
-  p.confirm_draws = 1
+  p.confirm_draws = 8
   # The confirmation's own margin: the fresh rollouts' mean gain must exceed confirm_margin x
   # their spread. Negative: plan.safe_margin (unscaled), as before this field existed. A smaller
   # one keeps more of the departures the first test passed: with eight rollouts, push `medium`
   # solves 21/150 at 2 and 29/150 at 1 (actor prior 11/150; docs/results.md).
-  p.confirm_margin = -1.0
+  p.confirm_margin = 1.0
   # Fallback: once J of the actor prior's own sequence (the objective's value of the current
   # state) falls more than fallback_drop x |its highest value so far in the episode| below that
   # peak, the planner executes the actor prior's sequence for the rest of the episode: the
@@ -149,10 +151,11 @@ def get_config() -> ml_collections.ConfigDict:
   # costs most, and not the dips of an episode still far from it. On MT10 peg-insert-side
   # (training seed 1) every episode the planner lost dropped the peg at the hole while
   # departing, with the value falling from about 1700; on push `medium` the planner's won
-  # episodes dip up to 26% below peaks of 150-270 and recover (docs/results.md). 0: off.
+  # episodes dip up to 26% below peaks of 150-270 and recover (docs/results.md). 0: off; with
+  # safe selection only (search.gates).
   # Acting as a policy, the planner carries this state between decisions (planner.Guard).
-  p.fallback_drop = 0.0
-  p.fallback_floor = 0.0
+  p.fallback_drop = 0.1
+  p.fallback_floor = 1000.0
   # Filter the latent between decisions with the model itself: z_t = rms(f z'_t + (1 - f) enc(o_t)),
   # z'_t the dynamics model's one-step prediction from the previous decision's latent and the
   # executed action (a complementary filter, the steady-state form of a Kalman update;

@@ -252,6 +252,15 @@ def effective_margin(config: ml_collections.ConfigDict) -> float:
   return float(p.safe_margin)
 
 
+def gates(config: ml_collections.ConfigDict) -> Tuple[bool, bool]:
+  """(confirm, fallback): whether safe selection's confirmation (`plan.safe_confirm`) and its
+  fallback to the actor prior (`plan.fallback_drop` > 0) act. Both are gates of safe selection:
+  without `plan.safe_selection` they are inert, so that their defaults can be the recommended
+  values and `--set=plan.safe_selection=True` alone switches the recommended setting on."""
+  p = config.plan
+  return bool(p.safe_selection and p.safe_confirm), bool(p.safe_selection and p.fallback_drop > 0)
+
+
 def validate_search(config: ml_collections.ConfigDict) -> None:
   """One-line ValueErrors for the search and selection settings of config.plan."""
   p = config.plan
@@ -277,14 +286,8 @@ def validate_search(config: ml_collections.ConfigDict) -> None:
     raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
   if p.confirm_draws < 1:
     raise ValueError(f'config.plan.confirm_draws must be >= 1, got {p.confirm_draws}')
-  if p.safe_confirm and not p.safe_selection:
-    raise ValueError('config.plan.safe_confirm confirms safe selection\'s departures: set '
-                     'config.plan.safe_selection=True as well')
   if not 0.0 <= p.fallback_drop < 1.0:
     raise ValueError(f'config.plan.fallback_drop must be in [0, 1), got {p.fallback_drop}')
-  if p.fallback_drop and p.num_prior_candidates < 1:
-    raise ValueError('config.plan.fallback_drop falls back to the actor prior\'s own sequence: '
-                     'set config.plan.num_prior_candidates >= 1')
   scaling = p.safe_margin_scaling
   if scaling not in MARGIN_SCALINGS:
     raise ValueError(f'config.plan.safe_margin_scaling must be one of {MARGIN_SCALINGS}, '

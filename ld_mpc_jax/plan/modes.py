@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax.model import dynamics
+from ld_mpc_jax.model import dynamics, search
 from ld_mpc_jax.model.models import build_networks
 from ld_mpc_jax.ops.numerics import rms_normalize
 from ld_mpc_jax.ops.registry import Registry
@@ -47,7 +47,7 @@ def _plan_act(config, nets):
   `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
   previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
   plan = make_plan(config)
-  guarded, warm = config.plan.fallback_drop > 0, config.plan.warm_start_steps > 0
+  guarded, warm = search.gates(config)[1], config.plan.warm_start_steps > 0
 
   def act(params, z, key, prev, noise):
     if guarded:  # The sequence travels only to warm-start, as without the guard.
@@ -106,7 +106,7 @@ def _proposal_act(config, nets):
 
 
 POLICY_MODES.register('plan', PolicyMode(
-    _plan_act, lambda config: config.plan.warm_start_steps > 0 or config.plan.fallback_drop > 0))
+    _plan_act, lambda config: config.plan.warm_start_steps > 0 or search.gates(config)[1]))
 POLICY_MODES.register('actor', PolicyMode(_actor_act))
 POLICY_MODES.register('proposal', PolicyMode(_proposal_act))
 POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda config: True))

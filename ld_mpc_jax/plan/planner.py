@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import ml_collections
 
 from ld_mpc_jax.ops import config_cache, diffusion
-from ld_mpc_jax.model import dynamics, proposals
+from ld_mpc_jax.model import dynamics, proposals, search
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.models import Networks, build_networks
 from ld_mpc_jax.model.objective import ScoreFn, as_members, combine, make_member_scores, make_score
@@ -256,17 +256,18 @@ def _make_refine(config: ml_collections.ConfigDict, score_draws: Callable,
   return refine_pool
 
 
-def _fall_back(p, pool: Pool, anchor: int, sequence, index, departed, guard: Optional[Guard]):
-  """(sequence, index, departed, prior_score, guard) after the fallback (`plan.fallback_drop`):
-  the guard advanced by the actor prior's score, and once it has fallen, the actor prior's own
-  sequence whatever won. Without an actor prior among the candidates: unchanged, prior_score
-  NaN."""
+def _fall_back(p, pool: Pool, anchor: int, sequence, index, departed, guard: Optional[Guard],
+               active: bool):
+  """(sequence, index, departed, prior_score, guard) after the fallback (`plan.fallback_drop`,
+  `active` with safe selection: search.gates): the guard advanced by the actor prior's score,
+  and once it has fallen, the actor prior's own sequence whatever won. Without an actor prior
+  among the candidates: unchanged, prior_score NaN."""
   guard = initial_guard() if guard is None else guard
   if anchor < 0:
     return sequence, index, departed, jnp.asarray(jnp.nan, jnp.float32), guard
   prior_score = pool.scores[anchor]
-  guard = advance_guard(guard, prior_score, p.fallback_drop, p.fallback_floor)
-  if p.fallback_drop:
+  guard = advance_guard(guard, prior_score, p.fallback_drop if active else 0.0, p.fallback_floor)
+  if active:
     sequence = jnp.where(guard.fallen, pool.actions[anchor], sequence)
     index = jnp.where(guard.fallen, anchor, index)
     departed = departed & ~guard.fallen
@@ -342,6 +343,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
   margin = effective_margin(config)  # plan.safe_margin, scaled by K if asked.
   confirm_margin = p.safe_margin if p.confirm_margin < 0 else p.confirm_margin
+  confirm, fallback = search.gates(config)  # Inert without plan.safe_selection.
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0, guard=None) -> PlanOutput:
     if z.shape != (d,):
@@ -359,7 +361,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     sequence, index, departed, _ = select(pool.actions, pool.scores, pool.members, anchor,
                                           p.safe_selection, margin, p.selection,
                                           p.num_elites, p.temperature, unique)
-    if p.safe_confirm:  # The departure again, on fresh dynamics draws.
+    if confirm:  # The departure again, on fresh dynamics draws.
       pair = jnp.stack([sequence, pool.actions[anchor]])
       _, fresh, fresh_members = confirm_draws(params, z, pair,
                                               jax.random.fold_in(dyn_key, 20_000), plain_rollout)
@@ -367,7 +369,7 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
       sequence = jnp.where(keep, sequence, pool.actions[anchor])
       index, departed = jnp.where(keep, index, anchor), keep
     sequence, index, departed, prior_score, guard = _fall_back(
-        p, pool, anchor, sequence, index, departed, guard)
+        p, pool, anchor, sequence, index, departed, guard, fallback)
     noise = jax.random.normal(jax.random.fold_in(noise_key, 2), (a_dim,))
     action = jnp.clip(sequence[0] + action_noise * noise, -1.0, 1.0)
     return PlanOutput(action=action, sequence=sequence, scores=pool.scores,
