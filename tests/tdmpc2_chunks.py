@@ -52,9 +52,9 @@ class Tensor:  # Other libraries (tensorboardX) probe torch.Tensor when torch im
     return self._array
 
 
-def load(path, map_location=None, weights_only=None):
-  with open(path, 'rb') as f:
-    return {k: Tensor(v) for k, v in pickle.load(f).items()}
+def load(path, map_location=None, weights_only=None, pickle_module=pickle):
+  with open(path, 'rb') as f:  # Through pickle_module, as torch.load reads its pickle.
+    return {k: Tensor(v) for k, v in pickle_module.load(f).items()}
 '''
 MT80_L = 13  # Observations per synthetic episode (mt80's real episodes have 101).
 

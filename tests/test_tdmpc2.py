@@ -119,3 +119,53 @@ def test_v3_names_map_to_tdmpc2_and_back():
       tdmpc2.tdmpc2_task_name(bad)
   with pytest.raises(ValueError, match='50 Meta-World tasks'):
     tdmpc2.v3_task_name('walker-walk')
+
+
+class _Payload:
+  """Unpickling it would call os.system: what a malicious chunk file does."""
+
+  def __init__(self, marker):
+    self.marker = marker
+
+  def __reduce__(self):
+    import os  # pylint: disable=g-import-not-at-top
+    return (os.system, (f'touch {self.marker}',))
+
+
+def test_chunks_are_unpickled_without_running_code(tmp_path):
+  """SafePickle: a file naming os.system is refused on one line and nothing runs; numpy arrays
+  and collections load as with pickle; the allowlist takes classes and rebuild functions only."""
+  import io
+  import pickle
+  marker = tmp_path / 'ran'
+  with pytest.raises(pickle.UnpicklingError, match='refused to load (posix|os).system'):
+    tdmpc2.SafePickle.load(io.BytesIO(pickle.dumps({'obs': _Payload(marker)})))
+  assert not marker.exists()
+  import collections
+  data = collections.OrderedDict(obs=np.arange(6.0).reshape(2, 3), task={1, 2})
+  back = tdmpc2.SafePickle.load(io.BytesIO(pickle.dumps(data)))
+  np.testing.assert_array_equal(back["obs"], data["obs"])
+  assert back["task"] == {1, 2}
+  allowed = tdmpc2.SafePickle.allowed
+  assert allowed('collections', 'OrderedDict') and allowed('numpy', 'ndarray')
+  assert not allowed('builtins', 'eval') and not allowed('numpy', 'load')  # Functions: no.
+  assert not allowed('subprocess', 'Popen') and not allowed('numpy', 'no_such_name')
+
+
+def test_a_malicious_chunk_fails_in_one_line_through_the_loader(tmp_path, monkeypatch):
+  """The loader's torch.load gets SafePickle (here the test stand-in for torch reads through
+  it as torch does): DatasetError naming the file, and the payload never runs."""
+  import pickle
+  from tests.tdmpc2_chunks import FAKE_TORCH
+  (tmp_path / 'torch.py').write_text(FAKE_TORCH)
+  (tmp_path / 'tensordict.py').write_text('')
+  monkeypatch.syspath_prepend(str(tmp_path))
+  for name in ('torch', 'tensordict'):
+    monkeypatch.delitem(sys.modules, name, raising=False)
+  marker = tmp_path / 'ran'
+  chunk = tmp_path / 'chunk_0.pt'
+  with open(chunk, 'wb') as f:
+    pickle.dump({'obs': _Payload(marker)}, f)
+  with pytest.raises(DatasetError, match='refused to load'):
+    tdmpc2.load_tdmpc2(str(chunk), 'mt80', ['mw-door-open'])
+  assert not marker.exists()

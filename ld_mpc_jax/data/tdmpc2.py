@@ -19,14 +19,23 @@ torch and tensordict are an optional extra (`pip install -e .[tdmpc2]`, with
 the CPU wheel `pip install torch==2.13.0`); they are imported only here, once
 the chunk files are found.
 
-Risk: chunk files are read with `torch.load(weights_only=False)`, which runs any
-code pickled in them (TensorDicts do not load with weights_only=True, not even
-with tensordict's classes allowlisted: pytorch/tensordict#1363); read only chunk
-files from a source you trust, such as TD-MPC2's published ones.
+Safety: TensorDicts do not load with `weights_only=True`, not even with
+tensordict's classes allowlisted (pytorch/tensordict#1363), so chunk files are
+read by torch's full unpickler with a restricted `find_class` (`SafePickle`, the
+"restricting globals" recipe of Python's pickle docs): a file may name only
+classes and constants of torch, tensordict, numpy and collections and their
+tensor-rebuilding functions (`_rebuild_*`, `_reconstruct`), never a function
+such as os.system or builtins.eval, so the pickled code of a malicious file is
+refused on one line instead of run. Not tested here against real torch files
+(the extra is not installed on the CI machine): a chunk that names another
+function fails on one line naming it.
 """
 
+import builtins
 import glob
+import importlib
 import os
+import pickle
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -75,6 +84,43 @@ _INSTALL_HINT = (
 
 class MissingExtraError(dataset_lib.DatasetError, ImportError):
   """torch or tensordict is not installed (one line saying how to install them)."""
+
+
+class _RestrictedUnpickler(pickle.Unpickler):
+  """pickle.Unpickler whose globals are limited to `SafePickle.allowed`."""
+
+  def find_class(self, module, name):
+    if not SafePickle.allowed(module, name):
+      raise pickle.UnpicklingError(f'refused to load {module}.{name}: a TD-MPC2 chunk holds '
+                                   'tensors only (the file may run code)')
+    return super().find_class(module, name)
+
+
+class SafePickle:
+  """A pickle module for `torch.load(pickle_module=...)` that refuses any global but classes
+  of torch, tensordict, numpy and collections and the tensor-rebuilding functions."""
+  Unpickler = _RestrictedUnpickler
+  __name__ = 'SafePickle'
+  _ROOTS = ('torch', 'tensordict', 'numpy', 'collections')
+  _FUNCTIONS = ('_rebuild_', '_reconstruct', 'scalar')  # torch._utils, numpy's array pickling.
+
+  @staticmethod
+  def allowed(module: str, name: str) -> bool:
+    if module.split('.')[0] not in SafePickle._ROOTS:
+      return module == 'builtins' and name in ('set', 'frozenset', 'slice', 'complex')
+    try:
+      obj = getattr(importlib.import_module(module), name.split('.')[0])
+    except (ImportError, AttributeError):
+      return False
+    if isinstance(obj, type):  # Classes (TensorDict, torch.Size, OrderedDict, ...).
+      return not issubclass(obj, BaseException)
+    if not callable(obj):  # Constants such as torch.float32: nothing to call.
+      return True
+    return name.startswith(SafePickle._FUNCTIONS) and not hasattr(builtins, name)
+
+  @staticmethod
+  def load(file, **kwargs):
+    return _RestrictedUnpickler(file, **kwargs).load()
 
 
 def _import_torch():
@@ -214,8 +260,8 @@ def load_tdmpc2(paths: Union[str, Sequence[str]], task_set: str,
 def _read_chunk(torch, path: str, original: Sequence[int], obs_dim: int, act_dim: int):
   """One chunk's episodes of the `original` task ids: (obs [n, L, obs_dim], act [n, L, act_dim],
   rew [n, L], task ids [n]) cut to the true sizes, or None when it holds none of them."""
-  try:  # Runs code pickled in the file (module docstring): trusted files only.
-    td = torch.load(path, map_location='cpu', weights_only=False)
+  try:  # Torch's unpickler with globals restricted (module docstring): no code runs.
+    td = torch.load(path, map_location='cpu', weights_only=False, pickle_module=SafePickle)
   except Exception as err:  # pylint: disable=broad-except
     raise dataset_lib.DatasetError(
         f'Cannot read TD-MPC2 chunk {path}: {err}') from err
