@@ -220,3 +220,22 @@ def test_rolled_and_unrolled_training_rollouts_agree(smoke_config):
   assert out[True].shape == (3, c.horizon + 1, c.model.latent_dim)
   assert np.abs(out[True][:, -1] - out[True][:, 0]).max() > 1e-3  # The latents move.
   np.testing.assert_allclose(out[False], out[True], rtol=1e-5, atol=1e-6)
+
+
+def test_reward_balance_weighs_the_rare_class_as_much_as_the_common_one():
+  """loss.reward_balance = 1: one positive reward among ten weighs as much in total as the nine
+  zeros; 0 is the plain mean; a batch without positives is the plain mean whatever the balance."""
+  from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
+  reward = jnp.zeros((2, 5)).at[0, 3].set(1.0)  # One solved step of ten.
+  logits = jax.random.normal(jax.random.key(0), (2, 5, 5))
+  ce = soft_cross_entropy(logits, two_hot(reward, 5, -2.0, 2.0))
+  plain = losses.reward_loss(logits, reward, 5, -2.0, 2.0)
+  np.testing.assert_allclose(plain, ce.mean(), rtol=1e-6)
+  balanced = losses.reward_loss(logits, reward, 5, -2.0, 2.0, balance=1.0)
+  zeros = (ce.sum() - ce[0, 3]) / 9
+  np.testing.assert_allclose(balanced, 0.5 * ce[0, 3] + 0.5 * zeros, rtol=1e-5)
+  half = losses.reward_loss(logits, reward, 5, -2.0, 2.0, balance=0.5)  # Weight 3 against 1.
+  np.testing.assert_allclose(half, (3 * ce[0, 3] + 9 * zeros) / 12, rtol=1e-5)
+  none = jnp.zeros((2, 5))
+  np.testing.assert_allclose(losses.reward_loss(logits, none, 5, -2.0, 2.0, balance=1.0),
+                             losses.reward_loss(logits, none, 5, -2.0, 2.0), rtol=1e-6)

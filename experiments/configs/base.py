@@ -216,6 +216,10 @@ def get_config() -> ml_collections.ConfigDict:
   # consistency loss; 0.5 keeps them from dominating the two MSE-scale diffusion losses.
   l.w_rew = 0.5
   l.w_val = 0.5
+  # Reweight the reward head's rare positive rewards (sparse reward: the few solved steps) by
+  # (zeros / positives in the batch)^reward_balance, weights then scaled to mean 1
+  # (losses.reward_loss; class-balanced losses, Cui et al. 2019). 0: the plain mean.
+  l.reward_balance = 0.0
   l.w_actor = 1.0  # Behaviour-cloning (or advantage-weighted) loss of the actor prior.
   l.w_q = 1.0  # Critics (critic.value 'expectile'): TD loss of Q and expectile loss of V,
   l.w_v = 1.0  # both MSE-scale in value_scale units.

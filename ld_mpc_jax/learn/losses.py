@@ -45,9 +45,22 @@ WEIGHTS = (('dyn', 'w_dyn'), ('act', 'w_act'), ('rew', 'w_rew'), ('val', 'w_val'
 
 
 def reward_loss(r_logits: jnp.ndarray, reward: jnp.ndarray, num_bins: int, vmin: float,
-                vmax: float) -> jnp.ndarray:
-  """Mean two-hot cross-entropy of rewards: r_logits [..., B, H, bins], reward [B, H] -> []."""
-  return soft_cross_entropy(r_logits, two_hot(reward, num_bins, vmin, vmax)).mean()
+                vmax: float, balance: float = 0.0) -> jnp.ndarray:
+  """Mean two-hot cross-entropy of rewards: r_logits [..., B, H, bins], reward [B, H] -> [].
+
+  `balance` (`loss.reward_balance`) reweights the rare class of a sparse reward: the batch's
+  positive rewards get weight (n_zero / n_positive)^balance against 1 for the zero ones, then
+  the weights are scaled to mean 1 (1: both classes weigh the same in total, as class-balanced
+  losses do; 0: the plain mean). A batch without positive rewards is the plain mean."""
+  ce = soft_cross_entropy(r_logits, two_hot(reward, num_bins, vmin, vmax))
+  if balance == 0:
+    return ce.mean()
+  positive = (reward > 0).astype(ce.dtype)
+  n_pos = positive.sum()
+  ratio = (positive.size - n_pos) / jnp.maximum(n_pos, 1.0)
+  weight = jnp.where(positive > 0, ratio ** balance, 1.0)
+  weight = weight / weight.mean()
+  return jnp.mean(ce * weight)
 
 
 def consistency_loss(z_model: jnp.ndarray, z_target: jnp.ndarray) -> jnp.ndarray:
@@ -108,7 +121,8 @@ def make_objective_terms(config: ml_collections.ConfigDict, nets: Networks) -> C
     a_all = jnp.broadcast_to(action[:, :h], z_all.shape[:2] + action[:, :h].shape[1:])
     r_logits, v_logits = nets.objective.apply(
         {'params': params['objective']}, z_all, a_all, deterministic=False, rngs=rngs)
-    out = {'rew': reward_loss(r_logits, reward[:, :h], m.num_bins, m.vmin, m.vmax)}
+    out = {'rew': reward_loss(r_logits, reward[:, :h], m.num_bins, m.vmin, m.vmax,
+                              config.loss.reward_balance)}
     if value_kind.loss is None:
       return dict(out, val=jnp.zeros(())), {}
     out['val'], target_mean = value_kind.loss(config, nets, target_params, z_ema, action,

@@ -77,6 +77,9 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
                      'config.train.data_parallel and config.eval.data_parallel off')
   if not 0.0 <= t.ema_decay < 1.0:
     raise ValueError(f'config.train.ema_decay must be in [0, 1), got {t.ema_decay}')
+  if 'reward_balance' in config.loss and not 0.0 <= config.loss.reward_balance <= 1.0:
+    raise ValueError(f'config.loss.reward_balance must be in [0, 1], got '
+                     f'{config.loss.reward_balance!r}')
   if 'obs_noise_aug' in t and not 0.0 <= t.obs_noise_aug < float('inf'):
     raise ValueError(f'config.train.obs_noise_aug must be a std >= 0, got {t.obs_noise_aug!r}')
   if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:

@@ -25,7 +25,8 @@ MODEL_FIELDS = {
                   obs_mask_constant=False),
     'critic': dict(td_target='one_step', entropy_coef=1e-4, log_std_map='clip',
                    rollout_unroll=True),
-    'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0, w_demo_bc=0.0, w_noise_inv=0.0),
+    'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0, w_demo_bc=0.0, w_noise_inv=0.0,
+               reward_balance=0.0),
 }
 TASK_DIM = MODEL_FIELDS['model']['task_dim']  # Before it was a field (TD-MPC2's width).
 
