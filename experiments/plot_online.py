@@ -6,8 +6,10 @@
 Ours: held-out planner success of each run's periodic evaluations (`eval.csv`), with the Wilson
 95% band the run computed; the per-wave exploration diagnostics (`online.csv`: training-episode
 success, the largest per-step reward, which candidate kind won while acting) in a second panel.
-Theirs: success against environment steps, one line per seed (docs/anchors/README.md says how
-their protocol differs).
+Theirs: success against simulator steps, one line per seed. Their step column counts decisions
+and their Meta-World wrapper repeats each action twice, so it is doubled: their 100k decisions are
+drawn at our 200k simulator steps (pass --max_steps=400000 to see their published points after 0).
+docs/anchors/README.md says how their protocol differs.
 """
 
 import csv
@@ -21,7 +23,7 @@ FLAGS = flags.FLAGS
 flags.DEFINE_list('runs', [], 'Online run workdirs (each with eval.csv and online.csv).')
 flags.DEFINE_string('anchor', '', 'TD-MPC2 per-seed CSV (step,success,seed); empty: none.')
 flags.DEFINE_string('out', 'online_curves.png', 'Output PNG.')
-flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (environment steps).')
+flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (simulator steps).')
 flags.DEFINE_integer('late_from', 80_000, 'The exploration table averages the waves after this '
                      'many environment steps.')
 
@@ -43,19 +45,44 @@ def main(argv):
         read_csv(os.path.join(run, name))
     if FLAGS.anchor:
       read_csv(FLAGS.anchor)
+  fig = draw(FLAGS.runs, FLAGS.anchor, FLAGS.max_steps)
+  os.makedirs(os.path.dirname(os.path.abspath(FLAGS.out)), exist_ok=True)
+  fig.savefig(FLAGS.out, dpi=100)
+  print(f'wrote {FLAGS.out}')
+  print(curve_table(FLAGS.runs))
+  print()
+  print(exploration_table(FLAGS.runs, FLAGS.late_from))
+
+
+# TD-MPC2's Meta-World wrapper repeats each action twice and its step column counts decisions.
+TDMPC2_ACTION_REPEAT = 2
+
+
+def anchor_curves(path: str, max_steps: float) -> dict:
+  """TD-MPC2's published per-seed curves in this project's unit: {seed: [(simulator steps,
+  success)]}, sorted by step, the points beyond `max_steps` simulator steps left out. Their
+  `step` column counts decisions, so it is multiplied by `TDMPC2_ACTION_REPEAT`."""
+  rows = read_csv(path)
+  curves = {}
+  for seed in sorted({r['seed'] for r in rows}):
+    pts = sorted((int(r['step']) * TDMPC2_ACTION_REPEAT, float(r['success']))
+                 for r in rows if r['seed'] == seed)
+    curves[seed] = [p for p in pts if p[0] <= max_steps]
+  return curves
+
+
+def draw(runs, anchor: str, max_steps: float):
+  """The figure: held-out success per run against simulator steps (with TD-MPC2's curves from
+  `anchor` when not empty) on the left, the per-wave exploration diagnostics on the right."""
   import matplotlib
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt
   fig, (ax, diag) = plt.subplots(1, 2, figsize=(12, 4))
-  if FLAGS.anchor:
-    rows = read_csv(FLAGS.anchor)
-    for seed in sorted({r['seed'] for r in rows}):
-      pts = sorted((int(r['step']), float(r['success'])) for r in rows if r['seed'] == seed)
-      pts = [p for p in pts if p[0] <= FLAGS.max_steps]
+  for i, pts in enumerate((anchor_curves(anchor, max_steps) if anchor else {}).values()):
+    if pts:
       ax.plot(*zip(*pts), 's--', color='gray', alpha=0.7,
-              label='TD-MPC2 (published, per seed)' if seed == min(r['seed'] for r in rows)
-              else None)
-  for i, run in enumerate(FLAGS.runs):
+              label=None if i else 'TD-MPC2 (published, per seed)')
+  for i, run in enumerate(runs):
     name, color = os.path.basename(os.path.normpath(run)), f'C{i}'
     ev = read_csv(os.path.join(run, 'eval.csv'))
     x = [int(float(r['step'])) for r in ev]
@@ -70,17 +97,12 @@ def main(argv):
     if waves and 'won_refined' in waves[0]:
       diag.plot(wx, [float(r['won_refined']) for r in waves], ':', color=color,
                 label=f'{name}: refined candidate won (acting)')
-  ax.set_xlabel('environment steps'); ax.set_ylabel('success rate')
-  ax.set_xlim(0, FLAGS.max_steps); ax.set_ylim(-0.02, 1.02); ax.legend(fontsize=8)
-  diag.set_xlabel('environment steps'); diag.set_ylabel('share')
-  diag.set_xlim(0, FLAGS.max_steps); diag.set_ylim(-0.02, 1.02); diag.legend(fontsize=7)
+  ax.set_xlabel('simulator steps'); ax.set_ylabel('success rate')
+  ax.set_xlim(0, max_steps); ax.set_ylim(-0.02, 1.02); ax.legend(fontsize=8)
+  diag.set_xlabel('simulator steps'); diag.set_ylabel('share')
+  diag.set_xlim(0, max_steps); diag.set_ylim(-0.02, 1.02); diag.legend(fontsize=7)
   fig.tight_layout()
-  os.makedirs(os.path.dirname(os.path.abspath(FLAGS.out)), exist_ok=True)
-  fig.savefig(FLAGS.out, dpi=100)
-  print(f'wrote {FLAGS.out}')
-  print(curve_table(FLAGS.runs))
-  print()
-  print(exploration_table(FLAGS.runs, FLAGS.late_from))
+  return fig
 
 
 def curve_table(runs) -> str:

@@ -10,13 +10,37 @@ from ld_mpc_jax.model.models import build_networks, encode
 
 
 @pytest.mark.parametrize('mode', ['plan', 'actor', 'proposal'])
-def test_policies_return_valid_actions(smoke_config, smoke_params, mode):
-  policy, reset = make_policy(smoke_config, smoke_params, mode, seed=0)
-  obs = np.linspace(-1, 1, 39)
-  actions = [policy(obs) for _ in range(3)]
-  reset()
-  for a in actions:
-    assert a.shape == (4,) and np.all(np.abs(a) <= 1.0)
+def test_policies_follow_their_key_schedule(smoke_config, smoke_params, mode):
+  """A policy's actions are a function of its seed and the decision's index: the same under the
+  same seed, others under another seed and at the next decision of the same observation; the
+  actor prior's mode needs no key and is the same under every seed."""
+  obs = np.linspace(-1, 1, 39).astype(np.float32)
+  runs = []
+  for seed in (0, 0, 1):
+    policy, _ = make_policy(smoke_config, smoke_params, mode, seed=seed)
+    runs.append(np.stack([policy(obs) for _ in range(3)]))
+  assert runs[0].shape == (3, smoke_config.action_dim) and np.all(np.isfinite(runs[0]))
+  np.testing.assert_array_equal(runs[0], runs[1])
+  if mode == 'actor':
+    np.testing.assert_array_equal(runs[0], runs[2])
+    np.testing.assert_array_equal(runs[0][1:], runs[0][:1].repeat(2, axis=0))
+  else:
+    assert np.abs(runs[0] - runs[2]).max(axis=-1).min() > 1e-3  # Each decision: another key.
+    assert np.abs(runs[0][1:] - runs[0][:1]).max(axis=-1).min() > 1e-3  # fold_in(key, t).
+
+
+def test_plan_policy_acts_with_the_planners_action(smoke_config, smoke_params):
+  """Decision t of the plan policy is the planner's action on the encoded observation under
+  fold_in(key(seed), t)."""
+  from ld_mpc_jax.plan.planner import make_plan
+  obs = np.linspace(-1, 1, 39).astype(np.float32)
+  policy, _ = make_policy(smoke_config, smoke_params, 'plan', seed=5)
+  actions = [policy(obs) for _ in range(2)]
+  plan = jax.jit(make_plan(smoke_config))
+  z = encode(smoke_params, obs)
+  for t, action in enumerate(actions):
+    expected = plan(smoke_params, z, jax.random.fold_in(jax.random.key(5), t)).action
+    np.testing.assert_allclose(action, expected, rtol=1e-5, atol=1e-6)
 
 
 def test_actor_policy_is_the_actor_prior(smoke_config, smoke_params):

@@ -1,6 +1,6 @@
 """ld_mpc_jax.learn.checkpointing: configs saved before a field existed load with the value their run
-used (migrate_config), so library code reads fields directly; checkpoints restore onto this
-process's device whatever device wrote them."""
+used (migrate_config), so library code reads fields directly; checkpoints come back bit for bit,
+onto this process's device whatever device wrote them."""
 
 import json
 import os
@@ -14,7 +14,6 @@ import pytest
 from experiments.configs import door_open
 from experiments.overrides import with_overrides
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax import envs
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.learn.train_state import create_train_state
 
@@ -65,9 +64,66 @@ def test_saved_config_round_trips(tmp_path):
   assert json.loads(loaded.to_json_best_effort()) == json.loads(config.to_json_best_effort())
 
 
-def test_old_runs_scripted_source_is_the_suites():
-  assert OLD_RUN_VALUES['data', 'source'] == envs.SUITE.name
-  assert OLD_RUN_VALUES['data', 'max_episode_steps'] == envs.MAX_EPISODE_STEPS
+def test_old_run_values_do_not_follow_todays_defaults(tmp_path, monkeypatch):
+  """Most of the old runs' values are also today's defaults; a migration that filled today's
+  defaults would pass the test above. With every one of these defaults changed in base.py, a
+  config saved without the fields still loads with what the old runs used."""
+  from experiments.configs import base
+  other = lambda v: (not v) if isinstance(v, bool) else v + 1 if isinstance(v, int) else v + 'x'
+  make_base = base.get_config
+
+  def changed_base():
+    c = make_base()
+    for section, name in OLD_RUN_VALUES:
+      c[section][name] = other(c[section][name])
+    return c
+
+  raw = json.loads(door_open.get_config('smoke').to_json_best_effort())
+  for section, name in OLD_RUN_VALUES:
+    del raw[section][name]
+  (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
+  monkeypatch.setattr(base, 'get_config', changed_base)
+  assert door_open.get_config('smoke').data.source != OLD_RUN_VALUES['data', 'source']
+  config = checkpointing.load_config(str(tmp_path))
+  assert {k: config[k[0]][k[1]] for k in OLD_RUN_VALUES} == OLD_RUN_VALUES
+
+
+def test_saved_values_are_kept_not_migrated(tmp_path):
+  """Migration fills only absent fields: a saved field keeps its value, also where the value
+  differs from both today's default and the old runs' value."""
+  raw = json.loads(door_open.get_config('smoke').to_json_best_effort())
+  saved = dict(data=dict(source='tdmpc2', path='d.npz', max_episode_steps=200),
+               train=dict(data_parallel=True, num_seeds=3), eval=dict(batch_size=7, seeds=[4]),
+               plan=dict(pessimism=2.5, safe_selection=True, safe_margin=3.0),
+               model=dict(normalize_obs=False, task_dim=12))
+  for section, fields in saved.items():
+    raw[section].update(fields)
+  (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
+  config = checkpointing.load_config(str(tmp_path))
+  assert json.loads(config.to_json_best_effort()) == raw
+
+
+def test_a_checkpoint_round_trip_returns_the_same_state(tmp_path):
+  """Every leaf (parameters, Adam moments and counts, EMA, step), each made to differ from a
+  fresh state's, comes back bit for bit, with its dtype; so do the config and the EMA parameters
+  evaluation reads."""
+  import chex
+  config = door_open.get_config('smoke')
+  fresh = create_train_state(config, jax.random.key(3))
+  rng = np.random.default_rng(4)
+  move = lambda x: x + (7 if np.issubdtype(x.dtype, np.integer)
+                        else rng.standard_normal(x.shape).astype(x.dtype))
+  state = jax.device_put(jax.tree.map(move, jax.device_get(fresh)))
+  checkpointing.save_config(config, str(tmp_path))
+  manager = checkpointing.checkpoint_manager(str(tmp_path))
+  manager.save(int(state.step), args=ocp.args.StandardSave(state))
+  manager.wait_until_finished()
+  restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)), config)
+  chex.assert_trees_all_equal(restored, state, strict=True)
+  loaded, ema_params, step = checkpointing.load_for_evaluation(str(tmp_path))
+  chex.assert_trees_all_equal(ema_params, state.ema_params, strict=True)
+  assert step == int(fresh.step) + 7
+  assert json.loads(loaded.to_json_best_effort()) == json.loads(config.to_json_best_effort())
 
 
 def test_old_objective_section_is_migrated_to_critic(tmp_path):

@@ -1,4 +1,5 @@
-"""MPPI: shapes and bounds, determinism, no recompilation, convergence on a toy objective."""
+"""MPPI: shapes and bounds, determinism, no recompilation, convergence on a toy objective, and the
+elites and mean it returns on LD-MPC's world model checked against the values that model gave."""
 
 import jax
 import jax.numpy as jnp
@@ -106,13 +107,32 @@ def test_tdmpc2_model_size(cfg):
 
 
 def test_mppi_on_ldmpc_world_model(smoke_config, smoke_params):
+  """On LD-MPC's diffusion dynamics and objective, the elites MPPI returns are the best-scored
+  sequences of its last iteration, with the values the world model gave them, and its mean is
+  their softmax-weighted average."""
   from ld_mpc_jax import encode
   c = smoke_config
   cfg = mppi.MPPIConfig(action_dim=c.action_dim, horizon=c.horizon, num_samples=8,
-                        num_elites=2, num_prior=0, iterations=2)
-  plan = mppi.make_mppi_plan(cfg, mppi.make_ldmpc_value_fn(c))
+                        num_elites=2, num_prior=0, iterations=2, temperature=0.5)
+  value_fn, scored = mppi.make_ldmpc_value_fn(c), []
+
+  def recorded(params, z, actions, key):  # Every iteration's candidates and their values J.
+    values = value_fn(params, z, actions, key)
+    jax.debug.callback(lambda a, v: scored.append((np.asarray(a), np.asarray(v))), actions,
+                       values, ordered=True)
+    return values
+
+  plan = mppi.make_mppi_plan(cfg, recorded)
   z = encode(smoke_params, np.linspace(-1, 1, 39).astype(np.float32))
-  out = plan(smoke_params, z, jax.random.key(0))
-  assert out.action.shape == (c.action_dim,)
-  assert bool(jnp.all(jnp.abs(out.action) <= 1.0))
-  assert bool(jnp.all(jnp.isfinite(out.elite_values)))
+  out = jax.device_get(plan(smoke_params, z, jax.random.key(0)))
+  assert len(scored) == cfg.iterations
+  actions, values = scored[-1]
+  assert np.ptp(values) > 1e-3  # J tells the candidates apart.
+  best = np.argsort(-values)[:cfg.num_elites]
+  np.testing.assert_allclose(out.elite_values, values[best], rtol=1e-6)
+  np.testing.assert_allclose(out.elite_actions, actions[best], rtol=1e-6)
+  w = np.exp(cfg.temperature * (values[best] - values[best].max()))
+  np.testing.assert_allclose(out.mean, np.tensordot(w / w.sum(), actions[best], axes=1),
+                             rtol=1e-5, atol=1e-6)
+  # The executed action is the first action of one of the elites.
+  assert np.any(np.all(np.isclose(out.elite_actions[:, 0], out.action), axis=-1))

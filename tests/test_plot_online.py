@@ -47,3 +47,25 @@ def test_curve_table_pools_the_steps_every_run_reached(tmp_path):
   table = plot_online.curve_table(runs)
   assert '| 3k | 25/50 | 25/50 | 50/100 = 0.50 |' in table
   assert '| 2k | 3/10 | 3/10 | 6/20 = 0.30 |' in table
+
+
+def test_tdmpc2_steps_are_doubled_to_simulator_steps(tmp_path):
+  """TD-MPC2 counts decisions at action repeat 2: its step 100000 is drawn at x = 200000."""
+  anchor = tmp_path / 'anchor.csv'
+  _write(anchor, [dict(step=s, success=v, seed=seed)
+                  for seed in (1, 2) for s, v in ((0, 0.0), (100000, 0.7), (200000, 0.9))])
+  assert plot_online.anchor_curves(str(anchor), max_steps=200_000) == {
+      '1': [(0, 0.0), (200000, 0.7)], '2': [(0, 0.0), (200000, 0.7)]}
+  run = _run(tmp_path, 'a', [0.0] * 4, [0.0] * 4)
+  fig = plot_online.draw([run], str(anchor), max_steps=400_000)
+  ax, diag = fig.axes
+  theirs = [l for l in ax.lines if l.get_color() == 'gray']
+  assert [list(l.get_xdata()) for l in theirs] == [[0, 200000, 400000]] * 2
+  assert [list(l.get_ydata()) for l in theirs] == [[0.0, 0.7, 0.9]] * 2
+  ours = [l for l in ax.lines if l.get_color() != 'gray']
+  assert [list(l.get_xdata()) for l in ours] == [[1600, 3200]]  # our steps are drawn as logged
+  assert ax.get_xlabel() == diag.get_xlabel() == 'simulator steps'
+  assert ax.get_xlim() == (0, 400_000)
+  # At the default 100k simulator steps TD-MPC2 has only its point at 0.
+  fig = plot_online.draw([run], str(anchor), max_steps=100_000)
+  assert [list(l.get_xdata()) for l in fig.axes[0].lines if l.get_color() == 'gray'] == [[0]] * 2

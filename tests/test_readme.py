@@ -1,0 +1,139 @@
+"""README.md's commands run as written: every `python -m experiments.X ...` it shows names a module
+that exists and flags (and config fields, presets and `--set` fields) that parse. Dry run only:
+the flags are parsed in a subprocess per module, nothing is trained or evaluated."""
+
+import collections
+import importlib.util
+import json
+import os
+import re
+import shlex
+import subprocess
+import sys
+
+import pytest
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# Run in a subprocess per module (each module defines its flags on absl's global FLAGS): parses
+# each argv of sys.argv[2] (a JSON list) as the module's own launcher would, and prints a JSON
+# list with None or the error of each.
+_CHECK = r'''
+import importlib, json, sys
+from absl import flags
+from experiments.configs import door_open, resolve_config_arg
+from experiments.overrides import parse_items, with_overrides
+name, commands = sys.argv[1], json.loads(sys.argv[2])
+module = importlib.import_module(name)
+FLAGS, errors = flags.FLAGS, []
+for argv in commands:
+  FLAGS.unparse_flags()
+  try:
+    if hasattr(module, 'resolve_config_arg'):  # The launcher resolves --config=NAME.py itself.
+      argv = resolve_config_arg(argv)
+    sys.argv = [name] + argv  # ml_collections reads the --config.x overrides from sys.argv.
+    FLAGS(sys.argv)  # Unknown flags or config fields, bad values, missing flags.
+    if 'config' in FLAGS and FLAGS['config'].present:
+      FLAGS.config.to_dict()  # The config file and its :preset load.
+    if 'set' in FLAGS:  # Every --set field exists and its value parses.
+      with_overrides(door_open.get_config(), parse_items(FLAGS.set))
+    errors.append(None)
+  except Exception as err:  # pylint: disable=broad-except
+    errors.append(f'{type(err).__name__}: {err}')
+print(json.dumps(errors))
+'''
+
+
+def readme_commands(text: str):
+  """Every `python -m experiments.X ...` of a README's shell code blocks and of the backticked
+  spans of its prose, as argument lists ['experiments.X', '--flag=value', ...]; continued lines
+  joined, `&&` chains split, comments dropped."""
+  code, prose, fence = [], [], None
+  for line in text.splitlines():
+    if line.startswith('```'):
+      fence = None if fence is not None else line[3:].strip()
+    elif fence is None:
+      prose.append(line)
+    elif fence in ('', 'bash', 'sh', 'shell'):
+      code.append(line)
+  found = [part for line in '\n'.join(code).replace('\\\n', ' ').splitlines()
+           for part in line.split('&&')]
+  found += re.findall(r'`([^`]+)`', '\n'.join(prose))
+  return [shlex.split(c, comments=True)[2:] for c in map(str.strip, found)
+          if c.startswith('python -m experiments.')]
+
+
+def named_modules(text: str):
+  """The backticked names of the README's "Others:" paragraph (commands listed by name)."""
+  match = re.search(r'^Others:(.*?)(?:\n\n|\Z)', text, re.S | re.M)
+  return re.findall(r'`(\w+)`', match.group(1)) if match else []
+
+
+def check_commands(commands, cwd):
+  """{tuple(command): None or the error} for argument lists as `readme_commands` gives them."""
+  by_module = collections.defaultdict(list)
+  for command in commands:
+    by_module[command[0]].append(command)
+  results, procs = {}, {}
+  for module, group in by_module.items():
+    if importlib.util.find_spec(module) is None:
+      results.update({tuple(c): f'no module {module}' for c in group})
+      continue
+    procs[module] = subprocess.Popen(
+        [sys.executable, '-c', _CHECK, module, json.dumps([c[1:] for c in group])], cwd=cwd,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, PYTHONPATH=REPO))
+  for module, proc in procs.items():  # Started together: the imports overlap.
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err[-2000:]
+    results.update(zip(map(tuple, by_module[module]), json.loads(out.splitlines()[-1])))
+  return results
+
+
+@pytest.fixture(scope='module')
+def readme():
+  with open(os.path.join(REPO, 'README.md')) as f:
+    return f.read()
+
+
+def test_the_readme_commands_parse(readme, tmp_path):
+  commands = readme_commands(readme)
+  modules = {c[0] for c in commands}
+  assert {'experiments.train', 'experiments.evaluate'} <= modules, modules  # Parsing found them.
+  bad = {' '.join(c): e for c, e in check_commands(commands, tmp_path).items() if e}
+  assert not bad, bad
+  assert not os.listdir(tmp_path)  # A dry run: nothing written.
+
+
+def test_the_commands_the_readme_names_exist(readme):
+  names = named_modules(readme)
+  missing = [n for n in names if importlib.util.find_spec(f'experiments.{n}') is None]
+  assert not missing, missing
+
+
+def test_a_command_that_does_not_exist_is_caught(tmp_path):
+  text = '''```bash
+python -m experiments.train --config=door_open.py:cpu --workdir=DIR \\
+  --config.train.num_seeds=3   # a comment
+python -m experiments.train --config=door_open.py:cpu --workdir=DIR --no_such_flag=1
+```
+| `python -m experiments.train --config=door_open.py:nopreset --workdir=DIR` | x |
+| `python -m experiments.train --config=door_open.py --workdir=DIR --config.plan.nope=1` | x |
+| `python -m experiments.evaluate --workdir=DIR --set=plan.safe_selection=True,plan.safe_margin=2`
+| `python -m experiments.evaluate --seeds=0` | x |
+| `python -m experiments.nope --workdir=DIR` | x |
+
+Others: `collect`, `not_a_command`: each takes `--help`.
+'''
+  commands = readme_commands(text)
+  assert commands[0] == ['experiments.train', '--config=door_open.py:cpu', '--workdir=DIR',
+                         '--config.train.num_seeds=3']
+  errors = [check_commands(commands, tmp_path)[tuple(c)] for c in commands]
+  assert errors[0] is None, errors[0]
+  assert 'no_such_flag' in errors[1]
+  assert 'nopreset' in errors[2]
+  assert 'nope' in errors[3]
+  assert "'plan.safe_selection'" in errors[4]  # '--set' takes one field: 'True,plan...' is no bool.
+  assert 'workdir' in errors[5]  # A required flag left out.
+  assert errors[6] == 'no module experiments.nope'
+  assert named_modules(text) == ['collect', 'not_a_command']
