@@ -29,6 +29,7 @@ OLD_RUN_VALUES = {
 @pytest.mark.parametrize('section,name', sorted(OLD_RUN_VALUES))
 def test_old_config_without_the_field_loads_with_its_run_value(tmp_path, section, name):
   raw = json.loads(door_open.get_config('smoke').to_json_best_effort())
+  del raw['version']  # Saved before configs had a version (version 0).
   del raw[section][name]
   (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
   config = checkpointing.load_config(str(tmp_path))
@@ -39,6 +40,7 @@ def test_old_config_without_the_field_loads_with_its_run_value(tmp_path, section
 def test_old_online_run_acted_with_its_plan_selection(tmp_path, safe):
   from experiments.configs import door_open_online
   raw = json.loads(door_open_online.get_config('smoke').to_json_best_effort())
+  del raw['version']  # Saved before configs had a version (version 0).
   raw['plan']['safe_selection'] = safe
   del raw['online']['act_safe_selection']  # Saved before acting had its own selection.
   del raw['online']['train_goals']  # Saved when training always used the MT1 seed's 50 goals.
@@ -50,6 +52,7 @@ def test_old_online_run_acted_with_its_plan_selection(tmp_path, safe):
 def test_old_online_run_searched_while_acting_as_it_evaluated(tmp_path):
   from experiments.configs import door_open_online
   raw = json.loads(door_open_online.get_config('cpu').to_json_best_effort())
+  del raw['version']  # Saved before configs had a version (version 0).
   raw['plan']['num_gaussian'], raw['plan']['iterations'] = 16, 2
   del raw['online']['act_num_gaussian'], raw['online']['act_iterations']
   (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
@@ -79,6 +82,7 @@ def test_old_run_values_do_not_follow_todays_defaults(tmp_path, monkeypatch):
     return c
 
   raw = json.loads(door_open.get_config('smoke').to_json_best_effort())
+  del raw['version']  # Saved before configs had a version (version 0).
   for section, name in OLD_RUN_VALUES:
     del raw[section][name]
   (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
@@ -130,6 +134,7 @@ def test_old_objective_section_is_migrated_to_critic(tmp_path):
   """Runs saved before the rename kept the critic settings under `objective`: on load they move,
   values kept, to `critic`, and no `objective` section is left."""
   raw = json.loads(door_open.get_config('smoke').to_json_best_effort())
+  del raw['version']  # Saved before configs had a version (version 0).
   raw['objective'] = dict(raw.pop('critic'), td_target='policy', num_values=4, hidden=[8])
   (tmp_path / checkpointing.CONFIG_FILE).write_text(json.dumps(raw))
   config = checkpointing.load_config(str(tmp_path))

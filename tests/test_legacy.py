@@ -44,3 +44,27 @@ def test_every_field_of_the_table_is_filled_and_nothing_else_changes():
   assert old == new.to_dict()
   # A current config is left as it is.
   assert legacy.fill_model_fields(door_open.get_config('smoke')).to_dict() == new.to_dict()
+
+
+def test_one_migration_keyed_by_the_config_version():
+  """A config saved before `version` (version 0) runs every step to CONFIG_VERSION and gets
+  the frozen values of its run; a current one is left as it is; a newer one fails in one line."""
+  import json
+  import ml_collections
+  import pytest
+  from experiments.configs import door_open
+  current = door_open.get_config('smoke')
+  assert current.version == legacy.CONFIG_VERSION
+  old = json.loads(current.to_json())
+  del old['version'], old['plan']['safe_margin'], old['eval']['obs_noise']
+  old['objective'] = old.pop('critic')
+  migrated = legacy.migrate(ml_collections.ConfigDict(old))
+  assert migrated.version == legacy.CONFIG_VERSION and 'objective' not in migrated
+  assert migrated.plan.safe_margin == 1.0 != current.plan.safe_margin  # The old run's value.
+  assert migrated.eval.obs_noise == 0.0 and migrated.critic.value == current.critic.value
+  same = legacy.migrate(ml_collections.ConfigDict(json.loads(current.to_json())))
+  assert same.to_json() == current.to_json()
+  newer = ml_collections.ConfigDict(dict(json.loads(current.to_json()),
+                                         version=legacy.CONFIG_VERSION + 1))
+  with pytest.raises(ValueError, match='newer than this code reads'):
+    legacy.migrate(newer)

@@ -5,9 +5,14 @@ Every choice the source report leaves open is written here with a one-line reaso
 
 import ml_collections
 
+from ld_mpc_jax.ops import legacy
+
 
 def get_config() -> ml_collections.ConfigDict:
   c = ml_collections.ConfigDict()
+  # The config's version: a saved config is migrated once, on load, from its version to this
+  # one (ld_mpc_jax/ops/legacy.py); configs saved before the field are version 0.
+  c.version = legacy.CONFIG_VERSION
   c.task = 'door-open-v3'
   c.seed = 0
   c.obs_dim = 39  # Meta-World state observation.

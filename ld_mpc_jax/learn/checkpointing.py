@@ -11,45 +11,20 @@ import jax
 import ml_collections
 import orbax.checkpoint as ocp
 
-from ld_mpc_jax import envs
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.learn.train_state import TrainState, create_train_state
 
 CONFIG_FILE = 'config.json'
-# Evaluation settings of experiments/configs/base.py, for configs saved before they existed.
-_EVAL_DEFAULTS = dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
-                      baselines=('actor', 'proposal'), data_parallel=False,
-                      key_seed=-1, action_noise=0.0, obs_noise=0.0,
-                      obs_noise_dims='all')
-# Planner settings of experiments/configs/base.py for configs saved before they existed; the
-# values mean what those runs did (no pessimism before `plan.pessimism` existed, no search).
-_PLAN_DEFAULTS = dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0,
-                      guidance_dynamics_steps=1, num_gaussian=0, gaussian_std=2.0, iterations=0,
-                      num_refine=64, num_elites=8, temperature=0.5, min_std=0.05,
-                      selection='argmax', safe_selection=False, safe_margin=1.0,
-                      safe_margin_scaling='none', safe_confirm=False, confirm_draws=1,
-                      confirm_margin=-1.0, fallback_drop=0.0, fallback_floor=0.0,
-                      first_round=('proposal', 'gaussian'), latent_filter=0.0)
-
-# Data, training and model settings of experiments/configs/base.py for configs saved before they
-# existed, with the values those runs used (one device, no observation normalisation).
-_TRAIN_DEFAULTS = dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0)
-
-
-def _data_defaults() -> dict:
-  """Runs saved before config.data.source trained on the suite's scripted episodes."""
-  return dict(source=envs.SUITE.name, path='', max_episode_steps=envs.MAX_EPISODE_STEPS)
-
-
 def legacy_defaults() -> dict:
-  """{section: {field: value}}: what a config saved before a field existed is read with.
+  """{section: {field: value}}: what a config saved before a field existed is read with
+  (legacy.neutral_values).
 
   Such a value changes nothing against the code before the field (evaluation_suite drops fields
   at these values from its cache keys, so adding a field does not invalidate cached cells).
   Changing a value already in these tables moves cached cells to another config's key: raise
   evaluation_suite.CACHE_VERSION with it.
   """
-  return dict(plan=dict(_PLAN_DEFAULTS), data=_data_defaults())
+  return legacy.neutral_values()
 
 
 def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointManager:
@@ -148,24 +123,12 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
 
 
 def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """A saved config brought up to the current fields, once, on load: fields added since it was
-  saved get the values that mean what its run did; renamed sections get their new name
-  (`objective` -> `critic`). Sequence fields saved as JSON lists stay lists (a ConfigDict keeps
-  a field's type on assignment); the library reads them only as sequences."""
-  legacy.rename_sections(config)  # Before the fills, which use the new names.
-  legacy.fill_model_fields(config)
-  for section, defaults in (('eval', _EVAL_DEFAULTS), ('plan', _PLAN_DEFAULTS),
-                            ('data', _data_defaults()), ('train', _TRAIN_DEFAULTS)):
-    legacy.fill(config, section, defaults)  # Runs saved before these fields existed.
-  if 'online' in config:  # Online runs saved before acting had its own settings.
-    legacy.fill(config, 'online', dict(
-        act_pessimism=config.plan.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
-        exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan',
-        act_safe_selection=config.plan.safe_selection, train_goals='mt1',
-        act_num_gaussian=config.plan.num_gaussian, act_iterations=config.plan.iterations,
-        demos=0, demo_path='', demo_noise_std=0.1, demo_share_start=0.5, demo_share_end=0.25,
-        demo_pretrain_updates=0, demo_seed_actor=False))
-  return config
+  """A saved config brought up to the current version, once, on load (legacy.migrate): fields
+  added since it was saved get the values that mean what its run did; renamed sections get
+  their new name (`objective` -> `critic`); a config of a newer version is refused on one line.
+  Sequence fields saved as JSON lists stay lists (a ConfigDict keeps a field's type on
+  assignment); the library reads them only as sequences."""
+  return legacy.migrate(config)
 
 
 def abstract_state(config: ml_collections.ConfigDict) -> TrainState:
