@@ -375,15 +375,15 @@ def test_confirmation_needs_safe_selection(smoke_config):
 
 def test_score_draws_batch_the_same_draws_as_one_after_another():
   """Draw i rolls with fold_in(key, i), whether the draws run in one batch or a loop."""
-  from ld_mpc_jax.plan.planner import _make_score_draws
-  from ld_mpc_jax.model.objective import combine
+  from ld_mpc_jax.model.objective import combine, make_score_draws
   def roll(params, z, proposals, key):
     lats = z + jax.random.normal(key, proposals.shape[:2] + (3,))
     return proposals + lats[..., :1], lats
   def members(params, lats, acts):  # [M = 2, N]
     return jnp.stack([jnp.sum(lats, axis=(1, 2)), jnp.sum(acts, axis=(1, 2)) - params])
   proposals, key, z = jnp.ones((5, 4, 2)), jax.random.key(3), jnp.float32(0.5)
-  actions, scores, everything = _make_score_draws(members, 6, 1.0)(0.25, z, proposals, key, roll)
+  actions, scores, everything = make_score_draws(members, 6, 1.0, 0.9)(0.25, z, proposals, key,
+                                                                         roll)
   loop = [roll(0.25, z, proposals, jax.random.fold_in(key, i)) for i in range(6)]
   expected = jnp.stack([members(0.25, lats, acts) for acts, lats in loop])  # [6, 2, 5]
   np.testing.assert_allclose(everything, expected.reshape(12, 5), rtol=1e-6)

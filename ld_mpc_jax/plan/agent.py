@@ -32,8 +32,9 @@ from ld_mpc_jax.ops.registry import Registry
 # policies without it).
 NO_PLAN_INFO = (-1, 0, 0, -1)
 
-# Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise []) ->
-# (action [A], carry, info [4]) is built by make_act(config, nets), not jitted; `carry` is what
+# Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise [],
+# intrinsic) -> (action [A], carry, info [4]) is built by make_act(config, nets), not jitted;
+# `intrinsic` (acting only, objective.Intrinsic or None) is the planner's; `carry` is what
 # the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
 # MPPI's mean; the planner with `plan.fallback_drop` adds its planner.Guard);
 # `uses_prev(config)`: whether it acts on the previous decision's carry.
@@ -50,19 +51,20 @@ def _encode(nets, params, obs):
 
 
 def _plan_act(config, nets):
-  """The planner (ld_mpc_jax.plan.planner); info is (kind, iteration, departed, fallen). With
+  """The planner (ld_mpc_jax.plan.planner); info is (kind, iteration, departed, fallen);
+  `intrinsic` is planner.make_plan's (acting only). With
   `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
   previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
   plan = make_plan(config)
   guarded, warm = config.plan.fallback_drop > 0, config.plan.warm_start_steps > 0
 
-  def act(params, obs, key, prev, noise):
+  def act(params, obs, key, prev, noise, intrinsic=None):
     if guarded:  # The sequence travels only to warm-start, as without the guard.
       sequence, guard = prev if prev is not None else (None, None)
       sequence = sequence if warm else None
     else:
       sequence, guard = prev, None
-    out = plan(params, _encode(nets, params, obs), key, sequence, noise, guard)
+    out = plan(params, _encode(nets, params, obs), key, sequence, noise, guard, intrinsic)
     fallen = out.guard.fallen.astype(jnp.int32) if guarded else jnp.asarray(-1, jnp.int32)
     info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32), fallen])
     return out.action, (out.sequence, out.guard) if guarded else out.sequence, info
@@ -79,7 +81,7 @@ def _actor_act(config, nets):
   """The actor prior's mode, held over the horizon; `noise` (acting online with
   `online.act_mode = 'actor'`, or `eval.action_noise`) is the std of Gaussian noise on its
   action, 0 in evaluation by default."""
-  def act(params, obs, key, prev, noise):
+  def act(params, obs, key, prev, noise, intrinsic=None):
     a = nets.actor.apply({'params': params['actor']}, _encode(nets, params, obs))
     a = _with_noise(a, noise, key)
     return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), jnp.asarray(NO_PLAN_INFO,
@@ -92,7 +94,7 @@ def _mppi_act(config, nets):
   from ld_mpc_jax.plan.mppi import make_ldmpc_mppi  # pylint: disable=g-import-not-at-top
   mppi_plan = make_ldmpc_mppi(config)
 
-  def act(params, obs, key, prev, noise):
+  def act(params, obs, key, prev, noise, intrinsic=None):
     out = mppi_plan(params, _encode(nets, params, obs), key, prev)
     return (_with_noise(out.action, noise, jax.random.fold_in(key, 7)), out.mean,
             jnp.asarray(NO_PLAN_INFO, jnp.int32))
@@ -103,7 +105,7 @@ def _proposal_act(config, nets):
   """One sample of the proposal alone (single-step kinds: the one action, held)."""
   propose = make_propose(config, nets)
 
-  def act(params, obs, key, prev, noise):
+  def act(params, obs, key, prev, noise, intrinsic=None):
     seq = jnp.clip(propose(params, _encode(nets, params, obs), key, 1)[0], -1.0, 1.0)
     if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
       seq = jnp.repeat(seq, config.horizon, axis=0)
@@ -120,10 +122,10 @@ POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda config: True))
 MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the registry's names.
 
 
-def _make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
-  """act(params, obs [obs_dim], key, prev, noise []) -> (action [A], sequence [H, A], info [4]),
-  not jitted. `noise`: std of Gaussian noise on the executed action of the planner or the actor
-  prior (acting only)."""
+def make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
+  """act(params, obs [obs_dim], key, prev, noise [], intrinsic=None) -> (action [A], sequence
+  [H, A], info [4]), not jitted. `noise`: std of Gaussian noise on the executed action of the
+  planner or the actor prior (acting only); `intrinsic`: the planner's (acting only)."""
   entry = POLICY_MODES.get(mode)
   return entry.make_act(config, build_networks(config))
 
@@ -134,8 +136,9 @@ def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
 
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
-  """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0) -> (action [A],
-  carry, info [4] int32: NO_PLAN_INFO's fields).
+  """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0, intrinsic=None) ->
+  (action [A], carry, info [4] int32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
+  (objective.Intrinsic; acting only) are traced: annealing them never recompiles.
 
   The decision's key is fold_in(key, t). `prev` is the previous decision's carry (or None at
   the start of an episode); only the planner with `plan.warm_start_steps` > 0 or
@@ -143,11 +146,16 @@ def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   next `prev`: the sequence [H, A], or for the planner with `plan.fallback_drop` > 0 the pair
   (sequence, planner.Guard).
   """
-  act = _make_act_fn(config, mode)
-  jitted = jax.jit(lambda params, obs, key, t, prev, noise: act(
-      params, obs, jax.random.fold_in(key, t), prev, noise))
-  return lambda params, obs, key, t, prev, noise=0.0: jitted(
-      params, obs, key, t, prev, jnp.asarray(noise, jnp.float32))
+  act = make_act_fn(config, mode)
+  jitted = jax.jit(lambda params, obs, key, t, prev, noise, intrinsic: act(
+      params, obs, jax.random.fold_in(key, t), prev, noise, intrinsic))
+  return lambda params, obs, key, t, prev, noise=0.0, intrinsic=None: jitted(
+      params, obs, key, t, prev, jnp.asarray(noise, jnp.float32), float32_tree(intrinsic))
+
+
+def float32_tree(tree):
+  """Scalars as float32 arrays (Python floats and NumPy scalars trace alike: one compile)."""
+  return jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float32), tree)
 
 
 def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
@@ -158,7 +166,8 @@ def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
 
 def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
                    chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
-  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise []).
+  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise [],
+  intrinsic=None).
 
   -> (actions [N, A], sequences [N, H, A], infos [N, 4]): `jax.lax.map` of the
   single-environment act over the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
@@ -168,30 +177,30 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
   (`jax.shard_map`; N is padded with inactive rows to a multiple of the device count) and each
   device maps over its share as above; `params` should be replicated (sharding.replicate).
   """
-  act = _make_act_fn(config, mode)
+  act = make_act_fn(config, mode)
 
-  def one(params, t, noise, has_prev, inputs):
+  def one(params, t, knobs, has_prev, inputs):  # knobs: (noise, intrinsic), acting's.
     obs, key, prev, active = inputs
     key = jax.random.fold_in(key, t)
     prev = prev if has_prev else None
-    run = lambda: act(params, obs, key, prev, noise)
+    run = lambda: act(params, obs, key, prev, *knobs)
     zeros = lambda: jax.tree_util.tree_map(jnp.zeros_like, jax.eval_shape(run))
     return jax.lax.cond(active, run, zeros)
 
-  def local_act(has_prev, params, obs, keys, t, prev, active, noise):
+  def local_act(has_prev, params, obs, keys, t, prev, active, knobs):
     n = obs.shape[0]
-    return jax.lax.map(lambda x: one(params, t, noise, has_prev, x), (obs, keys, prev, active),
+    return jax.lax.map(lambda x: one(params, t, knobs, has_prev, x), (obs, keys, prev, active),
                        batch_size=min(chunk or n, n))
 
-  def batch_act(params, obs, keys, t, prev, active, noise=0.0):
-    noise = jnp.asarray(noise, jnp.float32)
+  def batch_act(params, obs, keys, t, prev, active, noise=0.0, intrinsic=None):
+    knobs = (jnp.asarray(noise, jnp.float32), float32_tree(intrinsic))
     n = obs.shape[0]
     has_prev = prev is not None
     if not has_prev:  # Placeholders of the carry's shapes (the first decision ignores them).
-      carry = jax.eval_shape(lambda: act(params, obs[0], keys[0], None, noise)[1])
+      carry = jax.eval_shape(lambda: act(params, obs[0], keys[0], None, *knobs)[1])
       prev = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape, x.dtype), carry)
     if mesh is None:
-      return local_act(has_prev, params, obs, keys, t, prev, active, noise)
+      return local_act(has_prev, params, obs, keys, t, prev, active, knobs)
     pad = -n % mesh.size  # Inactive rows, so that every device gets the same share.
     grow = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
     obs, keys, prev = grow(obs), grow(keys), jax.tree_util.tree_map(grow, prev)
@@ -201,7 +210,7 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
     out = jax.shard_map(lambda *args: local_act(has_prev, *args), mesh=mesh,
                         in_specs=(whole, split, split, whole, split, split, whole),
                         out_specs=split, check_vma=False)(params, obs, keys, t, prev, active,
-                                                          noise)
+                                                          knobs)
     return jax.tree_util.tree_map(lambda x: x[:n], out)
 
   return jax.jit(batch_act)
@@ -246,8 +255,8 @@ class BatchAgentPolicy:
                           else make_batch_act(config, mode, chunk, mesh))
     self.act = _BATCH_ACTS[key]
     self.keys = self.prev = None
-    # Std of the noise on the executed action (the planner, while acting; 0 in evaluation).
-    self.action_noise = 0.0
+    # The executed action's noise std and the planner's objective.Intrinsic (acting only).
+    self.action_noise, self.intrinsic = 0.0, None
     self.last_info = None  # [N, 4] int32 of the last decision (NO_PLAN_INFO's fields).
 
   def set_params(self, params) -> None:
@@ -270,15 +279,17 @@ class BatchAgentPolicy:
     obs = jnp.asarray(obs, jnp.float32)
     keys = episode_keys(self.seed, np.arange(obs.shape[0]))
     active = jnp.ones(obs.shape[0], bool)
-    _, seq, _ = self.act(self.params, obs, keys, 0, None, active, self.action_noise)
+    knobs = (self.action_noise, self.intrinsic)
+    _, seq, _ = self.act(self.params, obs, keys, 0, None, active, *knobs)
     jax.block_until_ready(self.act(self.params, obs, keys, 1, seq if self.warm else None, active,
-                                   self.action_noise))
+                                   *knobs))
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
     if self.per_env:
       return self._per_env(obs, t, active)
     actions, sequences, infos = self.act(self.params, jnp.asarray(obs, jnp.float32), self.keys,
-                                         t, self.prev, jnp.asarray(active), self.action_noise)
+                                         t, self.prev, jnp.asarray(active), self.action_noise,
+                                         self.intrinsic)
     if self.warm:
       self.prev = sequences
     self.last_info = np.asarray(infos)
@@ -291,7 +302,8 @@ class BatchAgentPolicy:
     infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (obs.shape[0], 1))
     for i in np.flatnonzero(active):
       action, sequence, info = self.act(self.params, jnp.asarray(obs[i], jnp.float32),
-                                        self.keys[i], t, self.prev[i], self.action_noise)
+                                        self.keys[i], t, self.prev[i], self.action_noise,
+                                        self.intrinsic)
       if self.warm:
         self.prev[i] = sequence
       actions[i], infos[i] = np.asarray(action), np.asarray(info)
@@ -327,60 +339,3 @@ def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', s
 
   policy.warmup = lambda obs: _compile_single(act, params, obs, state['key'], warm)
   return policy, reset
-
-
-def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
-  """Returns jitted act(params [S, ...], obs [S, obs_dim], keys [S], t [], prev, noise []) ->
-  (actions [S, A], carries, infos [S, 4]): `make_act` vmapped over a leading seed axis of the
-  parameters (S agents of `train.num_seeds`, each on its own environment and key)."""
-  act = _make_act_fn(config, mode)
-  one = lambda params, obs, key, t, prev, noise: act(params, obs, jax.random.fold_in(key, t),
-                                                     prev, noise)
-  jitted = jax.jit(jax.vmap(one, in_axes=(0, 0, 0, None, 0, None)))
-  return lambda params, obs, keys, t, prev, noise=0.0: jitted(
-      params, obs, keys, t, prev, jnp.asarray(noise, jnp.float32))
-
-
-class SeedsAgentPolicy:
-  """S agents (stacked parameters [S, ...]) acting on N environments each in lockstep: one
-  jitted call per environment and decision for all S agents (`make_seeds_act`); each agent's
-  episodes keep the key schedule of `BatchAgentPolicy` with its own seed, so an agent acts as
-  it would alone (to float tolerance: the vmapped plan may round differently)."""
-
-  def __init__(self, config: ml_collections.ConfigDict, params, mode: str, seeds: Sequence[int]):
-    self.params, self.seeds = params, list(seeds)
-    self.warm = uses_prev(config, mode)
-    self.action_dim = config.action_dim
-    spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
-    key = (json.dumps(spec, sort_keys=True, default=str), mode, 'seeds')
-    if key not in _BATCH_ACTS:
-      _BATCH_ACTS[key] = make_seeds_act(config, mode)
-    self.act = _BATCH_ACTS[key]
-    self.keys = self.prev = None
-    self.action_noise = 0.0
-    self.last_info = None  # [S, N, 4] int32 of the last decision.
-
-  def set_params(self, params) -> None:
-    self.params = params
-
-  def start(self, episodes) -> None:
-    """episodes[s]: agent s's episodes of the wave (goals.Episode, one per environment)."""
-    self.keys = jnp.stack([episode_keys(seed, [ep.reset_seed for ep in eps])
-                           for seed, eps in zip(self.seeds, episodes)])  # [S, N]
-    self.prev = None
-
-  def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
-    """obs [S, N, obs_dim], active [N] -> actions [S, N, A] (zeros where inactive)."""
-    s, n = obs.shape[:2]
-    if self.prev is None:
-      self.prev = [None] * n
-    actions = np.zeros((s, n, self.action_dim), np.float32)
-    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (s, n, 1))
-    for i in np.flatnonzero(active):
-      action, carry, info = self.act(self.params, jnp.asarray(obs[:, i], jnp.float32),
-                                     self.keys[:, i], t, self.prev[i], self.action_noise)
-      if self.warm:
-        self.prev[i] = carry
-      actions[:, i], infos[:, i] = np.asarray(action), np.asarray(info)
-    self.last_info = infos
-    return actions

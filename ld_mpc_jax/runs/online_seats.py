@@ -13,7 +13,8 @@ from ld_mpc_jax import data, envs
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.ops import sharding
-from ld_mpc_jax.plan.agent import BatchAgentPolicy, SeedsAgentPolicy
+from ld_mpc_jax.plan.agent import BatchAgentPolicy
+from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
 from ld_mpc_jax.data.demos import get_demos
 from ld_mpc_jax.data.online_buffer import Buffer
 from ld_mpc_jax.model.exploration import ar1_noise, executed_noise
@@ -117,6 +118,7 @@ class WavePolicy:
       self.inner.start([w.episodes for w in waves])
     # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
     self.inner.action_noise = 0.0 if o.exec_noise_corr > 0 else job.noise_std
+    self.inner.intrinsic = job.intrinsic  # The planner's intrinsic term, this wave's weights.
 
   def __call__(self, obs, t: int, active: np.ndarray):
     """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 4] or None)."""
