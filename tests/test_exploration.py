@@ -246,8 +246,19 @@ def test_defaults_add_no_intrinsic_term_and_old_runs_load_them(tmp_path):
   assert exploration.acting_config(c).plan.pessimism == c.online.act_pessimism  # As before.
   raw = json.loads(c.to_json_best_effort())
   for name in ('act_schedule', 'act_pessimism_end', 'act_disagreement', 'act_disagreement_end',
-               'act_dynamics_draws'):
+               'act_dynamics_draws', 'act_proposal'):
     del raw['online'][name]  # Saved before these fields existed.
   (tmp_path / 'config.json').write_text(json.dumps(raw))
   loaded = checkpointing.load_config(str(tmp_path))
   assert loaded.online.to_dict() == c.online.to_dict()
+
+
+def test_acting_without_the_proposal_needs_other_candidates():
+  c = door_open_online.get_config('smoke')  # K = 4 proposal sequences, no actor prior.
+  c.online.act_proposal = False
+  with pytest.raises(ValueError, match='act_proposal=False leaves no candidate'):
+    validate_config(c)
+  c.plan.num_prior_candidates = 2
+  validate_config(c)
+  assert exploration.acting_config(c).plan.num_candidates == 2  # The actor prior's alone.
+  assert c.plan.num_candidates == 4  # Evaluation keeps the proposal's.

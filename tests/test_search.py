@@ -137,7 +137,7 @@ def test_acting_policy_has_no_noise_unless_set(smoke_config, smoke_params):
   eps = [goals.Episode('x', i, 0, i, '', None) for i in range(2)]
   policy.start(eps)
   quiet = policy(obs, 0, np.ones(2, bool))
-  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 4)
+  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 6)
   policy.start(eps)
   policy.action_noise = 0.5
   noisy = policy(obs, 0, np.ones(2, bool))
@@ -472,3 +472,12 @@ def test_fallback_settings_fail_in_one_line(smoke_config):
   c.plan.fallback_drop, c.plan.num_prior_candidates = 0.1, 0
   with pytest.raises(ValueError, match='fallback_drop falls back'):
     make_plan(c)
+
+
+def test_first_action_spread_is_the_mean_std_of_first_actions():
+  actions = jnp.zeros((4, 3, 2)).at[:, 0, 0].set(jnp.array([-1.0, 1.0, -1.0, 1.0]))
+  actions = actions.at[:, 1:].set(5.0)  # Later steps do not count.
+  assert float(search.first_action_spread(actions)) == pytest.approx(0.5)  # (1 + 0) / 2.
+  mask = jnp.array([True, False, True, False])  # Two equal first actions: no spread.
+  assert float(search.first_action_spread(actions, mask)) == 0.0
+  assert float(search.first_action_spread(actions, jnp.zeros(4, bool))) == -1.0  # None.

@@ -54,6 +54,10 @@ def online_settings() -> ml_collections.ConfigDict:
   # Dynamics rollouts per candidate while acting (0: plan.dynamics_draws, evaluation's): the
   # ensemble of the disagreement term, so evaluation can keep one draw (Plan2Explore: 10 heads).
   o.act_dynamics_draws = 0
+  # The diffusion proposal's candidates while acting (evaluation keeps them): False leaves the
+  # actor prior's and the search's, to measure whether the proposal adds to exploration (the
+  # issue's "does the diffusion proposal explore?"; refined candidates won 86-89% on sparse).
+  o.act_proposal = True
   # Safe selection while acting (evaluation keeps plan.safe_selection): off, so that acting
   # departs from the actor prior wherever the argmax says, and the data shows whether it was
   # right; a margin that keeps the actor prior belongs to what is executed when it counts.

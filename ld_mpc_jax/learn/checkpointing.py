@@ -165,7 +165,7 @@ def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDi
         demos=0, demo_path='', demo_noise_std=0.1, demo_share_start=0.5, demo_share_end=0.25,
         demo_pretrain_updates=0, demo_seed_actor=False, act_schedule='constant',
         act_pessimism_end=0.0, act_disagreement=0.0, act_disagreement_end=0.0,
-        act_dynamics_draws=0))
+        act_dynamics_draws=0, act_proposal=True))
   return config
 
 

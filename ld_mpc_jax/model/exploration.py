@@ -8,6 +8,7 @@ from typing import Tuple
 import ml_collections
 import numpy as np
 
+from ld_mpc_jax.model import proposals
 from ld_mpc_jax.model.objective import Intrinsic
 
 SCHEDULES = ('constant', 'linear')
@@ -20,8 +21,8 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   (`online.act_safe_selection`; evaluation keeps `plan.safe_selection`; `plan.safe_confirm`
   and `plan.fallback_drop` apply while acting only with it), its search
   (`online.act_num_gaussian`, `online.act_iterations`; evaluation keeps `plan.num_gaussian`
-  and `plan.iterations`) and its dynamics draws (`online.act_dynamics_draws`, 0: the plan's).
-  Under `online.act_schedule='linear'`
+  and `plan.iterations`), its dynamics draws (`online.act_dynamics_draws`, 0: the plan's) and,
+  with `online.act_proposal` off, no proposal candidates. Under `online.act_schedule='linear'`
   the acting pessimism is no setting but the plan's traced `intrinsic` (`acting_intrinsic`), so
   `plan.pessimism` is 0 here."""
   o, c = config.online, ml_collections.ConfigDict(config.to_dict())
@@ -35,6 +36,8 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   c.plan.num_gaussian = o.act_num_gaussian
   c.plan.iterations = o.act_iterations
   c.plan.dynamics_draws = o.act_dynamics_draws or config.plan.dynamics_draws
+  if not o.act_proposal:  # The first round without the proposal's K - P sequences.
+    c.plan.num_candidates = config.plan.num_prior_candidates
   return c
 
 
@@ -98,6 +101,14 @@ def validate_acting(config: ml_collections.ConfigDict) -> None:
   if any(weights) and (o.act_dynamics_draws or p.dynamics_draws) < 2:
     raise ValueError('config.online.act_disagreement needs several dynamics draws while acting '
                      'to disagree: set config.online.act_dynamics_draws >= 2')
+  if o.act_proposal:
+    return
+  if not proposals.get(config).sequence:
+    raise ValueError('config.online.act_proposal=False drops whole proposal sequences from the '
+                     f'first round; proposal_type {config.model.proposal_type!r} has none')
+  if p.num_prior_candidates + o.act_num_gaussian < 1:
+    raise ValueError('config.online.act_proposal=False leaves no candidate while acting: set '
+                     'config.plan.num_prior_candidates or config.online.act_num_gaussian >= 1')
 
 
 def ar1_noise(noise: np.ndarray, std: float, corr: float,

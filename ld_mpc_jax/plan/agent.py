@@ -25,15 +25,16 @@ from ld_mpc_jax.model.models import build_networks
 from ld_mpc_jax.plan.planner import make_plan, make_propose
 from ld_mpc_jax.ops.registry import Registry
 
-# What a decision reports beside its action: int32 [4] = (kind of the winning candidate, an
+# What a decision reports beside its action: float32 [6] = (kind of the winning candidate, an
 # index into search.CANDIDATES.names() or -1 for policies that do not plan; the refinement round it
 # came from; 1 if the planner departed from the actor prior's own sequence, else 0; the fallback
 # (`plan.fallback_drop`): 1 once it has handed the episode to the actor prior, 0 before, -1 for
-# policies without it).
-NO_PLAN_INFO = (-1, 0, 0, -1)
+# policies without it; then planner.PlanOutput.spread [2] while acting (`intrinsic` given),
+# else -1).
+NO_PLAN_INFO = (-1, 0, 0, -1, -1, -1)
 
 # Policy modes: name -> PolicyMode. A mode's act(params, obs [obs_dim], key, prev, noise [],
-# intrinsic) -> (action [A], carry, info [4]) is built by make_act(config, nets), not jitted;
+# intrinsic) -> (action [A], carry, info [6]) is built by make_act(config, nets), not jitted;
 # `intrinsic` (acting only, objective.Intrinsic or None) is the planner's; `carry` is what
 # the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
 # MPPI's mean; the planner with `plan.fallback_drop` adds its planner.Guard);
@@ -50,9 +51,13 @@ def _encode(nets, params, obs):
   return nets.encoder.apply({'params': params['encoder']}, obs)
 
 
+def _no_plan_info():
+  return jnp.asarray(NO_PLAN_INFO, jnp.float32)
+
+
 def _plan_act(config, nets):
-  """The planner (ld_mpc_jax.plan.planner); info is (kind, iteration, departed, fallen);
-  `intrinsic` is planner.make_plan's (acting only). With
+  """The planner (ld_mpc_jax.plan.planner); info is (kind, iteration, departed, fallen, spread
+  [2]), the spread only with an `intrinsic` (acting: planner.make_plan's), else -1. With
   `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
   previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
   plan = make_plan(config)
@@ -65,8 +70,9 @@ def _plan_act(config, nets):
     else:
       sequence, guard = prev, None
     out = plan(params, _encode(nets, params, obs), key, sequence, noise, guard, intrinsic)
-    fallen = out.guard.fallen.astype(jnp.int32) if guarded else jnp.asarray(-1, jnp.int32)
-    info = jnp.stack([out.kind, out.iteration, out.departed.astype(jnp.int32), fallen])
+    fallen = out.guard.fallen if guarded else -1
+    info = jnp.concatenate([jnp.stack([out.kind, out.iteration, out.departed, fallen]).astype(
+        jnp.float32), out.spread])
     return out.action, (out.sequence, out.guard) if guarded else out.sequence, info
   return act
 
@@ -84,8 +90,7 @@ def _actor_act(config, nets):
   def act(params, obs, key, prev, noise, intrinsic=None):
     a = nets.actor.apply({'params': params['actor']}, _encode(nets, params, obs))
     a = _with_noise(a, noise, key)
-    return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), jnp.asarray(NO_PLAN_INFO,
-                                                                              jnp.int32)
+    return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), _no_plan_info()
   return act
 
 
@@ -97,7 +102,7 @@ def _mppi_act(config, nets):
   def act(params, obs, key, prev, noise, intrinsic=None):
     out = mppi_plan(params, _encode(nets, params, obs), key, prev)
     return (_with_noise(out.action, noise, jax.random.fold_in(key, 7)), out.mean,
-            jnp.asarray(NO_PLAN_INFO, jnp.int32))
+            _no_plan_info())
   return act
 
 
@@ -109,8 +114,7 @@ def _proposal_act(config, nets):
     seq = jnp.clip(propose(params, _encode(nets, params, obs), key, 1)[0], -1.0, 1.0)
     if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
       seq = jnp.repeat(seq, config.horizon, axis=0)
-    return (_with_noise(seq[0], noise, jax.random.fold_in(key, 7)), seq,
-            jnp.asarray(NO_PLAN_INFO, jnp.int32))
+    return (_with_noise(seq[0], noise, jax.random.fold_in(key, 7)), seq, _no_plan_info())
   return act
 
 
@@ -124,7 +128,7 @@ MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the regis
 
 def make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
   """act(params, obs [obs_dim], key, prev, noise [], intrinsic=None) -> (action [A], sequence
-  [H, A], info [4]), not jitted. `noise`: std of Gaussian noise on the executed action of the
+  [H, A], info [6]), not jitted. `noise`: std of Gaussian noise on the executed action of the
   planner or the actor prior (acting only); `intrinsic`: the planner's (acting only)."""
   entry = POLICY_MODES.get(mode)
   return entry.make_act(config, build_networks(config))
@@ -137,7 +141,7 @@ def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0, intrinsic=None) ->
-  (action [A], carry, info [4] int32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
+  (action [A], carry, info [6] float32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
   (objective.Intrinsic; acting only) are traced: annealing them never recompiles.
 
   The decision's key is fold_in(key, t). `prev` is the previous decision's carry (or None at
@@ -169,7 +173,7 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
   """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise [],
   intrinsic=None).
 
-  -> (actions [N, A], sequences [N, H, A], infos [N, 4]): `jax.lax.map` of the
+  -> (actions [N, A], sequences [N, H, A], infos [N, 6]): `jax.lax.map` of the
   single-environment act over the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
   environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
   vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
@@ -257,7 +261,7 @@ class BatchAgentPolicy:
     self.keys = self.prev = None
     # The executed action's noise std and the planner's objective.Intrinsic (acting only).
     self.action_noise, self.intrinsic = 0.0, None
-    self.last_info = None  # [N, 4] int32 of the last decision (NO_PLAN_INFO's fields).
+    self.last_info = None  # [N, 6] float32 of the last decision (NO_PLAN_INFO's fields).
 
   def set_params(self, params) -> None:
     """The parameters to act with from now on (replicated over the mesh, if any; copied to
@@ -299,7 +303,7 @@ class BatchAgentPolicy:
     if self.prev is None:
       self.prev = [None] * obs.shape[0]
     actions = np.zeros((obs.shape[0], self.action_dim), np.float32)
-    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (obs.shape[0], 1))
+    infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (obs.shape[0], 1))
     for i in np.flatnonzero(active):
       action, sequence, info = self.act(self.params, jnp.asarray(obs[i], jnp.float32),
                                         self.keys[i], t, self.prev[i], self.action_noise,

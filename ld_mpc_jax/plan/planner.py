@@ -30,7 +30,8 @@ from ld_mpc_jax.model.models import Networks, build_networks
 from ld_mpc_jax.model.objective import (Intrinsic, ScoreFn, as_members, make_member_scores,
                                        make_score, make_score_draws)
 from ld_mpc_jax.model.search import (CANDIDATE_KINDS, CANDIDATES, Pool, beats, effective_margin,
-                               first_round_counts, refine, select, validate_search)
+                                     first_action_spread, first_round_counts, refine, select,
+                                     validate_search)
 
 __all__ = ['CANDIDATE_KINDS', 'Guard', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
            'make_rollout', 'make_member_scores', 'shift_sequence']
@@ -72,6 +73,10 @@ class PlanOutput:
   departed: jnp.ndarray  # [] bool: the executed sequence is not the actor prior's own.
   prior_score: jnp.ndarray  # [] J of the actor prior's own sequence (NaN without one).
   guard: Guard  # The fallback's state after this decision: pass it to the next call.
+  # [2] spread of the first actions (search.first_action_spread) of the first round's candidates,
+  # and of the proposal's alone (-1 without any): how diverse what the planner tries is.
+  # Measured while acting (an `intrinsic` given), else -1: evaluation's program stays as it was.
+  spread: jnp.ndarray
 
 
 def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
@@ -337,6 +342,9 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     actions, scores, members = score_draws(params, z, proposals_, dyn_key, rollout, intrinsic)
     pool = Pool(actions, scores, members, kinds,
                 jnp.zeros(actions.shape[0], jnp.int32))
+    spread = jnp.full(2, -1.0) if intrinsic is None else jnp.stack([  # Measured while acting.
+        first_action_spread(actions),
+        first_action_spread(actions, kinds == CANDIDATES.index('proposal'))])
     unique = None
     if refine_pool is not None:
       pool, unique = refine_pool(params, z, dyn_key, pool, intrinsic)
@@ -357,6 +365,6 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     return PlanOutput(action=action, sequence=sequence, scores=pool.scores,
                       candidates=pool.actions, index=index, kind=pool.kind[index],
                       iteration=pool.iteration[index], departed=departed,
-                      prior_score=prior_score, guard=guard)
+                      prior_score=prior_score, guard=guard, spread=spread)
 
   return jax.jit(plan)

@@ -17,7 +17,7 @@ _SEEDS_ACTS = {}  # One jitted function per setting, compiled once per process.
 
 def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   """Returns jitted act(params [S, ...], obs [S, obs_dim], keys [S], t [], prev, noise [],
-  intrinsic=None) -> (actions [S, A], carries, infos [S, 4]): `make_act` vmapped over a leading
+  intrinsic=None) -> (actions [S, A], carries, infos [S, 6]): `make_act` vmapped over a leading
   seed axis of the parameters (S agents of `train.num_seeds`, each on its own environment and
   key); the noise and the intrinsic term are the same for every agent."""
   act = make_act_fn(config, mode)
@@ -45,7 +45,7 @@ class SeedsAgentPolicy:
     self.act = _SEEDS_ACTS[key]
     self.keys = self.prev = None
     self.action_noise, self.intrinsic = 0.0, None  # As agent.BatchAgentPolicy's.
-    self.last_info = None  # [S, N, 4] int32 of the last decision.
+    self.last_info = None  # [S, N, 6] float32 of the last decision.
 
   def set_params(self, params) -> None:
     self.params = params
@@ -62,7 +62,7 @@ class SeedsAgentPolicy:
     if self.prev is None:
       self.prev = [None] * n
     actions = np.zeros((s, n, self.action_dim), np.float32)
-    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (s, n, 1))
+    infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (s, n, 1))
     for i in np.flatnonzero(active):
       action, carry, info = self.act(self.params, jnp.asarray(obs[:, i], jnp.float32),
                                      self.keys[:, i], t, self.prev[i], self.action_noise,
