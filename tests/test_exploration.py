@@ -1,13 +1,19 @@
 """ld_mpc_jax.model.exploration: the acting planner's settings, the annealed std of the executed-action
-noise and its correlated (AR(1)) draws."""
+noise and its correlated (AR(1)) draws, and the intrinsic exploration term in J while acting
+(objective.Intrinsic: optimism over the value members, the dynamics draws' disagreement, annealed)."""
 
 import json
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax.model import exploration
+from ld_mpc_jax import validate_config
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.model import exploration, models, objective
+from ld_mpc_jax.plan import planner
 
 
 def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():
@@ -85,3 +91,176 @@ def test_correlated_noise_has_the_annealed_std_and_its_correlation():
   assert np.std(x) == pytest.approx(0.3, rel=0.05)
   lag1 = np.mean(x[1:] * x[:-1]) / np.mean(x * x)
   assert lag1 == pytest.approx(0.85, abs=0.02)
+
+
+# The intrinsic exploration term in J while acting (objective.Intrinsic, online.act_*).
+
+
+def _intrinsic(pessimism, disagreement):
+  return objective.Intrinsic(pessimism=jnp.float32(pessimism),
+                             disagreement=jnp.float32(disagreement))
+
+
+def test_intrinsic_term_is_zero_for_a_deterministic_ensemble_and_grows_with_disagreement():
+  rng = np.random.default_rng(0)
+  base = jnp.asarray(rng.normal(size=(1, 1, 6)) * 100.0, jnp.float32)  # [R, M, N]: J's scale.
+  agree = jnp.broadcast_to(base, (3, 5, 6))  # Three dynamics draws, five members, all agree.
+  latents = jnp.broadcast_to(jnp.asarray(rng.normal(size=(1, 6, 4, 8)), jnp.float32),
+                             (3, 6, 4, 8))  # [R, N, H+1, D]
+  bonus = _intrinsic(-2.0, 50.0)
+  assert np.all(np.asarray(objective.intrinsic_term(agree, latents, bonus, 0.9)) == 0.0)
+  # Members that disagree: the optimism bonus is |pessimism| x their std, growing with it.
+  noise = jnp.asarray(rng.normal(size=(3, 5, 6)), jnp.float32)
+  terms = [np.asarray(objective.intrinsic_term(agree + s * noise, latents, _intrinsic(-2.0, 0.0),
+                                               0.9)) for s in (0.5, 1.0, 2.0)]
+  np.testing.assert_allclose(terms[1], 2.0 * np.mean(np.std(np.asarray(noise), axis=1), 0),
+                             rtol=1e-4)
+  assert np.all(terms[0] > 0) and np.all(terms[1] > terms[0]) and np.all(terms[2] > terms[1])
+  # Draws that disagree about the next latents: sum_i gamma^i x variance over draws, by hand.
+  offset = jnp.asarray([-1.0, 0.0, 1.0])[:, None, None, None]  # Variance 2/3 per dimension.
+  moved = latents + offset * jnp.asarray([0.0, 1.0, 2.0, 3.0])[None, None, :, None]
+  d = np.asarray(objective.intrinsic_term(agree, moved, _intrinsic(0.0, 1.0), 0.9))
+  np.testing.assert_allclose(d, (2 / 3) * (1.0 + 0.9 * 4.0 + 0.81 * 9.0), rtol=1e-5)
+  wider = np.asarray(objective.intrinsic_term(agree, latents + 2 * (moved - latents),
+                                              _intrinsic(0.0, 1.0), 0.9))
+  np.testing.assert_allclose(wider, 4 * d, rtol=1e-5)
+
+
+def _members(spread):
+  """A score function of M = 5 members: the toy J = first action's first coordinate, plus
+  member offsets of std proportional to `spread` (0: a deterministic ensemble)."""
+  offsets = spread * jnp.asarray([-2.0, -1.0, 0.0, 1.0, 2.0])[:, None]
+  return lambda params, latents, actions: actions[None, :, 0, 0] * 10.0 + offsets
+
+
+def test_plan_with_an_intrinsic_term_and_agreeing_members_scores_as_without(
+    smoke_config, smoke_params):
+  z = models.encode(smoke_params, np.ones(smoke_config.obs_dim, np.float32))
+  plan = planner.make_plan(smoke_config, _members(0.0))
+  key = jax.random.key(3)
+  plain, bonus = plan(smoke_params, z, key), plan(smoke_params, z, key, None, 0.0, None,
+                                                   _intrinsic(-1.0, 0.0))
+  np.testing.assert_array_equal(bonus.scores, plain.scores)
+  np.testing.assert_array_equal(bonus.action, plain.action)
+  # Disagreeing members: every candidate gains |pessimism| x the members' std (sqrt(2) x 0.5;
+  # the plan's own pessimism, smoke's 1, is subtracted in both).
+  split = planner.make_plan(smoke_config, _members(0.5))
+  plain, bonus = split(smoke_params, z, key), split(smoke_params, z, key, None, 0.0, None,
+                                                    _intrinsic(-1.0, 0.0))
+  np.testing.assert_allclose(bonus.scores - plain.scores, np.sqrt(2.0) * 0.5, rtol=1e-5)
+
+
+@pytest.mark.parametrize('dynamics_type', ['mlp', 'diffusion_ar'])
+def test_the_dynamics_draws_disagree_only_where_the_dynamics_are_stochastic(smoke_config,
+                                                                            dynamics_type):
+  """Plan2Explore's term on the planner's own rollouts: 0 under the deterministic MLP dynamics,
+  positive for every candidate under the diffusion dynamics' draws."""
+  c = smoke_config
+  c.model.dynamics_type, c.plan.dynamics_draws = dynamics_type, 3
+  params = models.init_params(c, jax.random.key(0))
+  z = models.encode(params, np.ones(c.obs_dim, np.float32))
+  plan = planner.make_plan(c, _members(0.0))
+  plain = plan(params, z, jax.random.key(1))
+  bonus = plan(params, z, jax.random.key(1), None, 0.0, None, _intrinsic(0.0, 5.0))
+  gain = np.asarray(bonus.scores - plain.scores)
+  if dynamics_type == 'mlp':
+    np.testing.assert_array_equal(gain, 0.0)
+  else:
+    assert np.all(gain > 1e-3)
+
+
+def test_changing_the_traced_intrinsic_term_never_recompiles(smoke_config, smoke_params):
+  traces = []
+  def counting(params, latents, actions):
+    traces.append(1)  # Runs once per trace, never when a compiled plan runs.
+    return _members(0.5)(params, latents, actions)
+  plan = planner.make_plan(smoke_config, counting)
+  z = models.encode(smoke_params, np.ones(smoke_config.obs_dim, np.float32))
+  c = exploration_config('linear')
+  scores = []
+  for steps in (c.online.seed_steps, 3_000, c.online.env_steps):  # The annealed schedule.
+    out = plan(smoke_params, z, jax.random.key(0), None, 0.0, None,
+               exploration.acting_intrinsic(c, steps, c.online.seed_steps))
+    scores.append(np.asarray(out.scores))
+    if steps == c.online.seed_steps:
+      first = (len(traces), plan._cache_size())
+  assert (len(traces), plan._cache_size()) == first  # Traced once, whatever the values.
+  assert not np.allclose(scores[0], scores[-1])  # And the values did change J.
+
+
+def exploration_config(schedule):
+  c = door_open_online.get_config('cpu')
+  c.online.act_schedule = schedule
+  c.online.act_pessimism, c.online.act_pessimism_end = -1.0, -0.2
+  c.online.act_disagreement, c.online.act_disagreement_end = 40.0, 0.0
+  c.online.act_dynamics_draws = 4
+  return c
+
+
+def test_the_schedule_starts_at_the_first_planner_wave_and_ends_at_env_steps():
+  c = exploration_config('linear')
+  start, end = c.online.seed_steps, c.online.env_steps  # From scratch: after the seed waves.
+  at = lambda steps: exploration.acting_exploration(c, steps, start)
+  assert at(0) == at(start) == pytest.approx((-1.0, 40.0))
+  assert at((start + end) // 2) == pytest.approx((-0.6, 20.0))
+  assert at(end) == at(end + 800) == pytest.approx((-0.2, 0.0))
+  # Linear: acting's pessimism is the traced term alone; the acting config's is 0.
+  bonus = exploration.acting_intrinsic(c, end, start)
+  assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((-0.2, 0.0))
+  acting = exploration.acting_config(c)
+  assert (acting.plan.pessimism, acting.plan.dynamics_draws) == (0.0, 4)
+  assert (c.plan.pessimism, c.plan.dynamics_draws) == (1.0, 1)  # Evaluation's, unchanged.
+  # Constant (the default): the start values throughout; the pessimism stays a setting.
+  c = exploration_config('constant')
+  assert exploration.acting_exploration(c, end, start) == pytest.approx((-1.0, 40.0))
+  bonus = exploration.acting_intrinsic(c, end, start)
+  assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((0.0, 40.0))
+  assert exploration.acting_config(c).plan.pessimism == -1.0
+
+
+def test_the_first_planner_wave_follows_the_actor_prior_seed_waves():
+  c = door_open_online.get_config('cpu')
+  assert exploration.plan_start(c, c.online.seed_steps) == c.online.seed_steps  # From scratch.
+  c.online.demos = 5  # Learning starts at once; the planner acts from the first wave ...
+  assert exploration.plan_start(c, 0) == 0
+  c.online.demo_seed_actor = True  # ... or after the actor prior's seed waves.
+  assert exploration.plan_start(c, 0) == c.online.seed_steps
+
+
+@pytest.mark.parametrize('overrides,match', [
+    (dict(act_schedule='cosine'), 'act_schedule'),
+    (dict(act_disagreement=1.0), 'act_dynamics_draws >= 2'),
+    (dict(act_schedule='linear', act_disagreement_end=1.0), 'act_dynamics_draws >= 2'),
+    (dict(act_dynamics_draws=-1), 'act_dynamics_draws'),
+])
+def test_bad_intrinsic_settings_fail_in_one_line(overrides, match):
+  c = door_open_online.get_config('cpu')
+  c.online.update(overrides)
+  with pytest.raises(ValueError, match=match):
+    validate_config(c)
+
+
+def test_defaults_add_no_intrinsic_term_and_old_runs_load_them(tmp_path):
+  c = door_open_online.get_config('cpu')
+  bonus = exploration.acting_intrinsic(c, 50_000, c.online.seed_steps)
+  assert (float(bonus.pessimism), float(bonus.disagreement)) == (0.0, 0.0)
+  assert exploration.acting_config(c).plan.pessimism == c.online.act_pessimism  # As before.
+  raw = json.loads(c.to_json_best_effort())
+  for name in ('act_schedule', 'act_pessimism_end', 'act_disagreement', 'act_disagreement_end',
+               'act_dynamics_draws', 'act_proposal'):
+    del raw['online'][name]  # Saved before these fields existed,
+  del raw['version']  # and so before configs had a version.
+  (tmp_path / 'config.json').write_text(json.dumps(raw))
+  loaded = checkpointing.load_config(str(tmp_path))
+  assert loaded.online.to_dict() == c.online.to_dict()
+
+
+def test_acting_without_the_proposal_needs_other_candidates():
+  c = door_open_online.get_config('smoke')  # K = 4 proposal sequences, no actor prior.
+  c.online.act_proposal = False
+  with pytest.raises(ValueError, match='act_proposal=False leaves no candidate'):
+    validate_config(c)
+  c.plan.num_prior_candidates = 2
+  validate_config(c)
+  assert exploration.acting_config(c).plan.num_candidates == 2  # The actor prior's alone.
+  assert c.plan.num_candidates == 4  # Evaluation keeps the proposal's.

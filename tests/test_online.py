@@ -5,6 +5,7 @@ The launched smoke runs (buffer, checkpoints, SIGKILL and resume) are tests/e2e/
 """
 
 import csv
+import json
 import math
 import os
 import subprocess
@@ -16,7 +17,8 @@ import numpy as np
 import pytest
 
 from experiments.configs import door_open_online
-from ld_mpc_jax.eval import evaluation_suite
+from ld_mpc_jax.eval import evaluation_suite, run_files
+from ld_mpc_jax.model.search import CANDIDATE_KINDS
 from ld_mpc_jax.runs import online, online_seats
 from ld_mpc_jax.model.models import init_params
 from ld_mpc_jax.plan.planner import make_plan
@@ -167,3 +169,64 @@ def test_update_ratio_zero_warns_once_before_the_work(tmp_path, monkeypatch, cap
   if warnings:
     assert lines[0] == ('warning: config.online.update_ratio=0: no updates; the agent is '
                         'evaluated as it starts (untrained)')
+
+
+def _rows(path):
+  with open(path) as f:
+    return list(csv.DictReader(f))
+
+
+def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, monkeypatch):
+  """One acting wave without the proposal's candidates (`online.act_proposal=False`) and with
+  the annealed intrinsic term: online.csv says who won each planned decision, how spread the
+  candidates' first actions were and the term's weights; report.json and report.md repeat it."""
+  config = door_open_online.get_config('smoke')
+  config.plan.num_prior_candidates, config.online.act_num_gaussian = 2, 3
+  o = config.online
+  o.act_proposal, o.act_schedule = False, 'linear'
+  o.act_pessimism, o.act_pessimism_end, o.act_disagreement = -1.0, 0.0, 2.0
+  o.act_dynamics_draws = 2
+  acting = online.acting_config(config)  # Evaluation keeps the proposal's K - P candidates.
+  assert (acting.plan.num_candidates, config.plan.num_candidates) == (2, 4)
+  _record_policies(config, str(tmp_path / 'run'), monkeypatch)
+  wave = _rows(tmp_path / 'run' / 'online.csv')[1]
+  assert wave['acting'] == 'planner' and int(wave['planned']) == 20  # 2 envs x 10 decisions.
+  won = {k: float(wave[f'won_{k}']) for k in CANDIDATE_KINDS}
+  assert won['proposal'] == 0.0 and won['refined'] == 0.0  # None drawn; no refinement.
+  assert won['actor_prior'] + won['gaussian'] == pytest.approx(1.0)
+  assert math.isnan(float(wave['spread_proposal']))  # No proposal candidate to spread.
+  assert 0.05 < float(wave['spread_first']) <= 1.0  # Actions in [-1, 1]; the Gaussians spread.
+  # The first planner wave acts with the schedule's start values (seed steps: 40).
+  assert (float(wave['act_pessimism']), float(wave['act_disagreement'])) == (-1.0, 2.0)
+  with open(tmp_path / 'run' / 'report.json') as f:
+    whole = json.load(f)['acting']['whole']
+  assert whole['planned'] == 20 and whole['spread_proposal'] is None
+  assert whole['won_gaussian'] == pytest.approx(won['gaussian'])
+  assert whole['spread_first'] == pytest.approx(float(wave['spread_first']))
+  with open(tmp_path / 'run' / 'report.md') as f:
+    assert f"| whole run | 20 | 0% | {won['actor_prior']:.0%} |" in f.read()
+
+
+def test_acting_summary_weights_each_wave_by_its_planned_decisions(tmp_path):
+  from ld_mpc_jax.runs import online_report  # pylint: disable=g-import-not-at-top
+  nan = float('nan')
+  waves = [dict(env_steps=800, planned=0, won_proposal=nan, won_actor_prior=nan, departed=nan,
+                spread_first=nan, spread_proposal=nan),
+           dict(env_steps=1600, planned=10, won_proposal=0.2, won_actor_prior=0.8, departed=0.5,
+                spread_first=0.4, spread_proposal=0.1),
+           dict(env_steps=2400, planned=30, won_proposal=0.6, won_actor_prior=0.4, departed=0.9,
+                spread_first=0.2, spread_proposal=nan)]
+  for row in waves:
+    run_files.append_csv(str(tmp_path / 'online.csv'), row)
+  acting = online_report.acting_summary(str(tmp_path), every=2000)
+  whole = acting['whole']
+  assert whole['planned'] == 40 and whole['env_steps'] == 2400
+  assert whole['won_proposal'] == pytest.approx((0.2 * 10 + 0.6 * 30) / 40)
+  assert whole['departed'] == pytest.approx((0.5 * 10 + 0.9 * 30) / 40)
+  assert whole['spread_first'] == pytest.approx((0.4 * 10 + 0.2 * 30) / 40)
+  assert whole['spread_proposal'] == pytest.approx(0.1)  # The wave without one is left out.
+  assert [(s['env_steps'], s['planned']) for s in acting['spans']] == [(1600, 10), (2400, 30)]
+  assert acting['spans'][0]['won_proposal'] == pytest.approx(0.2)
+  lines = online_report.acting_md(acting)
+  assert '| to 1,600 | 10 | 20% | 80% | 50% | 0.400 | 0.100 |' in lines
+  assert '| whole run | 40 | 50% | 50% | 80% | 0.250 | 0.100 |' in lines

@@ -141,7 +141,7 @@ def test_acting_policy_has_no_noise_unless_set(smoke_config, smoke_params):
   eps = [goals.Episode('x', i, 0, i, '', None) for i in range(2)]
   policy.start(eps)
   quiet = policy(obs, 0, np.ones(2, bool))
-  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 4)
+  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 6)
   policy.start(eps)
   policy.action_noise = 0.5
   noisy = policy(obs, 0, np.ones(2, bool))
@@ -391,15 +391,15 @@ def test_gates_act_only_with_safe_selection(smoke_config, smoke_params, z):
 
 def test_score_draws_batch_the_same_draws_as_one_after_another():
   """Draw i rolls with fold_in(key, i), whether the draws run in one batch or a loop."""
-  from ld_mpc_jax.plan.planner import _make_score_draws
-  from ld_mpc_jax.model.objective import combine
+  from ld_mpc_jax.model.objective import combine, make_score_draws
   def roll(params, z, proposals, key):
     lats = z + jax.random.normal(key, proposals.shape[:2] + (3,))
     return proposals + lats[..., :1], lats
   def members(params, lats, acts):  # [M = 2, N]
     return jnp.stack([jnp.sum(lats, axis=(1, 2)), jnp.sum(acts, axis=(1, 2)) - params])
   proposals, key, z = jnp.ones((5, 4, 2)), jax.random.key(3), jnp.float32(0.5)
-  actions, scores, everything = _make_score_draws(members, 6, 1.0)(0.25, z, proposals, key, roll)
+  actions, scores, everything = make_score_draws(members, 6, 1.0, 0.9)(0.25, z, proposals, key,
+                                                                         roll)
   loop = [roll(0.25, z, proposals, jax.random.fold_in(key, i)) for i in range(6)]
   expected = jnp.stack([members(0.25, lats, acts) for acts, lats in loop])  # [6, 2, 5]
   np.testing.assert_allclose(everything, expected.reshape(12, 5), rtol=1e-6)
@@ -485,3 +485,12 @@ def test_fallback_settings_fail_in_one_line(smoke_config):
   c.plan.fallback_drop = 1.5
   with pytest.raises(ValueError, match='fallback_drop must be in'):
     make_plan(c)
+
+
+def test_first_action_spread_is_the_mean_std_of_first_actions():
+  actions = jnp.zeros((4, 3, 2)).at[:, 0, 0].set(jnp.array([-1.0, 1.0, -1.0, 1.0]))
+  actions = actions.at[:, 1:].set(5.0)  # Later steps do not count.
+  assert float(search.first_action_spread(actions)) == pytest.approx(0.5)  # (1 + 0) / 2.
+  mask = jnp.array([True, False, True, False])  # Two equal first actions: no spread.
+  assert float(search.first_action_spread(actions, mask)) == 0.0
+  assert float(search.first_action_spread(actions, jnp.zeros(4, bool))) == -1.0  # None.

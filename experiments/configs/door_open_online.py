@@ -38,6 +38,26 @@ def online_settings() -> ml_collections.ConfigDict:
   # steers away from exactly the unfamiliar states exploration should reach (TD-MPC2 has none).
   # Negative = optimism: mean + |act_pessimism| std, a bonus for what the ensemble disputes.
   o.act_pessimism = 0.0
+  # Intrinsic exploration in J while acting (objective.Intrinsic; never in evaluation), for runs
+  # without demonstrations. 'constant': act_pessimism and act_disagreement as set; 'linear':
+  # both linear from those values at the first planner wave to *_end at env_steps, traced
+  # arguments of the plan (no recompiling). OAC (Ciosek et al. 2019) and Plan2Explore keep their
+  # bonus constant; the annealing is this project's, like the executed-action noise's.
+  o.act_schedule = 'constant'
+  o.act_pessimism_end = 0.0  # Optimism (UCB over the value ensemble, as OAC's upper bound) -> 0.
+  # Weight in J of the dynamics draws' disagreement about the latents a candidate reaches (sum
+  # over the horizon of gamma^i x the variance over draws of z_{i+1}, mean over dimensions):
+  # Plan2Explore (Sekar et al. 2020) with the diffusion dynamics' draws as its ensemble. J is in
+  # reward units, a latent's variance at most about 1 (RMS-normalised). Needs >= 2 draws.
+  o.act_disagreement = 0.0
+  o.act_disagreement_end = 0.0  # Its end value under act_schedule='linear'.
+  # Dynamics rollouts per candidate while acting (0: plan.dynamics_draws, evaluation's): the
+  # ensemble of the disagreement term, so evaluation can keep one draw (Plan2Explore: 10 heads).
+  o.act_dynamics_draws = 0
+  # The diffusion proposal's candidates while acting (evaluation keeps them): False leaves the
+  # actor prior's and the search's, to measure whether the proposal adds to exploration (the
+  # issue's "does the diffusion proposal explore?"; refined candidates won 86-89% on sparse).
+  o.act_proposal = True
   # Safe selection while acting (evaluation keeps plan.safe_selection): off, so that acting
   # departs from the actor prior wherever the argmax says, and the data shows whether it was
   # right; a margin that keeps the actor prior belongs to what is executed when it counts.

@@ -252,7 +252,8 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
     raise ValueError("config.online.act_safe_selection needs the actor prior's own sequence as a "
                      'candidate: config.plan.num_prior_candidates >= 1')
   _validate_acting_search(config)
-  # act_pessimism < 0 is optimism while acting: mean + |act_pessimism| std of the value ensemble.
+  # act_pessimism < 0 is optimism while acting: mean + |act_pessimism| std of the value ensemble
+  # (annealed under act_schedule='linear', ld_mpc_jax.model.exploration).
 
 
 def _validate_acting_search(config: ml_collections.ConfigDict) -> None:
@@ -263,6 +264,7 @@ def _validate_acting_search(config: ml_collections.ConfigDict) -> None:
     if not isinstance(o[name], int) or o[name] < 0:
       raise ValueError(f'config.online.{name} must be an integer >= 0, got {o[name]!r}')
   search.validate_search(config)  # The evaluation planner's (make_plan checks it again).
+  exploration.validate_acting(config)
   try:  # Then the acting planner's.
     search.validate_search(exploration.acting_config(config))
   except ValueError as err:

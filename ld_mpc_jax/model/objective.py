@@ -10,11 +10,13 @@ V_m(z_H) from the value kind (`config.critic.value`, one registry entry per kind
   'behaviour'  the sequence objective's own value head read at z_H (n-step returns of the data,
                the behaviour policy's value); M = 1. Its loss term is `Behaviour.loss`.
 The planner, MPPI on the learned model and the diagnostics all score with `make_score` or
-`make_member_scores`.
+`make_member_scores`; the planner averages J over dynamics draws with `make_score_draws`, which
+adds the acting planner's intrinsic term (`Intrinsic`) when it is given one.
 """
 
 from typing import Callable, Optional
 
+import flax
 import jax
 import jax.numpy as jnp
 import ml_collections
@@ -33,6 +35,79 @@ VALUES = Registry('value', 'config.critic.value')
 def combine(members: jnp.ndarray, pessimism: float) -> jnp.ndarray:
   """Member scores [M, ...] -> [...]: mean - pessimism x std over the members (std 0 for M = 1)."""
   return jnp.mean(members, axis=0) - pessimism * jnp.std(members, axis=0)
+
+
+def _centred(x: jnp.ndarray, axis: int) -> jnp.ndarray:
+  """x minus its mean over `axis`, computed on the deviations from the first entry along it, so
+  that it is exactly 0 where all entries are equal (the mean of equal floats can round away from
+  them, and jnp.std's deviations would not be 0)."""
+  dev = x - jax.lax.index_in_dim(x, 0, axis)
+  return dev - jnp.mean(dev, axis=axis, keepdims=True)
+
+
+def stable_std(x: jnp.ndarray, axis: int = 0) -> jnp.ndarray:
+  """The std over `axis`; exactly 0 where all entries along it are equal (`_centred`)."""
+  return jnp.sqrt(jnp.mean(_centred(x, axis) ** 2, axis=axis))
+
+
+def latent_disagreement(latents: jnp.ndarray, gamma: float) -> jnp.ndarray:
+  """[R, N, H+1, D] latents of N candidates under R dynamics draws -> [N]: sum_{i<H} gamma^i x
+  the variance over the draws of z_{i+1}, averaged over the latent dimensions (Plan2Explore's
+  ensemble variance of the next embedding, here over the dynamics model's stochastic draws);
+  exactly 0 where the draws agree (one draw, or deterministic dynamics)."""
+  per_step = jnp.mean(jnp.mean(_centred(latents[:, :, 1:], 0) ** 2, axis=0), axis=-1)  # [N, H]
+  return jnp.sum(gamma ** jnp.arange(per_step.shape[-1]) * per_step, axis=-1)
+
+
+@flax.struct.dataclass
+class Intrinsic:
+  """The acting planner's intrinsic term of J, traced scalars (annealing never recompiles;
+  ld_mpc_jax.model.exploration schedules them; evaluation never passes one):
+
+    J_act = J - pessimism x std_m(J_m) + disagreement x D,
+
+  std_m the std over the value members (`stable_std`, mean over the dynamics draws): pessimism < 0 is an
+  optimism bonus for what the ensemble disputes (UCB; OAC, Ciosek et al. 2019); D the dynamics
+  draws' disagreement about the latents a candidate reaches (`latent_disagreement`; Plan2Explore,
+  Sekar et al. 2020). Both are exactly 0 where the members and the draws agree."""
+  pessimism: jnp.ndarray  # [] float32
+  disagreement: jnp.ndarray  # [] float32
+
+
+def intrinsic_term(members: jnp.ndarray, latents: jnp.ndarray, intrinsic: Intrinsic,
+                   gamma: float) -> jnp.ndarray:
+  """members [R, M, N] and latents [R, N, H+1, D] of R dynamics draws -> [N]: what `Intrinsic`
+  adds to J (the disagreement term only with R > 1)."""
+  term = -intrinsic.pessimism * jnp.mean(stable_std(members, axis=1), axis=0)
+  if latents.shape[0] > 1:
+    term = term + intrinsic.disagreement * latent_disagreement(latents, gamma)
+  return term
+
+
+def make_score_draws(member_fn: ScoreFn, draws: int, pessimism: float,
+                     gamma: float) -> Callable:
+  """score(params, z, proposals, key, roll, intrinsic=None) -> (actions [N, H, A], scores [N],
+  members [draws x M, N]): J per draw combined over the value members (`combine`), averaged over
+  `draws` rollouts of the same candidates, plus `intrinsic_term` when an `Intrinsic` is given
+  (acting). `roll(params, z, proposals, key) -> (actions, latents [N, H+1, D])`; draw i rolls
+  with fold_in(key, i); the draws run as one batch (vmap over their keys: the same draws as one
+  after another, in one pass of the rollout's sequential steps)."""
+  def score_draws(params, z, proposals_, key, roll, intrinsic=None):
+    def one(i):
+      acts, lats = roll(params, z, proposals_, jax.random.fold_in(key, i))
+      return acts, member_fn(params, lats, acts), lats
+    if draws == 1:
+      actions, members, latents = one(0)
+      scores, members, latents = combine(members, pessimism), members[None], latents[None]
+    else:  # [draws, N, H, A], [draws, M, N], [draws, N, H+1, D]
+      all_actions, members, latents = jax.vmap(one)(jnp.arange(draws))
+      actions = all_actions[0]  # Draw 0's: actor-prior candidates act along their own rollout.
+      scores = jnp.mean(jax.vmap(lambda m: combine(m, pessimism))(members), axis=0)
+    if intrinsic is not None:
+      scores = scores + intrinsic_term(members, latents, intrinsic, gamma)
+    return actions, scores, members.reshape((-1,) + members.shape[2:])
+
+  return score_draws
 
 
 def make_terminal_members(config: ml_collections.ConfigDict, critics: Critics) -> Callable:

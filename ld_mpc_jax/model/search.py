@@ -112,6 +112,18 @@ def first_round_counts(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, in
                for name in config.plan.first_round)
 
 
+def first_action_spread(actions: jnp.ndarray, mask: Optional[jnp.ndarray] = None) -> jnp.ndarray:
+  """actions [K, H, A] -> []: the std over the candidates of their first action (the one
+  executed), averaged over the action dimensions: how diverse the candidates are. Only those
+  where `mask` [K] is True; -1 where that leaves none."""
+  first = actions[:, 0]
+  w = (jnp.ones(first.shape[:1]) if mask is None else mask.astype(first.dtype))[:, None]
+  n = jnp.maximum(jnp.sum(w), 1.0)
+  mean = jnp.sum(w * first, axis=0) / n
+  std = jnp.sqrt(jnp.sum(w * (first - mean) ** 2, axis=0) / n)
+  return jnp.where(jnp.sum(w) > 0, jnp.mean(std), -1.0)
+
+
 SELECTIONS = ('argmax', 'softmax')
 MARGIN_SCALINGS = ('none', 'expected_max')
 

@@ -62,7 +62,9 @@ def _online_fields(config: ml_collections.ConfigDict) -> dict:
               act_safe_selection=p.safe_selection, train_goals='mt1',
               act_num_gaussian=p.num_gaussian, act_iterations=p.iterations, demos=0,
               demo_path='', demo_noise_std=0.1, demo_share_start=0.5, demo_share_end=0.25,
-              demo_pretrain_updates=0, demo_seed_actor=False)
+              demo_pretrain_updates=0, demo_seed_actor=False, act_schedule='constant',
+              act_pessimism_end=0.0, act_disagreement=0.0, act_disagreement_end=0.0,
+              act_dynamics_draws=0, act_proposal=True)
 
 
 def to_v1(config: ml_collections.ConfigDict) -> None:

@@ -26,8 +26,9 @@ from ld_mpc_jax.plan.modes import (  # noqa: F401 (the modes' names, re-exported
 
 
 def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
-  """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0) -> (action [A],
-  carry, info [4] int32: NO_PLAN_INFO's fields).
+  """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0, intrinsic=None) ->
+  (action [A], carry, info [6] float32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
+  (objective.Intrinsic; acting only) are traced: annealing them never recompiles.
 
   The decision's key is fold_in(key, t). `prev` is the previous decision's carry (or None at
   the start of an episode); only the planner with `plan.warm_start_steps` > 0 or
@@ -36,10 +37,15 @@ def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   (sequence, planner.Guard).
   """
   act = make_act_fn(config, mode)
-  jitted = jax.jit(lambda params, obs, key, t, prev, noise: act(
-      params, obs, jax.random.fold_in(key, t), prev, noise))
-  return lambda params, obs, key, t, prev, noise=0.0: jitted(
-      params, obs, key, t, prev, jnp.asarray(noise, jnp.float32))
+  jitted = jax.jit(lambda params, obs, key, t, prev, noise, intrinsic: act(
+      params, obs, jax.random.fold_in(key, t), prev, noise, intrinsic))
+  return lambda params, obs, key, t, prev, noise=0.0, intrinsic=None: jitted(
+      params, obs, key, t, prev, jnp.asarray(noise, jnp.float32), float32_tree(intrinsic))
+
+
+def float32_tree(tree):
+  """Scalars as float32 arrays (Python floats and NumPy scalars trace alike: one compile)."""
+  return jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float32), tree)
 
 
 def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
@@ -50,9 +56,10 @@ def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
 
 def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
                    chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
-  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise []).
+  """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise [],
+  intrinsic=None).
 
-  -> (actions [N, A], sequences [N, H, A], infos [N, 4]): `jax.lax.map` of the
+  -> (actions [N, A], sequences [N, H, A], infos [N, 6]): `jax.lax.map` of the
   single-environment act over the N environments, `chunk` at a time under `jax.vmap` (None: all N in one vmap). Inactive
   environments (episode over) return zeros; with chunk = 1 they are skipped (lax.cond), under a
   vmap they are computed and discarded. `prev` is [N, H, A] or None (the first decision).
@@ -62,28 +69,28 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
   """
   act = make_act_fn(config, mode)
 
-  def one(params, t, noise, has_prev, inputs):
+  def one(params, t, knobs, has_prev, inputs):  # knobs: (noise, intrinsic), acting's.
     obs, key, prev, active = inputs
     key = jax.random.fold_in(key, t)
     prev = prev if has_prev else None
-    run = lambda: act(params, obs, key, prev, noise)
+    run = lambda: act(params, obs, key, prev, *knobs)
     zeros = lambda: jax.tree_util.tree_map(jnp.zeros_like, jax.eval_shape(run))
     return jax.lax.cond(active, run, zeros)
 
-  def local_act(has_prev, params, obs, keys, t, prev, active, noise):
+  def local_act(has_prev, params, obs, keys, t, prev, active, knobs):
     n = obs.shape[0]
-    return jax.lax.map(lambda x: one(params, t, noise, has_prev, x), (obs, keys, prev, active),
+    return jax.lax.map(lambda x: one(params, t, knobs, has_prev, x), (obs, keys, prev, active),
                        batch_size=min(chunk or n, n))
 
-  def batch_act(params, obs, keys, t, prev, active, noise=0.0):
-    noise = jnp.asarray(noise, jnp.float32)
+  def batch_act(params, obs, keys, t, prev, active, noise=0.0, intrinsic=None):
+    knobs = (jnp.asarray(noise, jnp.float32), float32_tree(intrinsic))
     n = obs.shape[0]
     has_prev = prev is not None
     if not has_prev:  # Placeholders of the carry's shapes (the first decision ignores them).
-      carry = jax.eval_shape(lambda: act(params, obs[0], keys[0], None, noise)[1])
+      carry = jax.eval_shape(lambda: act(params, obs[0], keys[0], None, *knobs)[1])
       prev = jax.tree_util.tree_map(lambda x: jnp.zeros((n,) + x.shape, x.dtype), carry)
     if mesh is None:
-      return local_act(has_prev, params, obs, keys, t, prev, active, noise)
+      return local_act(has_prev, params, obs, keys, t, prev, active, knobs)
     pad = -n % mesh.size  # Inactive rows, so that every device gets the same share.
     grow = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x
     obs, keys, prev = grow(obs), grow(keys), jax.tree_util.tree_map(grow, prev)
@@ -93,7 +100,7 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
     out = jax.shard_map(lambda *args: local_act(has_prev, *args), mesh=mesh,
                         in_specs=(whole, split, split, whole, split, split, whole),
                         out_specs=split, check_vma=False)(params, obs, keys, t, prev, active,
-                                                          noise)
+                                                          knobs)
     return jax.tree_util.tree_map(lambda x: x[:n], out)
 
   return jax.jit(batch_act)
@@ -138,9 +145,9 @@ class BatchAgentPolicy:
                           else make_batch_act(config, mode, chunk, mesh))
     self.act = _BATCH_ACTS[key]
     self.keys = self.prev = None
-    # Std of the noise on the executed action (the planner, while acting; 0 in evaluation).
-    self.action_noise = 0.0
-    self.last_info = None  # [N, 4] int32 of the last decision (NO_PLAN_INFO's fields).
+    # The executed action's noise std and the planner's objective.Intrinsic (acting only).
+    self.action_noise, self.intrinsic = 0.0, None
+    self.last_info = None  # [N, 6] float32 of the last decision (NO_PLAN_INFO's fields).
 
   def set_params(self, params) -> None:
     """The parameters to act with from now on (replicated over the mesh, if any; copied to
@@ -162,15 +169,17 @@ class BatchAgentPolicy:
     obs = jnp.asarray(obs, jnp.float32)
     keys = episode_keys(self.seed, np.arange(obs.shape[0]))
     active = jnp.ones(obs.shape[0], bool)
-    _, seq, _ = self.act(self.params, obs, keys, 0, None, active, self.action_noise)
+    knobs = (self.action_noise, self.intrinsic)
+    _, seq, _ = self.act(self.params, obs, keys, 0, None, active, *knobs)
     jax.block_until_ready(self.act(self.params, obs, keys, 1, seq if self.warm else None, active,
-                                   self.action_noise))
+                                   *knobs))
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
     if self.per_env:
       return self._per_env(obs, t, active)
     actions, sequences, infos = self.act(self.params, jnp.asarray(obs, jnp.float32), self.keys,
-                                         t, self.prev, jnp.asarray(active), self.action_noise)
+                                         t, self.prev, jnp.asarray(active), self.action_noise,
+                                         self.intrinsic)
     if self.warm:
       self.prev = sequences
     self.last_info = np.asarray(infos)
@@ -180,10 +189,11 @@ class BatchAgentPolicy:
     if self.prev is None:
       self.prev = [None] * obs.shape[0]
     actions = np.zeros((obs.shape[0], self.action_dim), np.float32)
-    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (obs.shape[0], 1))
+    infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (obs.shape[0], 1))
     for i in np.flatnonzero(active):
       action, sequence, info = self.act(self.params, jnp.asarray(obs[i], jnp.float32),
-                                        self.keys[i], t, self.prev[i], self.action_noise)
+                                        self.keys[i], t, self.prev[i], self.action_noise,
+                                        self.intrinsic)
       if self.warm:
         self.prev[i] = sequence
       actions[i], infos[i] = np.asarray(action), np.asarray(info)
@@ -219,60 +229,3 @@ def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', s
 
   policy.warmup = lambda obs: _compile_single(act, params, obs, state['key'], warm)
   return policy, reset
-
-
-def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
-  """Returns jitted act(params [S, ...], obs [S, obs_dim], keys [S], t [], prev, noise []) ->
-  (actions [S, A], carries, infos [S, 4]): `make_act` vmapped over a leading seed axis of the
-  parameters (S agents of `train.num_seeds`, each on its own environment and key)."""
-  act = make_act_fn(config, mode)
-  one = lambda params, obs, key, t, prev, noise: act(params, obs, jax.random.fold_in(key, t),
-                                                     prev, noise)
-  jitted = jax.jit(jax.vmap(one, in_axes=(0, 0, 0, None, 0, None)))
-  return lambda params, obs, keys, t, prev, noise=0.0: jitted(
-      params, obs, keys, t, prev, jnp.asarray(noise, jnp.float32))
-
-
-class SeedsAgentPolicy:
-  """S agents (stacked parameters [S, ...]) acting on N environments each in lockstep: one
-  jitted call per environment and decision for all S agents (`make_seeds_act`); each agent's
-  episodes keep the key schedule of `BatchAgentPolicy` with its own seed, so an agent acts as
-  it would alone (to float tolerance: the vmapped plan may round differently)."""
-
-  def __init__(self, config: ml_collections.ConfigDict, params, mode: str, seeds: Sequence[int]):
-    self.params, self.seeds = params, list(seeds)
-    self.warm = uses_prev(config, mode)
-    self.action_dim = config.action_dim
-    spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
-    key = (json.dumps(spec, sort_keys=True, default=str), mode, 'seeds')
-    if key not in _BATCH_ACTS:
-      _BATCH_ACTS[key] = make_seeds_act(config, mode)
-    self.act = _BATCH_ACTS[key]
-    self.keys = self.prev = None
-    self.action_noise = 0.0
-    self.last_info = None  # [S, N, 4] int32 of the last decision.
-
-  def set_params(self, params) -> None:
-    self.params = params
-
-  def start(self, episodes) -> None:
-    """episodes[s]: agent s's episodes of the wave (goals.Episode, one per environment)."""
-    self.keys = jnp.stack([episode_keys(seed, [ep.reset_seed for ep in eps])
-                           for seed, eps in zip(self.seeds, episodes)])  # [S, N]
-    self.prev = None
-
-  def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
-    """obs [S, N, obs_dim], active [N] -> actions [S, N, A] (zeros where inactive)."""
-    s, n = obs.shape[:2]
-    if self.prev is None:
-      self.prev = [None] * n
-    actions = np.zeros((s, n, self.action_dim), np.float32)
-    infos = np.tile(np.asarray(NO_PLAN_INFO, np.int32), (s, n, 1))
-    for i in np.flatnonzero(active):
-      action, carry, info = self.act(self.params, jnp.asarray(obs[:, i], jnp.float32),
-                                     self.keys[:, i], t, self.prev[i], self.action_noise)
-      if self.warm:
-        self.prev[i] = carry
-      actions[:, i], infos[:, i] = np.asarray(action), np.asarray(info)
-    self.last_info = infos
-    return actions

@@ -11,6 +11,7 @@ One call of `plan`:
   3. scores each with J = sum_{i<H} gamma^i r_i + gamma^H V(z_H), pessimistic by
      `plan.pessimism` standard deviations over the value members (ld_mpc_jax.model.objective); with
      `plan.dynamics_draws` > 1, J is averaged over that many rollouts of the same candidates;
+     while acting, an intrinsic exploration term may be added (objective.Intrinsic);
   4. returns the first action of the argmax candidate, clipped to [-1, 1], and which kind of
      candidate it was (diffusion proposal or actor prior).
 """
@@ -26,9 +27,11 @@ from ld_mpc_jax.ops import config_cache, diffusion
 from ld_mpc_jax.model import dynamics, proposals, search
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.models import Networks, build_networks
-from ld_mpc_jax.model.objective import ScoreFn, as_members, combine, make_member_scores, make_score
+from ld_mpc_jax.model.objective import (Intrinsic, ScoreFn, as_members, make_member_scores,
+                                       make_score, make_score_draws)
 from ld_mpc_jax.model.search import (CANDIDATE_KINDS, CANDIDATES, Pool, beats, effective_margin,
-                               first_round_counts, refine, select, validate_search)
+                                     first_action_spread, first_round_counts, refine, select,
+                                     validate_search)
 
 __all__ = ['CANDIDATE_KINDS', 'Guard', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
            'make_rollout', 'make_member_scores', 'shift_sequence']
@@ -70,6 +73,10 @@ class PlanOutput:
   departed: jnp.ndarray  # [] bool: the executed sequence is not the actor prior's own.
   prior_score: jnp.ndarray  # [] J of the actor prior's own sequence (NaN without one).
   guard: Guard  # The fallback's state after this decision: pass it to the next call.
+  # [2] spread of the first actions (search.first_action_spread) of the first round's candidates,
+  # and of the proposal's alone (-1 without any): how diverse what the planner tries is.
+  # Measured while acting (an `intrinsic` given), else -1: evaluation's program stays as it was.
+  spread: jnp.ndarray
 
 
 def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
@@ -204,27 +211,6 @@ def _make_first_round(config: ml_collections.ConfigDict, nets: Networks) -> Call
   return first
 
 
-def _make_score_draws(member_fn: Callable, draws: int, pessimism: float) -> Callable:
-  """score(params, z, proposals, key, roll) -> (actions [N, H, A], scores [N], members
-  [draws x M, N]): J per draw combined over the value members, averaged over `draws` rollouts
-  of the same candidates. Draw i rolls with fold_in(key, i); the draws run as one batch (vmap
-  over their keys: the same draws as one after another, in one pass of the rollout's
-  sequential steps)."""
-  def score_draws(params, z, proposals_, key, roll):
-    def one(i):
-      acts, lats = roll(params, z, proposals_, jax.random.fold_in(key, i))
-      return acts, member_fn(params, lats, acts)
-    if draws == 1:
-      actions, members = one(0)
-      return actions, combine(members, pessimism), members
-    all_actions, everything = jax.vmap(one)(jnp.arange(draws))  # [draws, N, H, A], [draws, M, N]
-    actions = all_actions[0]  # Draw 0's: actor-prior candidates act along their own rollout.
-    scores = jnp.mean(jax.vmap(lambda m: combine(m, pessimism))(everything), axis=0)
-    return actions, scores, everything.reshape((-1,) + everything.shape[2:])
-
-  return score_draws
-
-
 def _first_kinds(config: ml_collections.ConfigDict) -> jnp.ndarray:
   """[N + P] int32 candidate kinds of the first round, in the candidates' order."""
   return jnp.concatenate(
@@ -236,15 +222,15 @@ def _first_kinds(config: ml_collections.ConfigDict) -> jnp.ndarray:
 def _make_refine(config: ml_collections.ConfigDict, score_draws: Callable,
                  plain_rollout: Callable) -> Optional[Callable]:
   """`plan.iterations` refinement rounds (ld_mpc_jax.model.search.refine), or None without:
-  refine(params, z, key, first: Pool) -> the first round's pool with the rounds' elites
-  appended, and `unique` [K'] bool (elites kept from the first round appear twice: once only in
-  the softmax over elites)."""
+  refine(params, z, key, first: Pool, intrinsic) -> the first round's pool with the rounds'
+  elites appended, and `unique` [K'] bool (elites kept from the first round appear twice: once
+  only in the softmax over elites)."""
   p = ml_collections.ConfigDict(config.plan.to_dict())
   if not p.iterations:
     return None
-  def refine_pool(params, z, key, first):
+  def refine_pool(params, z, key, first, intrinsic):
     def score_samples(samples, k):  # (scores [N], members): as the first round's.
-      return score_draws(params, z, samples, k, plain_rollout)[1:]
+      return score_draws(params, z, samples, k, plain_rollout, intrinsic)[1:]
     pool = refine(score_samples, first, jax.random.fold_in(key, 10_000), p.iterations,
                   p.num_refine, p.num_elites, p.temperature, p.min_std, p.gaussian_std)
     merged = Pool(*(jnp.concatenate([x, y], axis=1 if name == 'members' else 0)
@@ -294,17 +280,19 @@ def make_plan(config: ml_collections.ConfigDict,
       (params, latents [K, H+1, D], actions [K, H, A]) -> J [K] or J per member [M, K]; for
       tests and custom objectives.
   Returns:
-    plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0, guard=None) ->
-    PlanOutput, one jitted pure function, the same one for every config of the same value in
-    this process (ld_mpc_jax.ops.config_cache; a `score_fn` always builds a new one). With
-    `plan.warm_start_steps` > 0, passing the previous call's `sequence` as `prev_sequence`
-    warm-starts the proposal (and centres the Gaussian set) on it,
-    shifted by one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
+    plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0, guard=None,
+    intrinsic=None) -> PlanOutput, one jitted pure function, the same one for every config of
+    the same value in this process (ld_mpc_jax.ops.config_cache; a `score_fn` always builds a
+    new one). With `plan.warm_start_steps` > 0, passing the previous call's `sequence` as
+    `prev_sequence` warm-starts the proposal (and centres the Gaussian set) on it, shifted by
+    one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
     the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
     `guard` is the previous call's `PlanOutput.guard` in the same episode (None at its start):
     with `plan.fallback_drop` > 0 the planner executes the actor prior's own sequence once the
     objective's value of the state has fallen that far below the episode's peak, a peak above
-    `plan.fallback_floor` (`Guard`).
+    `plan.fallback_floor` (`Guard`). `intrinsic` (acting only; an objective.Intrinsic of
+    traced scalars, so annealing it never recompiles) adds the acting planner's exploration
+    term to J: optimism over the value members and the dynamics draws' disagreement.
 
   The first round holds the kinds of `plan.first_round` (search.CANDIDATES: by default the
   proposal's K - P, then `plan.num_gaussian` broad Gaussian sequences, TD-MPC2's first MPPI
@@ -333,8 +321,8 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
       lambda *args: as_members(score_fn(*args)))
   first_round = _make_first_round(config, nets)
   rollout = make_rollout(config, nets)
-  score_draws = _make_score_draws(member_fn, p.dynamics_draws, p.pessimism)
-  confirm_draws = _make_score_draws(member_fn, p.confirm_draws, p.pessimism)
+  score_draws = make_score_draws(member_fn, p.dynamics_draws, p.pessimism, config.gamma)
+  confirm_draws = make_score_draws(member_fn, p.confirm_draws, p.pessimism, config.gamma)
   # Fixed sequences, no actor-prior rollouts among them: refined samples, and the pair that
   # plan.safe_confirm rolls again.
   plain_rollout = make_rollout(_with_plan(config, num_prior_candidates=0), nets)
@@ -345,26 +333,30 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
   confirm_margin = p.safe_margin if p.confirm_margin < 0 else p.confirm_margin
   confirm, fallback = search.gates(config)  # Inert without plan.safe_selection.
 
-  def plan(params, z, key, prev_sequence=None, action_noise=0.0, guard=None) -> PlanOutput:
+  def plan(params, z, key, prev_sequence=None, action_noise=0.0, guard=None,
+           intrinsic: Optional[Intrinsic] = None) -> PlanOutput:
     if z.shape != (d,):
       raise ValueError(f'plan expects one latent of shape ({d},), got {z.shape}; '
                        'use encode(params, obs) first, and jax.vmap for a batch')
     prop_key, noise_key, dyn_key = jax.random.split(key, 3)
     init = _warm_start(prev_sequence, h, a_dim)
     proposals_ = first_round(params, z, prop_key, noise_key, init)
-    actions, scores, members = score_draws(params, z, proposals_, dyn_key, rollout)
+    actions, scores, members = score_draws(params, z, proposals_, dyn_key, rollout, intrinsic)
     pool = Pool(actions, scores, members, kinds,
                 jnp.zeros(actions.shape[0], jnp.int32))
+    spread = jnp.full(2, -1.0) if intrinsic is None else jnp.stack([  # Measured while acting.
+        first_action_spread(actions),
+        first_action_spread(actions, kinds == CANDIDATES.index('proposal'))])
     unique = None
     if refine_pool is not None:
-      pool, unique = refine_pool(params, z, dyn_key, pool)
+      pool, unique = refine_pool(params, z, dyn_key, pool, intrinsic)
     sequence, index, departed, _ = select(pool.actions, pool.scores, pool.members, anchor,
                                           p.safe_selection, margin, p.selection,
                                           p.num_elites, p.temperature, unique)
     if confirm:  # The departure again, on fresh dynamics draws.
       pair = jnp.stack([sequence, pool.actions[anchor]])
-      _, fresh, fresh_members = confirm_draws(params, z, pair,
-                                              jax.random.fold_in(dyn_key, 20_000), plain_rollout)
+      _, fresh, fresh_members = confirm_draws(
+          params, z, pair, jax.random.fold_in(dyn_key, 20_000), plain_rollout, intrinsic)
       keep = departed & beats(fresh, fresh_members, 0, 1, confirm_margin)
       sequence = jnp.where(keep, sequence, pool.actions[anchor])
       index, departed = jnp.where(keep, index, anchor), keep
@@ -375,6 +367,6 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
     return PlanOutput(action=action, sequence=sequence, scores=pool.scores,
                       candidates=pool.actions, index=index, kind=pool.kind[index],
                       iteration=pool.iteration[index], departed=departed,
-                      prior_score=prior_score, guard=guard)
+                      prior_score=prior_score, guard=guard, spread=spread)
 
   return jax.jit(plan)

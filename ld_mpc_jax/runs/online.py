@@ -45,7 +45,8 @@ from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data, envs
 from ld_mpc_jax.runs import loop as runs, online_report
 from ld_mpc_jax.model.config_checks import validate_config
-from ld_mpc_jax.model.exploration import acting_config, executed_noise
+from ld_mpc_jax.model.exploration import (acting_config, acting_intrinsic, executed_noise,
+                                          plan_start)
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, seed_slice, stack_states
 
@@ -114,13 +115,14 @@ class OnlineJob:
     # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
     # pretrained on them, plus the executed-action noise), learn from the start.
     self.learn_start = 0 if source is not None or o.demos else o.seed_steps
+    self.plan_start = plan_start(config, self.learn_start)  # The intrinsic term's schedule.
     self.per_call = o.updates_per_call
     self.update = make_seeds_update(config, len(self.seats), self.per_call)
     self.keys = jnp.stack([seat.update_key for seat in self.seats])
     # Each seed's update key at an update count: one jitted call, not one per seed.
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.act_config = acting_config(config)
-    self.metrics, self.last, self.noise_std = {}, None, 0.0
+    self.metrics, self.last, self.noise_std, self.intrinsic = {}, None, 0.0, None
     self.runs = SeatRuns(self.seats)
     self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
                          unit='env step', dynamic_ncols=True)
@@ -232,6 +234,7 @@ class OnlineJob:
     mode = self.acting_mode()
     planner = mode != 'random'
     self.noise_std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
+    self.intrinsic = acting_intrinsic(self.config, self.counters['env_steps'], self.plan_start)
     if planner:
       self.catch_up()
     acting = [SeatWave(self, seat, first) for seat in self.seats]

@@ -31,6 +31,7 @@ def report(job, seat, final, summary) -> Dict[str, Any]:
       'num_params': count_params(seat.ema_params(job)),
       'demos': len(buffer.demos), 'reward': config.online.reward,
       'first_training_success': _first_success(workdir),
+      'acting': acting_summary(workdir, config.online.eval_every),
       'buffer': {'online_episodes': len(buffer.episodes),
                  'offline_episodes': (buffer.offline.num_episodes
                                       if buffer.offline is not None else 0)},
@@ -64,7 +65,8 @@ def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
              split=records[0][0]['split'] if records and records[0] else None,
              first_training_success={str(s): r['first_training_success']
                                      for s, r in zip(seeds, reports)},
-             train_seconds=reports[0]['train_seconds'], policies=table)
+             train_seconds=reports[0]['train_seconds'], policies=table,
+             acting={str(s): r['acting']['whole'] for s, r in zip(seeds, reports)})
   lines = [f"# {out['task']}: {len(seeds)} training seeds in one run, "
            f"{out['env_steps']:,} environment steps (simulator steps)", '',
            f"{out['train_seconds']:.0f} s acting and training for all seeds together; final "
@@ -82,11 +84,71 @@ def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
   first = ', '.join(f'seed {s}: {v:,}' if v is not None else f'seed {s}: none'
                     for s, v in zip(seeds, out['first_training_success'].values()))
   lines += ['', f'First successful training episode (environment steps): {first}.', '']
+  table = acting_table([(f'seed {s}', part) for s, part in zip(seeds, out['acting'].values())],
+                       'training seed')
+  lines += [ACTING_INTRO + ' Whole run, per seed:', '', *table, ''] if table else []
   with open(os.path.join(workdir, POOLED_JSON), 'w') as f:
     json.dump(out, f, indent=2)
   with open(os.path.join(workdir, POOLED_MD), 'w') as f:
     f.write('\n'.join(lines))
   return out
+
+
+def _weighted(rows: List[dict], column: str) -> Optional[float]:
+  """The mean of a per-wave share or mean over the waves' planned decisions (None: none)."""
+  pairs = [(float(r[column]), int(r['planned'])) for r in rows
+           if r.get(column) not in (None, '') and int(r['planned'])]
+  pairs = [(v, n) for v, n in pairs if v == v]  # Columns without a value are NaN.
+  total = sum(n for _, n in pairs)
+  return sum(v * n for v, n in pairs) / total if total else None
+
+
+def acting_summary(workdir: str, every: int) -> Dict[str, Any]:
+  """How the planner acted, from online.csv: the share of planned decisions won by each kind of
+  candidate (`won_<kind>`) and that departed from the actor prior, and the mean spread of the
+  candidates' first actions (of the first round's, and of the proposal's), over the whole run
+  and per `every` environment steps (the held-out evaluations' spacing), weighted by each wave's
+  planned decisions. Waves logged before online.csv had a `planned` column are left out."""
+  rows = [r for r in run_files.read_csv(os.path.join(workdir, ONLINE_CSV))
+          if r.get('planned') not in (None, '')]
+  columns = [k for k in (rows[0] if rows else {})
+             if k.startswith('won_') or k in ('departed', 'spread_first', 'spread_proposal')]
+  def summary(part, env_steps):
+    return dict(env_steps=env_steps, planned=sum(int(r['planned']) for r in part),
+                **{k: _weighted(part, k) for k in columns})
+  spans = {}
+  for r in rows:
+    spans.setdefault(-(-int(r['env_steps']) // every), []).append(r)
+  return dict(whole=summary(rows, int(rows[-1]['env_steps']) if rows else 0),
+              spans=[summary(part, int(part[-1]['env_steps']))
+                     for _, part in sorted(spans.items())])
+
+
+ACTING_INTRO = ("While acting (training waves, with exploration): the share of planned decisions "
+                "won by each kind of candidate, that departed from the actor prior's own sequence, "
+                "and the spread of the candidates' first actions (std over candidates, mean over "
+                "action dimensions; the first round's, the proposal's).")
+
+
+def acting_table(rows: List[tuple], first: str) -> List[str]:
+  """A markdown table of `acting_summary` parts: rows of (label, summary); [] without a planned
+  decision."""
+  rows = [(label, part) for label, part in rows if part['planned']]
+  if not rows:
+    return []
+  names = [k for k in rows[0][1] if k not in ('env_steps', 'planned')]
+  show = lambda v, k: '-' if v is None else f'{v:.3f}' if k.startswith('spread') else f'{v:.0%}'
+  lines = [f"| {first} | planned decisions | {' | '.join(names)} |",
+           '| --- | --- |' + ' --- |' * len(names)]
+  return lines + [f"| {label} | {part['planned']:,} | "
+                  + ' | '.join(show(part[k], k) for k in names) + ' |' for label, part in rows]
+
+
+def acting_md(acting: Dict[str, Any]) -> List[str]:
+  """report.md's paragraph on `acting_summary`, per span and over the whole run."""
+  table = acting_table([(f"to {r['env_steps']:,}", r) for r in acting['spans']]
+                       + [('whole run', acting['whole'])], 'environment steps')
+  return [ACTING_INTRO, '', *table, ''] if table else []
 
 
 def _first_success(workdir: str) -> Optional[int]:
@@ -122,5 +184,6 @@ def summary_md(report: Dict[str, Any]) -> str:
               f"[{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}] | {r['mean_return']:.1f} |"
               for r in report['curve']]
     lines.append('')
+  lines += acting_md(report['acting'])
   return runs.summary_md(f"LD-MPC online on {report['task']}", lines, report,
                          'Final evaluation, EMA parameters: ', 'training')

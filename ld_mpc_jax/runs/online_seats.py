@@ -13,10 +13,11 @@ from ld_mpc_jax import data, envs
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.ops import sharding
-from ld_mpc_jax.plan.agent import BatchAgentPolicy, SeedsAgentPolicy
+from ld_mpc_jax.plan.agent import BatchAgentPolicy
+from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
 from ld_mpc_jax.data.demos import get_demos
 from ld_mpc_jax.data.online_buffer import Buffer
-from ld_mpc_jax.model.exploration import ar1_noise, executed_noise
+from ld_mpc_jax.model.exploration import acting_exploration, ar1_noise, executed_noise
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.model.search import CANDIDATES
@@ -52,6 +53,7 @@ class Seat:
                  for _ in range(o.num_envs)]
     self.update_key = jax.random.key(config.seed + 1)
     self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
+    self.spreads = []  # Each planned decision's first-action spreads [2] (agent.NO_PLAN_INFO).
     self.dense_max, self.episodes, self.policy = 0.0, [], None
 
   def ema_params(self, job):
@@ -75,7 +77,8 @@ class Seat:
                departed=float(self.winners[-1] / decisions),
                exec_noise=executed_noise(self.config, before, job.learn_start)
                if mode != 'random' else float('nan'),
-               env_steps_per_s=(step - before) / seconds)
+               env_steps_per_s=(step - before) / seconds,
+               **self._acting_columns(job, before, mode))
     run_files.append_csv(os.path.join(self.run.workdir, ONLINE_CSV), row)
     if metrics:  # Losses of the wave's last update, from the first update on.
       run_files.append_csv(os.path.join(self.run.workdir, LOSSES_CSV),
@@ -83,6 +86,19 @@ class Seat:
     for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
       if k != 'acting' and np.isfinite(v):  # NaN marks "not measured" in the CSV only.
         self.run.writer.add_scalar(f'online/{k}', v, step)
+
+  def _acting_columns(self, job, before: int, mode: str) -> dict:
+    """The wave's planned decisions, the mean spread of their candidates' first actions (of
+    the first round's, and of the proposal's alone) and the intrinsic term's scheduled weights;
+    NaN where nothing was planned. (Last in the row: a run resumed from code without them keeps
+    its earlier columns in place.)"""
+    spreads = np.asarray(self.spreads, np.float64).reshape(-1, 2)
+    mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
+    pessimism, disagreement = (acting_exploration(self.config, before, job.plan_start)
+                               if mode == 'plan' else (float('nan'),) * 2)
+    return dict(planned=int(self.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
+                spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
+                act_disagreement=disagreement)
 
 
 class SeatRuns:
@@ -117,9 +133,10 @@ class WavePolicy:
       self.inner.start([w.episodes for w in waves])
     # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
     self.inner.action_noise = 0.0 if o.exec_noise_corr > 0 else job.noise_std
+    self.inner.intrinsic = job.intrinsic  # The planner's intrinsic term, this wave's weights.
 
   def __call__(self, obs, t: int, active: np.ndarray):
-    """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 4] or None)."""
+    """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 6] or None)."""
     if self.single:
       actions = self.inner(obs[0], t, active)
       return [actions], [self.inner.last_info]
@@ -149,11 +166,11 @@ class SeatWave:
     self.noise = np.zeros((n, job.config.action_dim))
     self.noise_rng = np.random.default_rng([seed, first, 29])
     seat.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
-    seat.dense_max = 0.0
+    seat.spreads, seat.dense_max = [], 0.0
 
   def step(self, actions: Optional[np.ndarray], infos: Optional[np.ndarray]) -> int:
     """One decision in each active environment, with the policy's `actions` [N, A] and
-    `infos` [N, 4] (None: uniform random actions); returns the environment steps taken, summed
+    `infos` [N, 6] (None: uniform random actions); returns the environment steps taken, summed
     over the environments (`info['substeps']`)."""
     o, seat, n = self.job.config.online, self.seat, len(self.seat.envs)
     if actions is not None:
@@ -178,13 +195,15 @@ class SeatWave:
     return substeps
 
   def _count_winners(self, infos) -> None:
-    """Which kind of candidate won each acting decision; the last entry counts departures."""
+    """Which kind of candidate won each acting decision (the last entry counts departures), and
+    the spreads of its candidates' first actions."""
     if infos is None:
       return
     for info_i in infos[self.active]:
       if info_i[0] >= 0:
-        self.seat.winners[info_i[0]] += 1
-      self.seat.winners[-1] += info_i[2]
+        self.seat.winners[int(info_i[0])] += 1
+        self.seat.spreads.append(info_i[4:6])
+      self.seat.winners[-1] += int(info_i[2])
 
   def finish(self):
     return [dict(obs=np.asarray(e['obs'], np.float32),
