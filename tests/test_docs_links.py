@@ -12,7 +12,6 @@ import os
 import re
 import urllib.parse
 
-import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MAX_DOCS_LINES = 1800
