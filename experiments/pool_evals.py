@@ -107,6 +107,16 @@ def read_joined(arg: str) -> list:
   return records
 
 
+def _noise_records(result: dict) -> list:
+  """A file's noise-sweep records; a sweep without std 0 gets the file's protocol records as
+  std 0 (the same held-out episodes without noise), as bc_baseline --noise_stds writes it."""
+  sweep = result.get('noise_sweep', {}).get('records', [])
+  if sweep and not any(float(r['obs_noise']) == 0 for r in sweep):
+    sweep = [dict(r, obs_noise=0.0) for r in result.get('records') or []
+             if r.get('split', 'held_out') == 'held_out'] + sweep
+  return sweep
+
+
 def main(paths: list) -> None:
   if any(p in ('-h', '--help', '-help') for p in paths):
     print(__doc__.strip())
@@ -129,8 +139,7 @@ def main(paths: list) -> None:
             f'below has all {len(records)} records.\n')
   print(evaluation_suite.markdown(pool(results, paths)), end='')
   noisy = [{**r, 'run': name} for name in paths for part in name.split('+')
-           if not part.endswith(('.csv', '.csv.gz'))
-           for r in read_json(part).get('noise_sweep', {}).get('records', [])]
+           if not part.endswith(('.csv', '.csv.gz')) for r in _noise_records(read_json(part))]
   if noisy:
     from ld_mpc_jax.eval import noise_sweep  # pylint: disable=g-import-not-at-top
     rows = noise_sweep.table(noisy)

@@ -247,3 +247,23 @@ def test_joined_files_are_one_run_whose_policies_pair(tmp_path, capsys):
   with pytest.raises(SystemExit):
     pool_evals.read_joined('+'.join(paths))
   assert 'not the same checkpoints' in capsys.readouterr().err
+
+
+def test_noise_sweeps_pool_with_bc_protocol_records_as_std_zero(tmp_path, capsys):
+  """pool_evals pools noise sweeps over files; a BC file whose sweep lacks std 0 counts its
+  protocol records there; the policies pair on the episodes of each joined file."""
+  import json
+  from experiments import pool_evals
+  rec = lambda policy, ep, ok, std=None: dict(
+      policy=policy, split='held_out', eval_seed=0, episode=ep, run=0, success=ok,
+      **({} if std is None else {'obs_noise': std}))
+  plan = [rec('plan', i, 1, s) for s in (0.0, 0.05) for i in range(4)]
+  (tmp_path / 'ev.json').write_text(json.dumps(dict(
+      records=[rec('plan', i, 1) for i in range(4)], noise_sweep=dict(records=plan))))
+  bc = dict(records=[rec('bc', i, int(i < 3)) for i in range(4)],
+            noise_sweep=dict(records=[rec('bc', i, int(i < 1), 0.05) for i in range(4)]))
+  (tmp_path / 'bc.json').write_text(json.dumps(bc))
+  pool_evals.main([f'{tmp_path}/ev.json+{tmp_path}/bc.json'])
+  out = capsys.readouterr().out
+  assert '| 0 | bc | 3/4 = 0.75 |' in out and '| 0.05 | bc | 1/4 = 0.25 |' in out
+  assert '| 0.05 | bc | 1/4 = 0.25 | [0.05, 0.70] | 0.33 | 3 / 0, p = 0.25 |' in out
