@@ -18,7 +18,6 @@ MAX_DOCS_LINES = 1800
 # Links to records that are still being produced: (file, target) -> why; remove an entry once
 # its target exists.
 PENDING = {
-    ('docs/noise.md', '../results/noise/'): 'the issue 71 noise runs, whose records are to come',
 }
 
 _FENCE = re.compile(r'^\s*(```|~~~)')
