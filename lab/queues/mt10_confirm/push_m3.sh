@@ -1,5 +1,5 @@
 #!/bin/bash
-# push-v3 `medium` (the three checkpoints of docs/records/push_medium_confirm): C8M1 with a first
+# push-v3 `medium` (the three checkpoints of results/records/push_medium_confirm): C8M1 with a first
 # margin of 3 x E[max] against the actor prior on the same 50 held-out episodes per seed
 # (evaluation seed 0). Commit 1cd6f29 (planner code as at 8a0b721, which evaluated the others).
 cd /work/wt40 && . .venv/bin/activate

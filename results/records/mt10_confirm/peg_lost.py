@@ -1,7 +1,7 @@
 """Peg-insert-side, MT10 training seed 1 (peg_seed1.json): which episodes each planner setting
 lost, and its share of decisions departing from the actor prior in solved and in lost episodes.
 
-  python docs/records/mt10_confirm/peg_lost.py docs/records/mt10_confirm/peg_seed1.json
+  python results/records/mt10_confirm/peg_lost.py results/records/mt10_confirm/peg_seed1.json
 """
 import collections
 import json

@@ -3,7 +3,7 @@ output): for each episode, every 10 decisions the share departing, J of the acto
 sequence, the winner's gain over it, the reward and Meta-World's terms, and the decision where
 J of the actor prior's sequence first falls more than 10% below its peak so far.
 
-  python docs/records/fallback/trace_summary.py docs/records/fallback/trace_peg_seed1.json.gz
+  python results/records/fallback/trace_summary.py results/records/fallback/trace_peg_seed1.json.gz
 """
 import gzip
 import json
