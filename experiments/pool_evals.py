@@ -5,6 +5,7 @@
   python -m experiments.pool_evals run/seed0/episodes.csv.gz+bc/seed0.json.gz ...  # with BC
   python -m experiments.pool_evals runs/seed0_first.json+runs/seed0_more.json runs/seed1.json
   python -m experiments.pool_evals --noise_plot=noise.png runs/s{0,1,2}/evaluation.json  # sweeps
+  python -m experiments.pool_evals --check=results/readme_rows.json  # README numbers vs records
 
 A file is an `experiments.evaluate --out` JSON, an `experiments.compare_selection --out` JSON or
 a run's own `episodes.csv` (training or online fine-tuning). Each file's records count once. A
@@ -117,10 +118,38 @@ def _noise_records(result: dict) -> list:
   return sweep
 
 
+def check(manifest_path: str, readme_path: str = 'README.md') -> list:
+  """The README numbers of the manifest that disagree with their records (empty: all agree).
+  Paths in the manifest are relative to its repository (the manifest's folder's parent)."""
+  root = os.path.dirname(os.path.dirname(os.path.abspath(manifest_path)))
+  manifest = read_json(manifest_path)
+  with open(os.path.join(root, readme_path)) as f:
+    readme = f.read().splitlines()
+  failures = []
+  for row in manifest['rows']:
+    lines = [l for l in readme if row['line'] in l]
+    if len(lines) != 1:
+      failures.append(f"{row['line']!r}: {len(lines)} README lines show it, not 1")
+      continue
+    for num in row['numbers']:
+      files = ['+'.join(os.path.join(root, p) for p in f.split('+')) for f in num['files']]
+      mine = [r for f in files for r in read_joined(f)
+              if r['policy'] == num['policy'] and r.get('split', 'held_out') == 'held_out']
+      got = f"{sum(int(r['success']) for r in mine)}/{len(mine)}"
+      if got != num['expect'] or num['expect'] not in lines[0]:
+        failures.append(f"{row['line']!r}, {num['policy']}: README {num['expect']}, records {got}")
+  return failures
+
+
 def main(paths: list) -> None:
   if any(p in ('-h', '--help', '-help') for p in paths):
     print(__doc__.strip())
     return
+  manifests = [p.split('=', 1)[1] for p in paths if p.startswith('--check=')]
+  if manifests:
+    failures = [f for m in manifests for f in check(m)]
+    print('\n'.join(failures) or f'every README number in {", ".join(manifests)} matches its records')
+    sys.exit(1 if failures else 0)
   plot_path = next((p.split('=', 1)[1] for p in paths if p.startswith('--noise_plot=')), None)
   paths = [p for p in paths if not p.startswith('--noise_plot=')]
   options = [p for p in paths if p.startswith('-')]

@@ -1,0 +1,49 @@
+"""Every README number with committed records recomputes from them (results/readme_rows.json),
+and the check fails when a record or the README changes."""
+
+import gzip
+import json
+import os
+import shutil
+
+from experiments import pool_evals
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MANIFEST = os.path.join(ROOT, 'results', 'readme_rows.json')
+
+
+def test_readme_numbers_match_their_records():
+  assert pool_evals.check(MANIFEST) == []
+
+
+def _copy(tmp_path):
+  """A copy of the README, the manifest and the files it names, under tmp_path."""
+  manifest = json.load(open(MANIFEST))
+  files = {p for row in manifest['rows'] for n in row['numbers'] for f in n['files']
+           for p in f.split('+')}
+  for rel in files | {'README.md', 'results/readme_rows.json'}:
+    os.makedirs(tmp_path / os.path.dirname(rel), exist_ok=True)
+    shutil.copy(os.path.join(ROOT, rel), tmp_path / rel)
+  return manifest
+
+
+def test_the_check_fails_on_an_altered_record_or_readme(tmp_path):
+  manifest = _copy(tmp_path)
+  first = manifest['rows'][0]['numbers'][0]
+  path = tmp_path / first['files'][0].split('+')[0]
+  with gzip.open(path, 'rt') as f:
+    lines = f.read().splitlines()
+  header = lines[0].split(',')
+  i = next(k for k, l in enumerate(lines[1:], 1)
+           if l.split(',')[header.index('policy')] == first['policy']
+           and l.split(',')[header.index('success')] == '1')
+  cells = lines[i].split(',')
+  cells[header.index('success')] = '0'  # One success of the counted policy undone.
+  lines[i] = ','.join(cells)
+  with gzip.open(path, 'wt') as f:
+    f.write('\n'.join(lines) + '\n')
+  failures = pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))
+  assert len(failures) == 1 and f"README {first['expect']}" in failures[0]
+  readme = (tmp_path / 'README.md').read_text()
+  (tmp_path / 'README.md').write_text(readme.replace(manifest['rows'][1]['line'], 'gone'))
+  assert len(pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))) == 2
