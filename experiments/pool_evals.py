@@ -17,6 +17,9 @@ episodes. Multi-task evaluations (records with a `task`) first get the per-task 
 `multitask_eval`, pooled over the files; single-task files given with them (to pool several
 settings into one test) join the pooled table, not the per-task one.
 
+PATH#TAG renames the file's policies POLICY#TAG: `seed0.json+filter_seed0.json#f` pairs the planner
+with itself evaluated under other settings (plan vs plan#f) on the same episodes.
+
 A+B (paths joined by '+') is one file made of both: evaluations of the same checkpoints by two
 commands (a policy added later on the same episodes), so that their policies pair. A policy's
 episode in both (the deterministic actor prior, say) counts once, and must have the same outcome
@@ -64,9 +67,25 @@ _INT_FIELDS = ('run', 'eval_seed', 'episode', 'reset_seed', 'success', 'first_su
 _FLOAT_FIELDS = ('return',)
 
 
+def _tagged(path: str):
+  """(the file's path, its tag): PATH#TAG names every policy of the file POLICY#TAG, so that two
+  evaluations of the same checkpoints with other settings pair as different policies."""
+  path, _, tag = path.partition('#')
+  return path, tag
+
+
+def _tag(records: list, tag: str) -> list:
+  return [dict(r, policy=f"{r['policy']}#{tag}") for r in records] if tag else records
+
+
 def read_records(path: str) -> list:
   """The per-episode records of an evaluation JSON or of a run's episodes.csv (either may be
-  gzip-compressed, .gz)."""
+  gzip-compressed, .gz); PATH#TAG tags its policies (`_tagged`)."""
+  path, tag = _tagged(path)
+  return _tag(_read_records(path), tag)
+
+
+def _read_records(path: str) -> list:
   if not path.endswith(('.csv', '.csv.gz')):
     records = read_json(path).get('records')
     if records is None:
@@ -167,8 +186,9 @@ def main(paths: list) -> None:
       print(f'The per-task table has the multi-task files\' records only; the pooled table '
             f'below has all {len(records)} records.\n')
   print(evaluation_suite.markdown(pool(results, paths)), end='')
-  noisy = [{**r, 'run': name} for name in paths for part in name.split('+')
-           if not part.endswith(('.csv', '.csv.gz')) for r in _noise_records(read_json(part))]
+  parts = [(name, *_tagged(part)) for name in paths for part in name.split('+')]
+  noisy = [{**r, 'run': name} for name, part, tag in parts if not part.endswith(('.csv', '.csv.gz'))
+           for r in _tag(_noise_records(read_json(part)), tag)]
   if noisy:
     from ld_mpc_jax.eval import noise_sweep  # pylint: disable=g-import-not-at-top
     rows = noise_sweep.table(noisy)

@@ -267,3 +267,17 @@ def test_noise_sweeps_pool_with_bc_protocol_records_as_std_zero(tmp_path, capsys
   out = capsys.readouterr().out
   assert '| 0 | bc | 3/4 = 0.75 |' in out and '| 0.05 | bc | 1/4 = 0.25 |' in out
   assert '| 0.05 | bc | 1/4 = 0.25 | [0.05, 0.70] | 0.33 | 3 / 0, p = 0.25 |' in out
+
+
+def test_a_tagged_file_pairs_the_same_policy_under_other_settings(tmp_path, capsys):
+  """PATH#TAG: the file's policies become POLICY#TAG, joined to another file of the same run
+  they pair with its policies episode by episode."""
+  import json
+  from experiments import pool_evals
+  rec = lambda ep, ok: dict(policy='plan', split='held_out', eval_seed=0, episode=ep, run=0,
+                            success=ok)
+  (tmp_path / 'a.json').write_text(json.dumps(dict(records=[rec(i, 1) for i in range(4)])))
+  (tmp_path / 'b.json').write_text(json.dumps(dict(records=[rec(i, int(i > 0)) for i in range(4)])))
+  pool_evals.main([f'{tmp_path}/a.json+{tmp_path}/b.json#f'])
+  out = capsys.readouterr().out
+  assert '| plan#f | 3/4 = 0.75 |' in out and '| held_out | planner vs plan#f | 4 | 1 | 0 |' in out
