@@ -42,3 +42,21 @@ def test_batches_hold_equal_shares_of_every_task():
   np.testing.assert_array_equal(counts, [40, 40, 40])
   with pytest.raises(ValueError, match='multiple of the number of tasks'):
     buffer.sample(10)
+
+
+def test_skip_advances_every_task_as_sampling_would():
+  """A resumed run's sampler, past the batches before its checkpoint, draws what the
+  uninterrupted run's draws next."""
+  def stepped(task, n):  # Observations: the task and the step.
+    obs = np.stack([np.full(n + 1, task), np.arange(n + 1)], -1).repeat([1, 38], axis=1)
+    return Dataset.from_episodes([dict(obs=obs.astype(np.float32),
+                                       action=np.zeros((n, 4), np.float32),
+                                       reward=np.zeros(n, np.float32))])
+  ds = multitask.concatenate([stepped(0, 50), stepped(1, 20)], ['a', 'b'])
+  whole = multitask.TaskBalancedBuffer(ds, seq_len=4, num_tasks=2, seed=3)
+  for _ in range(6):
+    whole.sample(8)
+  resumed = multitask.TaskBalancedBuffer(ds, seq_len=4, num_tasks=2, seed=3)
+  resumed.skip(6, 8)
+  for _ in range(2):
+    np.testing.assert_array_equal(resumed.sample(8)['obs'], whole.sample(8)['obs'])

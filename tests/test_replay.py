@@ -59,6 +59,21 @@ def test_reproducible_from_seed():
   assert not np.array_equal(a['obs'], c['obs'])
 
 
+def test_skip_advances_as_sampling_would():
+  """A resumed run skips the batches of the steps before its checkpoint and then draws what
+  the uninterrupted run draws."""
+  whole, resumed = ReplayBuffer(_labelled(), 3, seed=5), ReplayBuffer(_labelled(), 3, seed=5)
+  for _ in range(7):
+    whole.sample(5)
+  resumed.skip(7, 5)
+  for _ in range(3):
+    np.testing.assert_array_equal(resumed.sample(5)['obs'], whole.sample(5)['obs'])
+  one_call = ReplayBuffer(_labelled(), 3, seed=5)
+  one_call.skip(1, 35)  # Not the same draws: skip keeps the calls' sizes.
+  assert not np.array_equal(one_call.sample(5)['obs'], ReplayBuffer(_labelled(), 3, seed=5)
+                            .sample(5)['obs'])
+
+
 def test_longest_window_uses_whole_episode():
   buf = ReplayBuffer(_labelled(), seq_len=10, seed=0)  # Only episode 2 fits.
   obs = buf.sample(16)['obs']

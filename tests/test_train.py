@@ -95,8 +95,8 @@ class _Crash(Exception):
   """Stands in for a crash in the middle of training."""
 
 
-def test_a_crashed_run_resumes_from_its_last_checkpoint_to_the_final_step(tmp_path, data_dir,
-                                                                           monkeypatch):
+def test_a_crashed_run_resumes_from_its_last_checkpoint_to_the_final_step(
+    tmp_path, data_dir, monkeypatch, unevaluated_runs):
   original = replay.ReplayBuffer.sample
   calls = [0]
   def crashing(self, batch_size):
@@ -120,6 +120,13 @@ def test_a_crashed_run_resumes_from_its_last_checkpoint_to_the_final_step(tmp_pa
   assert checkpointing.load_for_evaluation(workdir)[2] == 4
   steps = [int(r['step']) for r in run_files.read_csv(os.path.join(workdir, 'metrics.csv'))]
   assert steps == [1, 2, 3, 4]  # Row 3 of the crashed run is not kept twice.
+  # It trained on the windows of an uninterrupted run (its sampler continued past step 2), and
+  # ends on its parameters, bit for bit (logging and evaluation intervals change nothing).
+  import jax
+  got = checkpointing.load_for_evaluation(workdir)[1]
+  want = checkpointing.load_for_evaluation(unevaluated_runs['a'][0])[1]
+  assert all(jax.tree_util.tree_leaves(jax.tree_util.tree_map(
+      lambda x, y: np.array_equal(np.asarray(x), np.asarray(y)), got, want)))
 
 
 @pytest.mark.parametrize('field,value,match', [

@@ -66,6 +66,11 @@ class TaskBalancedBuffer:
     out['task'] = np.repeat(np.arange(self.num_tasks, dtype=np.int32), share)
     return out
 
+  def skip(self, batches: int, batch_size: int) -> None:
+    """Advances every task's sampler as `batches` calls of `sample(batch_size)` would."""
+    for buffer in self.buffers:
+      buffer.skip(batches, batch_size // self.num_tasks)
+
 
 def make_buffer(config: ml_collections.ConfigDict, dataset: dataset_lib.Dataset, seq_len: int,
                 seed: int = 0):

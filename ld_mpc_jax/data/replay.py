@@ -68,3 +68,10 @@ class ReplayBuffer:
     rows = self.window_starts(flat)[:, None] + np.arange(self.seq_len)
     return dict(obs=self._obs[rows], action=self._act[rows[:, :-1]],
                 reward=self._rew[rows[:, :-1]])
+
+  def skip(self, batches: int, batch_size: int) -> None:
+    """Advances the sampler as `batches` calls of `sample(batch_size)` would, without
+    gathering the windows (one draw per call: numpy's bounded integers do not split across
+    calls), so that a resumed run draws what the uninterrupted run draws next."""
+    for _ in range(int(batches)):
+      self._rng.integers(0, self.num_windows, size=int(batch_size))

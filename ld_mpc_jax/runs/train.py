@@ -100,10 +100,13 @@ class OfflineJob:
       self.put = lambda batch: sharding.shard_batch(batch, mesh)
       state = sharding.replicate(state, mesh)
     self.state, self.metrics = state, None
-    # A resumed run draws fresh windows rather than replaying the first run's; so does every
-    # process of a multi-process run (process 0 draws what a single-process run draws).
+    # A resumed run continues the sampler's stream past the batches of the steps before its
+    # checkpoint, so it trains on the windows an uninterrupted run trains on (and ends on its
+    # parameters, bit for bit: benchmarks/fault_injection.py). Every process of a
+    # multi-process run draws its own windows (process 0 draws what a single-process run draws).
     self.buffer = data.make_buffer(config, dataset, runs.window_length(config), seed=(
-        config.seed * 1_000_003 + self.progress + 999_983 * jax.process_index()))
+        config.seed * 1_000_003 + 999_983 * jax.process_index()))
+    self.buffer.skip(self.progress, self.batch_size)
     self.key = jax.random.key(config.seed + 1)
     self.timer = _Timer(self.progress)
     self.bar = tqdm.tqdm(total=t.num_steps, initial=self.progress, desc='train',

@@ -1,0 +1,112 @@
+"""The fault-injection script's helpers (benchmarks/fault_injection.py) on a fake workdir: what
+counts as a complete checkpoint or a write in progress, the damage it does, what it reads from
+stderr and how it compares final states. The runs themselves: `python -m
+benchmarks.fault_injection` (results/faults/)."""
+
+import os
+import random
+
+import numpy as np
+
+from benchmarks import fault_injection as fi
+
+
+def _fake_workdir(root):
+  """checkpoints/2 and /4 with a few files each, as orbax lays them out."""
+  for step in (2, 4):
+    base = root / 'checkpoints' / str(step)
+    (base / 'default' / 'd').mkdir(parents=True)
+    (base / '_CHECKPOINT_METADATA').write_text('{"ok": true}')
+    (base / 'default' / '_METADATA').write_text('x' * 100)
+    (base / 'default' / 'd' / 'abc').write_bytes(bytes(range(256)) * 4)
+  return str(root)
+
+
+def test_complete_steps_and_writes_in_progress(tmp_path):
+  workdir = _fake_workdir(tmp_path)
+  assert fi.complete_steps(workdir) == [2, 4]
+  assert not fi.writing_checkpoint(workdir)
+  tmp = tmp_path / 'checkpoints' / f'6{fi.TMP_SUFFIX}-1234'
+  tmp.mkdir()
+  assert fi.complete_steps(workdir) == [2, 4] and fi.writing_checkpoint(workdir)
+  assert fi.phase(workdir, '', 12) == 'checkpoint write'
+  tmp.rmdir()
+  (tmp_path / 'online').mkdir()
+  (tmp_path / 'online' / 'buffer_4.npz').write_bytes(b'')
+  assert not fi.writing_checkpoint(workdir)  # Its orbax step is there.
+  (tmp_path / 'online' / 'buffer_6.npz').write_bytes(b'')  # Saved before its orbax step.
+  assert fi.writing_checkpoint(workdir)
+  assert fi.complete_steps(str(tmp_path / 'none')) == []
+
+
+def test_phase_reads_the_progress_bar(tmp_path):
+  workdir = _fake_workdir(tmp_path)
+  bar = 'train:  42%|####      | 5/12 [00:03<00:04]\rtrain:  50%|#####     | 6/12 [00:04<00:04]'
+  assert fi.phase(workdir, bar, 12) == 'training at 6/12'
+  assert fi.phase(workdir, 'online:  67%|###| 80/120 [00:09]', 120) == 'acting/updates at 80/120'
+  assert fi.phase(str(tmp_path / 'new'), 'compiling', 12) == 'startup'
+  assert fi.phase(workdir, bar, 4) == 'final evaluation'  # Step 4 is the last one.
+  (tmp_path / 'report.json').write_text('{}')
+  assert fi.phase(workdir, bar, 4) == 'report written'
+
+
+def test_damage_deletes_or_truncates_one_file_of_one_step(tmp_path):
+  actions = set()
+  for seed in range(12):
+    workdir = _fake_workdir(tmp_path / str(seed))
+    before = {s: {n: os.path.getsize(os.path.join(workdir, 'checkpoints', str(s), n))
+                  for n in fi.checkpoint_files(workdir, s)} for s in (2, 4)}
+    hurt = fi.damage(workdir, random.Random(seed))
+    actions.add(hurt['action'])
+    path = os.path.join(workdir, 'checkpoints', str(hurt['step']), hurt['file'])
+    assert hurt['size'] == before[hurt['step']][hurt['file']]
+    if hurt['action'] == 'delete':
+      assert not os.path.exists(path) and hurt['text'].startswith('delete ')
+    else:
+      assert os.path.getsize(path) == hurt['left'] < hurt['size']
+    changed = [(s, n) for s in (2, 4) for n, size in before[s].items()
+               if not os.path.exists(os.path.join(workdir, 'checkpoints', str(s), n))
+               or os.path.getsize(os.path.join(workdir, 'checkpoints', str(s), n)) != size]
+    assert changed == [(hurt['step'], hurt['file'])]  # That file, and no other.
+  assert actions == {'delete', 'truncate'}
+
+
+def test_read_stderr_finds_tracebacks_skipped_steps_and_error_lines():
+  text = ('train: 10%|#| 1/12\rwarning: checkpoint step 12 in /w/checkpoints skipped, '
+          'ValueError: truncated; trying an earlier one\nerror: no intact checkpoint\n')
+  got = fi.read_stderr(text)
+  assert got['skipped'] == [12] and got['skip_reasons'] == ['ValueError: truncated']
+  assert got['errors'] == ['error: no intact checkpoint'] and not got['traceback']
+  assert fi.read_stderr('Traceback (most recent call last):\n  File "x"\nKeyError: 1')['traceback']
+
+
+def test_compare_trees_is_exact():
+  want = {'params': {'w': np.arange(6, dtype=np.float32).reshape(2, 3)}, 'step': np.int32(4)}
+  same = {'params': {'w': np.arange(6, dtype=np.float32).reshape(2, 3)}, 'step': np.int32(4)}
+  assert fi.compare_trees(same, want) == dict(identical=True, max_abs_diff=0.0)
+  nudged = {'params': {'w': np.nextafter(want['params']['w'], np.float32(9))},
+            'step': np.int32(4)}
+  got = fi.compare_trees(nudged, want)
+  assert not got['identical'] and 0 < got['max_abs_diff'] < 1e-5
+  assert fi.compare_trees({'params': {}}, want)['max_abs_diff'] == float('inf')
+  assert fi.state_hash(same) == fi.state_hash(want) != fi.state_hash(nudged)
+
+
+def test_table_and_summary_count_every_outcome():
+  rows = [dict(trial=1, kind='online', fault='SIGKILL', point='3.0 s: startup',
+               outcome='resumed from scratch', identical=True, max_abs_diff=0.0, rc=0,
+               traceback=False, skipped=[], resumed_from=0, ok=True, final_hash='a'),
+          dict(trial=2, kind='online', fault='truncate 120/x to 0 of 9 bytes', point='after',
+               outcome='stopped (exit 2, one line; intact checkpoint: 80)', identical=None,
+               max_abs_diff=None, rc=2, traceback=False, one_line=True, skipped=[120],
+               resumed_from=80, ok=True, final_hash=None, eval_rc=2, eval_checkpoint=None,
+               eval_traceback=True)]
+  table = fi.markdown(rows).splitlines()
+  assert len(table) == 4 and table[2].endswith('| yes | no |')
+  assert '(skipped step 120); evaluate: exit 2 | n/a (stopped) | yes |' in table[3]
+  s = fi.summary(rows)
+  assert s['online kill'] == dict(trials=1, ok=1, identical=1, stopped_one_line=0, tracebacks=0,
+                                  checkpoint_not_as_uninterrupted=0,
+                                  resumed_from={'0': 1})
+  assert s['online damage']['stopped_one_line'] == 1 and s['online damage']['tracebacks'] == 1
+  assert s['distinct_final_states_per_resume_step'] == {'online from 0': 1}
