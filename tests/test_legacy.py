@@ -4,7 +4,7 @@ only the fields it lacks."""
 import ml_collections
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.ops import legacy
 
 # What a run saved before these fields existed did (hand-written, not read from legacy).
@@ -52,7 +52,7 @@ def test_one_migration_keyed_by_the_config_version():
   import json
   import ml_collections
   import pytest
-  from experiments.configs import door_open
+  from ld_mpc_jax.configs import door_open
   current = door_open.get_config('smoke')
   assert current.version == legacy.CONFIG_VERSION
   old = json.loads(current.to_json())

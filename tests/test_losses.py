@@ -175,7 +175,7 @@ def test_maxq_actor_loss_hand_computed():
 def test_loss_metrics_and_total(smoke_config):
   """The logged names stay those of the single closure this replaced, and `loss` is the
   weighted sum of the logged terms."""
-  from experiments.overrides import with_overrides
+  from ld_mpc_jax.configs.overrides import with_overrides
   from ld_mpc_jax.model import models
   expected = {
       'smoke': {'loss', 'loss_dyn', 'loss_act', 'loss_rew', 'loss_val', 'loss_actor',

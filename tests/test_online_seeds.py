@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from experiments.configs import door_open_online
+from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data
 from ld_mpc_jax.runs import online

@@ -6,7 +6,7 @@ import json
 import os
 import shutil
 
-from experiments import pool_evals
+from ld_mpc_jax.cli import pool as pool_evals
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MANIFEST = os.path.join(ROOT, 'results', 'readme_rows.json')

@@ -1,6 +1,6 @@
 """The one migration of saved configs, keyed by the config's version (`config.version`).
 
-Library code reads config fields directly (defaults live in experiments/configs/base.py); a
+Library code reads config fields directly (defaults live in ld_mpc_jax/configs/base.py); a
 saved config is brought up to date once, on load (checkpointing.migrate_config -> `migrate`):
 each step of STEPS above the version it was saved with runs in order. Version 0 is every config
 saved before the field existed (until 2026-11-29): `to_v1` renames its old sections and fills
@@ -50,7 +50,7 @@ FIELDS = {
     'data': dict(source='metaworld', path='', max_episode_steps=500),
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0),
 }
-# The version experiments/configs/base.py writes (config.version).
+# The version ld_mpc_jax/configs/base.py writes (config.version).
 CONFIG_VERSION = 1
 
 

@@ -1,7 +1,7 @@
 """Online and offline-to-online training: the planner acts, its episodes feed the replay buffer.
 
 `train_online(config, workdir)` is the main job's online mode (`config.online.enabled`;
-experiments/configs/door_open_online.py). N = `online.num_envs` environments run one episode each
+ld_mpc_jax/configs/door_open_online.py). N = `online.num_envs` environments run one episode each
 in lockstep (a wave); episodes run their full `online.episode_steps` environment steps, as the
 scripted data do, and start from the goals of MT1 seed `config.data.seed` (or, with
 `online.train_goals='random'`, from a fresh goal configuration each). From scratch, the

@@ -1,6 +1,6 @@
 """Trains and evaluates one config over several training seeds, and pools the results.
 
-  python -m experiments.sweep --config=door_open.py:cpu --seeds=0,1,2 --eval_seeds=0,1,2
+  python -m experiments.train --config=door_open.py:cpu --seeds=0,1,2 --eval_seeds=0,1,2
 
 Each training seed runs the main job in <workdir>/seed<N> (default workdir:
 runs/sweep/<config name>_<preset>), resuming whatever is on disk: a finished training is not
@@ -19,8 +19,7 @@ import sys
 from absl import app, flags, logging
 from ml_collections import config_flags
 
-from experiments import cli
-from experiments.configs import resolve_config_arg
+from ld_mpc_jax.cli import errors as cli
 
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
                                           lock_config=True)
@@ -60,7 +59,7 @@ def main(argv):
   from ld_mpc_jax.eval import evaluation_suite, multitask_eval
   from ld_mpc_jax.model import tasks
   from ld_mpc_jax.runs.train import train_and_evaluate
-  from experiments.overrides import with_overrides
+  from ld_mpc_jax.configs.overrides import with_overrides
   try:
     seeds = [int(s) for s in _SEEDS.value]
     eval_seeds = tuple(int(s) for s in _EVAL_SEEDS.value)
@@ -96,8 +95,3 @@ def main(argv):
                'eval_seeds': list(eval_seeds), 'summary': summary, 'records': records}, f, indent=1)
   print(text)
   print(f'wrote {root}/sweep.md and sweep.json')
-
-
-if __name__ == '__main__':
-  sys.argv = resolve_config_arg(sys.argv)
-  app.run(main)

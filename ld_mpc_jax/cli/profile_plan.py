@@ -1,8 +1,8 @@
 """Where the time of one `plan` call (or training update) goes: XLA ops by network and kind.
 
-  python -m experiments.profile_plan                          # reference config, 3 traced calls
-  python -m experiments.profile_plan --config=door_open.py:cpu --calls=5 --out=profile.json
-  python -m experiments.profile_plan --config=door_open.py:cpu --target=update
+  python -m experiments.diagnose profile                          # reference config, 3 traced calls
+  python -m experiments.diagnose profile --config=door_open.py:cpu --calls=5 --out=profile.json
+  python -m experiments.diagnose profile --config=door_open.py:cpu --target=update
 
 Traces `--calls` calls of the jitted plan, or with --target=update of the training update on a
 synthetic batch (random parameters, after compilation and one warm-up)
@@ -18,8 +18,8 @@ import sys
 from absl import app, flags
 from ml_collections import config_flags
 
-from experiments import cli
-from experiments.configs import CONFIG_DIR, resolve_config_arg
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.configs import CONFIG_DIR
 
 _CONFIG = config_flags.DEFINE_config_file(
     'config', os.path.join(CONFIG_DIR, 'door_open.py'), 'Config file (optionally :preset).',
@@ -45,8 +45,3 @@ def main(argv):
     with open(_OUT.value, 'w') as f:
       json.dump(result, f, indent=2)
     print(f'wrote {_OUT.value}')
-
-
-if __name__ == '__main__':
-  sys.argv = resolve_config_arg(sys.argv)
-  app.run(main)

@@ -1,6 +1,6 @@
 r"""Behaviour-cloning baseline: MLP policy trained on a dataset preset.
 
-  python -m experiments.bc_baseline --task=door-open-v3 --preset=mixed \
+  python -m experiments.evaluate bc --task=door-open-v3 --preset=mixed \
       --episodes=200 --data_dir=runs/data --out=runs/bc_mixed.json
 
 Gets the dataset with `get_or_collect` (cached .npz), regresses actions on
@@ -10,7 +10,7 @@ held-out goals (`--split=held_out`, the default: the episodes the planner's
 evaluation uses at the same evaluation seed) or on the data's own (`--split=train`).
 The JSON keeps every episode's outcome.
 
-  python -m experiments.bc_baseline --run=runs/sparse/seed0 --out=runs/sparse/seed0/bc.json
+  python -m experiments.evaluate bc --run=runs/sparse/seed0 --out=runs/sparse/seed0/bc.json
 
 With --run (an online run with `online.demos`), BC learns from that run's own demonstrations
 (the same scripted episodes, `data.demos.get_demos`) and is evaluated on the episodes of that
@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from experiments import cli
+from ld_mpc_jax.cli import errors as cli
 from ld_mpc_jax import envs
 from ld_mpc_jax.eval import evaluation
 from ld_mpc_jax.data import collection
@@ -137,7 +137,7 @@ def main(argv):
                 outcomes=[dict(ep.record(), success=int(o))
                           for ep, o in zip(episodes, res['outcomes'])],
                 # With --run: records as the run's episodes.csv names them (its seed as `run`,
-                # policy 'bc'), so that experiments.pool_evals pairs them with the run's own.
+                # policy 'bc'), so that experiments.report pairs them with the run's own.
                 records=[dict(ep.record(), run=seed, policy='bc', success=int(o))
                          for ep, o in zip(episodes, res['outcomes'])] if _RUN.value else None,
                 dataset=collection.summary(ds), final_loss=loss,
@@ -161,7 +161,3 @@ def main(argv):
     os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)
     with open(_OUT.value, 'w') as f:
       f.write(text)
-
-
-if __name__ == '__main__':
-  app.run(main)

@@ -3,7 +3,7 @@
   python -m experiments.train --config=mt10.py --workdir=runs/mt10          # reference
   python -m experiments.train --config=mt10.py:cpu --workdir=runs/mt10_cpu  # a 2-core CPU
   python -m experiments.train --config=mt10.py:smoke --workdir=/tmp/mt10    # seconds, tests
-  python -m experiments.evaluate_mt10 --workdir=runs/mt10_cpu   # Meta-World's own MT10 protocol
+  python -m experiments.evaluate mt10 --workdir=runs/mt10_cpu   # Meta-World's own MT10 protocol
 
 The single-task configs' architecture and settings (door_open.py, same presets), with a learned
 task embedding fed to every network (ld_mpc_jax.model.tasks), each task's scripted dataset and
@@ -12,7 +12,7 @@ batches with the same number of windows of every task.
 
 import ml_collections
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 
 # Meta-World's MT10, in its order (metaworld.env_dict.MT10_V3): task index k is MT10's env k.
 MT10_TASKS = ('reach-v3', 'push-v3', 'pick-place-v3', 'door-open-v3', 'drawer-open-v3',

@@ -4,12 +4,12 @@
   python -m experiments.train --config=door_open.py:cpu        # trains on a 2-core CPU
   python -m experiments.train --config=door_open.py:quick      # end to end in about 2 minutes
   python -m experiments.train --config=door_open.py:smoke      # seconds, for tests
-  python -m experiments.ablations                               # uses the :ablation preset
+  python -m experiments.train ablations                               # uses the :ablation preset
 """
 
 import ml_collections
 
-from experiments.configs import base
+from ld_mpc_jax.configs import base
 
 
 def resize(c: ml_collections.ConfigDict, width: int, heads: int, blocks: int) -> None:
@@ -48,7 +48,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.train.eval_every = 2_000
     return c
   if preset == 'ablation':
-    # Small, so that experiments.ablations can run on a 2-core CPU: 3 mixed seeds without the
+    # Small, so that experiments.train ablations can run on a 2-core CPU: 3 mixed seeds without the
     # expert seed took about two hours there, two sweep processes side by side (one training
     # 4-16 minutes on one core; docs/ablations.md, Results).
     resize(c, width=64, heads=4, blocks=1)

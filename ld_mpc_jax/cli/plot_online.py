@@ -1,6 +1,6 @@
 """Online learning curves against TD-MPC2's published per-seed curves, on the same axes.
 
-  python -m experiments.plot_online --runs=runs/online/door_seed0 \
+  python -m experiments.report curves --workdir=runs/online/door_seed0 \
       --anchor=docs/anchors/tdmpc2_mw-door-open.csv --out=docs/online_door_open.png
 
 Ours: held-out planner success of each run's periodic evaluations (`eval.csv`), with the Wilson
@@ -17,10 +17,11 @@ import os
 
 from absl import app, flags
 
-from experiments import cli
+from ld_mpc_jax.cli import errors as cli
 
 FLAGS = flags.FLAGS
-flags.DEFINE_list('runs', [], 'Online run workdirs (each with eval.csv and online.csv).')
+flags.DEFINE_multi_string('workdir', [], 'An online run directory (with eval.csv and online.csv); '
+                          'repeat the flag, or separate them with commas.')
 flags.DEFINE_string('anchor', '', 'TD-MPC2 per-seed CSV (step,success,seed); empty: none.')
 flags.DEFINE_string('out', 'online_curves.png', 'Output PNG.')
 flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (simulator steps).')
@@ -35,23 +36,28 @@ def read_csv(path):
     return list(csv.DictReader(f))
 
 
+def _workdirs() -> list:
+  """The run directories of every --workdir (commas separate several in one flag)."""
+  return [w for item in FLAGS.workdir for w in item.split(',') if w]
+
+
 def main(argv):
   del argv
   with cli.one_line_errors():
-    if not FLAGS.runs:
-      raise ValueError('--runs needs at least one run workdir')
-    for run in FLAGS.runs:
+    if not _workdirs():
+      raise ValueError('name at least one run with --workdir')
+    for run in _workdirs():
       for name in ('eval.csv', 'online.csv'):
         read_csv(os.path.join(run, name))
     if FLAGS.anchor:
       read_csv(FLAGS.anchor)
-  fig = draw(FLAGS.runs, FLAGS.anchor, FLAGS.max_steps)
+  fig = draw(_workdirs(), FLAGS.anchor, FLAGS.max_steps)
   os.makedirs(os.path.dirname(os.path.abspath(FLAGS.out)), exist_ok=True)
   fig.savefig(FLAGS.out, dpi=100)
   print(f'wrote {FLAGS.out}')
-  print(curve_table(FLAGS.runs))
+  print(curve_table(_workdirs()))
   print()
-  print(exploration_table(FLAGS.runs, FLAGS.late_from))
+  print(exploration_table(_workdirs(), FLAGS.late_from))
 
 
 # TD-MPC2's Meta-World wrapper repeats each action twice and its step column counts decisions.
@@ -176,7 +182,3 @@ def exploration_table(runs, late_from: int) -> str:
     lines.append(f'| {os.path.basename(os.path.normpath(run))} | {first} | {share} | {reward} | '
                  f'{won} |')
   return '\n'.join(lines)
-
-
-if __name__ == '__main__':
-  app.run(main)

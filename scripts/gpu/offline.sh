@@ -1,19 +1,19 @@
 # Trains single-task offline settings (door_open.py:cpu with another task and data preset) on
 # several training seeds side by side on one GPU, and packs each run into $OUT as NAME_seedN.tgz
-# for evaluation elsewhere (experiments.compare_selection on the unpacked workdir). The same steps
+# for evaluation elsewhere (experiments.evaluate selection on the unpacked workdir). The same steps
 # as mt10.sh: datasets unpacked from DATA_XZ (collect them where MuJoCo runs: the Meta-World wheel
 # carried without its textures trains but cannot simulate), one `experiments.train` per setting
 # and seed with --config.eval.episodes=0, each latest checkpoint saved again with its EMA
 # parameters only (it evaluates exactly as trained and does not resume training).
 # From the repository root:
 #   OUT=/tmp/out SETTINGS="push_medium:push-v3:medium reach_medium:reach-v3:medium" \
-#     DATA_XZ=.gpu/data bash experiments/gpu/offline.sh
-#   SEEDS="0 1 2" (default), CONFIG=experiments/configs/door_open.py:cpu (default), RUNS (default
+#     DATA_XZ=.gpu/data bash scripts/gpu/offline.sh
+#   SEEDS="0 1 2" (default), CONFIG=ld_mpc_jax/configs/door_open.py:cpu (default), RUNS (default
 #   runs/gpu_offline), DATA (config.data.dir, default data_cache), PY (default python3),
 #   TRAIN_T=SECONDS stops training that many seconds after the start (SIGINT; the latest
 #   checkpoint is packed).
-#   EVAL_FILE=PATH: after training, each line `TAG ARGS...` runs `experiments.compare_selection
-#   ARGS --workdirs=RUN --out=RUN/selection_TAG.json` on every run, the lines in order and the
+#   EVAL_FILE=PATH: after training, each line `TAG ARGS...` runs `experiments.evaluate selection
+#   ARGS --workdir=RUN --out=RUN/selection_TAG.json` on every run, the lines in order and the
 #   runs side by side, all stopped EVAL_T seconds (default 300) after they start; the per-policy
 #   caches (RUN/evals/) and the JSONs travel in the packed run, so that compare_selection here
 #   pools the seeds without evaluating again.
@@ -24,7 +24,7 @@ set -u
 : "${SETTINGS:?set SETTINGS to NAME:TASK:PRESET items}"
 export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
 SEEDS=${SEEDS:-0 1 2}
-CONFIG=${CONFIG:-experiments/configs/door_open.py:cpu}
+CONFIG=${CONFIG:-ld_mpc_jax/configs/door_open.py:cpu}
 RUNS=${RUNS:-runs/gpu_offline}
 DATA=${DATA:-data_cache}  # config.data.dir: where datasets are unpacked, collected or read.
 PY=${PY:-python3}
@@ -76,15 +76,15 @@ if [ -n "${EVAL_FILE:-}" ]; then
       [ -z "$tag" ] && continue
       left=$(( end - $(date +%s) )); [ "$left" -le 5 ] && break
       # shellcheck disable=SC2086
-      timeout -s INT -k 20 "$left" "$PY" -m experiments.compare_selection $args \
-        --workdirs="$RUNS/$n" --out="$RUNS/$n/selection_$tag.json" >>"$RUNS/${n}_eval.log" 2>&1
+      timeout -s INT -k 20 "$left" "$PY" -m experiments.evaluate selection $args \
+        --workdir="$RUNS/$n" --out="$RUNS/$n/selection_$tag.json" >>"$RUNS/${n}_eval.log" 2>&1
     done <"$EVAL_FILE" &
   done
   wait
   echo "evaluated at $(( $(date +%s) - start )) s"
   for n in "${names[@]}"; do echo "== $n"; ls "$RUNS/$n" | grep selection_ || tail -n 3 "$RUNS/${n}_eval.log"; done
 fi
-"$PY" -m experiments.pack_runs --out="$OUT" "${names[@]/#/$RUNS/}"
+"$PY" -m experiments.report pack --out="$OUT" "${names[@]/#/--workdir=$RUNS/}"
 echo "packed at $(( $(date +%s) - start )) s"
 if [ -n "${BENCH:-}" ]; then
   # shellcheck disable=SC2086

@@ -1,6 +1,6 @@
 """Compares planner selection settings against the actor prior, on the same held-out episodes.
 
-  python -m experiments.compare_selection --workdirs=runs/obj/door_open_weak/seed0,... \\
+  python -m experiments.evaluate selection --workdir=runs/obj/door_open_weak/seed0,... \\
       --variant=argmax: \\
       --variant=safe1:plan.safe_selection=True,plan.safe_margin=1.0 \\
       --variant=safe1_k4:plan.safe_selection=True,plan.safe_margin=1.0,plan.num_candidates=4,plan.num_prior_candidates=1 \\
@@ -28,10 +28,12 @@ import os
 
 from absl import app, flags, logging
 
-from experiments import cli, overrides
-from experiments.selection_runs import evaluate_run
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.configs import overrides
+from ld_mpc_jax.eval.selection_runs import evaluate_run
 
-_WORKDIRS = flags.DEFINE_list('workdirs', None, 'Training run directories (one per seed).')
+_WORKDIR = flags.DEFINE_multi_string('workdir', None, 'A training run directory, one per seed: repeat '
+                                     'the flag, or separate them with commas.')
 _VARIANTS = flags.DEFINE_multi_string('variant', ['argmax:'],
                                       'NAME:field=value,field=value planner settings.')
 _BASELINES = flags.DEFINE_list('baselines', ['actor', 'proposal'], 'Other policies.')
@@ -43,7 +45,12 @@ _OUT = flags.DEFINE_string('out', None, 'JSON output; the table goes beside it (
 _OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out file.')
 _TASKS = flags.DEFINE_list('tasks', None, 'Multi-task checkpoints: only these tasks (all by '
                            'default).')
-flags.mark_flags_as_required(['workdirs', 'out'])
+flags.mark_flags_as_required(['workdir', 'out'])
+
+
+def _workdirs() -> list:
+  """The run directories of every --workdir (commas separate several in one flag)."""
+  return [w for item in _WORKDIR.value for w in item.split(',') if w]
 
 
 def main(argv):
@@ -58,20 +65,20 @@ def main(argv):
     for flag, parsed in (('--variant', variants), ('--actor_variant', actor_variants)):
       if len({name for name, _ in parsed}) != len(parsed):
         raise ValueError(f'{flag} names must be distinct')
-    missing = [w for w in _WORKDIRS.value if not os.path.isdir(w)]
+    missing = [w for w in _workdirs() if not os.path.isdir(w)]
     if missing:
       raise FileNotFoundError(f'no run directory {missing[0]}')
     if _TASKS.value:
       from ld_mpc_jax.learn import checkpointing
       from ld_mpc_jax.model import tasks
-      for workdir in _WORKDIRS.value:
+      for workdir in _workdirs():
         config = checkpointing.load_config(workdir)
         if not tasks.is_multitask(config):
           raise ValueError(f'--tasks needs multi-task checkpoints; {workdir} holds {config.task} '
                            'alone')
         cli.check_subset('--tasks', _TASKS.value, tasks.task_names(config))
   records = []
-  for workdir in _WORKDIRS.value:
+  for workdir in _workdirs():
     records.extend(evaluate_run(workdir, variants, _BASELINES.value, _EPISODES.value,
                                 _SEED.value, _TASKS.value, actor_variants))
   anchor = 'actor' if 'actor' in _BASELINES.value else records[0]['policy']
@@ -81,7 +88,7 @@ def main(argv):
   if by_task:
     md += '\n' + evaluation_suite.by_task_markdown(by_task, anchor)
   print(md)
-  out = dict(workdirs=_WORKDIRS.value, variants=_VARIANTS.value, baselines=_BASELINES.value,
+  out = dict(workdirs=_workdirs(), variants=_VARIANTS.value, baselines=_BASELINES.value,
              actor_variants=_ACTOR_VARIANTS.value,
              episodes=_EPISODES.value, seed=_SEED.value, git_commit=git_commit(), rows=rows,
              rows_by_task=by_task, records=records)
@@ -91,7 +98,3 @@ def main(argv):
   with open(os.path.splitext(_OUT.value)[0] + '.md', 'w') as f:
     f.write(md)
   print(f'wrote {_OUT.value}')
-
-
-if __name__ == '__main__':
-  app.run(main)

@@ -1,9 +1,9 @@
 """What the planner's departures from its actor prior gain, and where the gain comes from.
 
-  python -m experiments.departure_gains --workdir=runs/obj/door_open_weak/seed0 \\
+  python -m experiments.diagnose departures --workdir=runs/obj/door_open_weak/seed0 \\
       --episodes=11,29,39,0,1 [--variant=safe2x:plan.safe_selection=True,...] [--seed=0] \\
       [--draws=8] [--out=runs/gains.json]
-  python -m experiments.departure_gains --summarize=runs/gains.json   # the table again
+  python -m experiments.diagnose departures --summarize=runs/gains.json   # the table again
 
 The planner (as trained, or one --variant as compare_selection takes it) runs the given
 held-out episodes (indices into the 50-episode list of evaluation seed --seed, with the
@@ -24,7 +24,8 @@ import os
 
 from absl import app, flags, logging
 
-from experiments import cli, overrides
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.configs import overrides
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory (one checkpoint).')
 _EPISODES = flags.DEFINE_list('episodes', None, 'Held-out episode indices.')
@@ -72,7 +73,3 @@ def main(argv):
       json.dump(dict(workdir=_WORKDIR.value, seed=_SEED.value, variant=_VARIANT.value,
                      summaries=summaries, episodes=episodes), f, indent=1)
     print(f'wrote {_OUT.value}')
-
-
-if __name__ == '__main__':
-  app.run(main, flags_parser=cli.parse_flags)

@@ -1,8 +1,8 @@
 """One checkpoint's held-out episodes under several planner and actor-prior settings: the
-evaluation behind `experiments.compare_selection` (a module without flags, so that tests and
+evaluation behind `experiments.evaluate selection` (a module without flags, so that tests and
 other launchers can import it)."""
 
-from experiments import overrides
+from ld_mpc_jax.configs import overrides
 
 
 def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,

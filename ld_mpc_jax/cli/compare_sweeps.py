@@ -1,15 +1,15 @@
 """Pairs two sweeps of the same task and evaluation episodes: does a config change help?
 
-  python -m experiments.compare_sweeps A/sweep.json B/sweep.json [--policies=plan] [--split=train]
-  python -m experiments.compare_sweeps A/sweep.json A/seed0/eval_x.json,A/seed1/eval_x.json --policies=plan
-  python -m experiments.compare_sweeps A/seed1/episodes.csv runs/online/ft/episodes.csv  # before/after
+  python -m experiments.report sweeps A/sweep.json B/sweep.json [--policies=plan] [--split=train]
+  python -m experiments.report sweeps A/sweep.json A/seed0/eval_x.json,A/seed1/eval_x.json --policies=plan
+  python -m experiments.report sweeps A/seed1/episodes.csv runs/online/ft/episodes.csv  # before/after
 
-A and B are `experiments.sweep` outputs (for example the same preset with and without a config
+A and B are `experiments.train` outputs (for example the same preset with and without a config
 override), or `experiments.evaluate --out` JSONs of the sweep's seed workdirs: several files
 joined by commas count as one side (their records carry the training seed as `run`), e.g.
 `B=runs/x/seed0/eval_k0.json,runs/x/seed1/eval_k0.json` for an evaluation-time override. A run's
 own `episodes.csv` (training or online fine-tuning) is a side too, and so is an
-`experiments.compare_selection --out` JSON (its records name their workdir and its training
+`experiments.evaluate selection --out` JSON (its records name their workdir and its training
 seed, read from the workdir's config.json for older files; choose its planners with e.g.
 `--policies='plan[argmax]'`).
 `--policies='plan[safe1]=plan[safe1_k4]'` pairs A's first policy with B's second: two variants
@@ -26,8 +26,8 @@ import os
 
 from absl import app, flags
 
-from experiments import cli
-from experiments.pool_evals import read_records
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.cli.pool import read_records
 from ld_mpc_jax.ops import stats
 
 _POLICIES = flags.DEFINE_list('policies', ['plan', 'actor', 'proposal'],
@@ -37,7 +37,7 @@ _SPLIT = flags.DEFINE_string('split', 'held_out', 'Goal split.')
 
 def read_side(spec: str) -> dict:
   """{'records': ...} of one file, or of several joined by commas. A record whose `run` is a
-  workdir (an `experiments.compare_selection` JSON) gets that workdir's training seed instead, so
+  workdir (an `experiments.evaluate selection` JSON) gets that workdir's training seed instead, so
   that checkpoints of two configs pair by seed as a sweep's do."""
   seeds = {}
   records = []
@@ -92,7 +92,7 @@ def paired_rows(a: dict, b: dict, policies, split: str) -> list:
 
 def main(argv):
   if len(argv) != 3:
-    cli.fail('give two sweep JSONs: python -m experiments.compare_sweeps A/sweep.json B/sweep.json')
+    cli.fail('give two sweep JSONs: python -m experiments.report sweeps A/sweep.json B/sweep.json')
   sweeps = [read_side(side) for side in argv[1:]]
   rows = paired_rows(*sweeps, _POLICIES.value, _SPLIT.value)
   if not rows:
@@ -105,7 +105,3 @@ def main(argv):
     print(f"| {r['policy']} | {','.join(map(str, r['seeds']))} | {n} | {r['a']}/{n} = "
           f"{r['a'] / n:.2f} | {r['b']}/{n} = {r['b'] / n:.2f} | {r['a_only']} | "
           f"{r['b_only']} | {r['p_value']:.2g} |")
-
-
-if __name__ == '__main__':
-  app.run(main)

@@ -13,7 +13,7 @@ command.
 
 import ml_collections
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 
 
 def online_settings() -> ml_collections.ConfigDict:

@@ -1,6 +1,6 @@
 """The ablation table: six model variants and three baselines on door-open-v3, measured.
 
-  python -m experiments.ablations --workdir=runs/ablations    # about two hours on 2 CPU cores
+  python -m experiments.train ablations --workdir=runs/ablations    # about two hours on 2 CPU cores
 
 Trains every variant with the same main job (ld_mpc_jax.runs.train.train_and_evaluate, preset
 door_open.py:ablation) on the `mixed` dataset over --seeds training seeds and on the `expert`
@@ -34,10 +34,10 @@ from ml_collections import config_flags
 import numpy as np
 import scipy.stats
 
-from experiments import cli
-from experiments.configs import CONFIG_DIR, resolve_config_arg
-from experiments.overrides import with_overrides
-from experiments.pool_evals import read_records
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.configs import CONFIG_DIR
+from ld_mpc_jax.configs.overrides import with_overrides
+from ld_mpc_jax.cli.pool import read_records
 from ld_mpc_jax.ops import stats
 
 VARIANTS = {  # name -> (label, config overrides, checkpoint of another variant to reuse).
@@ -243,21 +243,62 @@ def bar_plot(rows: dict, path: str) -> None:
   plt.close(fig)
 
 
-def main(argv):
-  del argv
-  logging.set_verbosity(logging.WARNING)
-  root, episodes = _WORKDIR.value, _EPISODES.value
+def _clock(root: str):
+  """Seconds of this sweep so far, over resumes (its clock file in `root`)."""
+  os.makedirs(root, exist_ok=True)
+  clock_path = os.path.join(root, 'wall_seconds.json')
+  prior_wall = _load(clock_path)['seconds'] if os.path.exists(clock_path) else 0.0
+  start = time.perf_counter()
+  return lambda: prior_wall + time.perf_counter() - start
+
+
+def _check_flags() -> None:
+  """Bad flags: one line, exit code 2."""
   with cli.one_line_errors():
     cli.check_subset('variants', _VARIANTS.value, VARIANTS)
     if _SEEDS.value < 1 or _EPISODES.value < 1:
       raise ValueError(f'--seeds and --episodes must be >= 1, got {_SEEDS.value}, '
                        f'{_EPISODES.value}')
+
+
+def _labels() -> dict:
+  """name -> label of every variant and baseline."""
+  return {**{n: v[0] for n, v in VARIANTS.items()}, **{n: v[0] for n, v in BASELINES.items()}}
+
+
+def _noise_sweep(root, rows, noise_stds, episodes, log) -> dict:
+  """{policy: {std: success}} of LD-MPC and the two best baselines (mixed data, seed 0)."""
+  baselines = sorted(BASELINES, key=lambda n: -(rows[n]['mixed_success_mean'] or 0))[:2]
+  modes = {'ldmpc': 'plan', **{n: BASELINES[n][1] for n in baselines}}
+  sweep = {}
+  for name, mode in modes.items():
+    sweep[name] = {'0.0': rows[name]['mixed_success_per_seed'][0]}
+    for std in [s for s in noise_stds if s > 0]:
+      log(f'noise sweep {name}, obs noise std {std}')
+      r = evaluate_on(root, 'ldmpc', 'mixed', 0, f'noise_{name}_{std}', {}, mode, episodes,
+                      noise=std)
+      sweep[name][str(std)] = r['success_rate']
+  return sweep
+
+
+def _noise_md(sweep: dict, labels: dict) -> str:
+  """The noise sweep's markdown table."""
+  stds = list(next(iter(sweep.values())))
+  md = ('\nObservation-noise sweep (mixed, seed 0; success vs. Gaussian noise std on the '
+        'observation):\n\n| policy | ' + ' | '.join(stds) + ' |\n|---|' + '---|' * len(stds) + '\n')
+  for name, by_std in sweep.items():
+    md += f'| {labels[name]} | ' + ' | '.join(f'{by_std[s]:.2f}' for s in stds) + ' |\n'
+  return md
+
+
+def main(argv):
+  del argv
+  logging.set_verbosity(logging.WARNING)
+  root, episodes = _WORKDIR.value, _EPISODES.value
+  _check_flags()
   base = _CONFIG.value
-  os.makedirs(root, exist_ok=True)
+  wall = _clock(root)
   clock_path = os.path.join(root, 'wall_seconds.json')
-  prior_wall = _load(clock_path)['seconds'] if os.path.exists(clock_path) else 0.0
-  start = time.perf_counter()
-  wall = lambda: prior_wall + time.perf_counter() - start
   pairs = runs(_SEEDS.value, _EXPERT.value)
   results = {}  # name -> {(dataset, seed): result}
 
@@ -287,45 +328,24 @@ def main(argv):
       results.setdefault(name, {})[(dataset, seed)] = evaluate_on(
           root, 'ldmpc', dataset, seed, f'eval_{name}', {}, mode, episodes)
 
-  labels = {**{n: v[0] for n, v in VARIANTS.items()}, **{n: v[0] for n, v in BASELINES.items()}}
+  labels = _labels()
   rows = {n: row(labels[n], results[n]) for n in list(VARIANTS) + list(BASELINES)
           if n in results}
-  command = 'python -m experiments.ablations ' + ' '.join(sys.argv[1:])
+  command = 'python -m experiments.train ablations ' + ' '.join(sys.argv[1:])
   out = {'rows': rows, 'wall_seconds': wall(), 'command': command.strip(),
          'episodes': episodes, 'seeds': _SEEDS.value}
 
   if _NOISE.value:
-    baselines = sorted(BASELINES, key=lambda n: -(rows[n]['mixed_success_mean'] or 0))[:2]
-    modes = {'ldmpc': 'plan', **{n: BASELINES[n][1] for n in baselines}}
-    stds = [s for s in base.eval.noise_stds if s > 0]
-    sweep = {}
-    for name, mode in modes.items():
-      sweep[name] = {'0.0': rows[name]['mixed_success_per_seed'][0]}
-      for std in stds:
-        log(f'noise sweep {name}, obs noise std {std}')
-        r = evaluate_on(root, 'ldmpc', 'mixed', 0, f'noise_{name}_{std}', {}, mode, episodes,
-                        noise=std)
-        sweep[name][str(std)] = r['success_rate']
-    out['noise_sweep'] = sweep
+    out['noise_sweep'] = _noise_sweep(root, rows, base.eval.noise_stds, episodes, log)
   out['wall_seconds'] = wall()
   _dump(out, os.path.join(root, 'ablations.json'))
   md = table_md(rows, out['wall_seconds'], _SEEDS.value, out['command'])
   if 'ldmpc' in rows:
     md += '\n' + paired_md(root, rows, pairs, labels)
   if 'noise_sweep' in out:
-    stds = list(next(iter(out['noise_sweep'].values())))
-    md += ('\nObservation-noise sweep (mixed, seed 0; success vs. Gaussian noise std on the '
-           'observation):\n\n| policy | ' + ' | '.join(stds) + ' |\n|---|'
-           + '---|' * len(stds) + '\n')
-    for name, by_std in out['noise_sweep'].items():
-      md += f'| {labels[name]} | ' + ' | '.join(f'{by_std[s]:.2f}' for s in stds) + ' |\n'
+    md += _noise_md(out['noise_sweep'], labels)
   with open(os.path.join(root, 'ablations.md'), 'w') as f:
     f.write(md)
   bar_plot(rows, os.path.join(root, 'ablations.png'))
   log(f'wrote {root}/ablations.md, ablations.json, ablations.png')
   print(md)
-
-
-if __name__ == '__main__':
-  sys.argv = resolve_config_arg(sys.argv)
-  app.run(main)

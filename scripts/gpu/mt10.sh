@@ -1,6 +1,6 @@
 # Trains mt10.py:cpu (offline, the ten tasks' `mixed` scripted data) on several training seeds
 # side by side on one GPU, and packs each run into $OUT as seedN.tgz for evaluation elsewhere
-# (experiments.evaluate or experiments.compare_selection on the unpacked workdir).
+# (experiments.evaluate or experiments.evaluate selection on the unpacked workdir).
 #   1. every task's dataset, one process per task (cached under data_cache/, as train does);
 #   2. one `experiments.train` process per seed, with --config.eval.episodes=0 (train and
 #      checkpoint only: the ten tasks' evaluation is CPU work, done where the runs are unpacked);
@@ -8,8 +8,8 @@
 #      reads): `params` and the optimizer state are zeroed so that three runs fit what the device
 #      tool returns. Such a checkpoint evaluates exactly as the original; it does not resume
 #      training.
-# From the repository root: OUT=/tmp/out bash experiments/gpu/mt10.sh
-#   SEEDS="0 1 2" (default), CONFIG=experiments/configs/mt10.py:cpu (default; :smoke for a check)
+# From the repository root: OUT=/tmp/out bash scripts/gpu/mt10.sh
+#   SEEDS="0 1 2" (default), CONFIG=ld_mpc_jax/configs/mt10.py:cpu (default; :smoke for a check)
 #   TRAIN_T=SECONDS: stop training at that many seconds (SIGINT; the latest checkpoint is packed,
 #   and its step printed); 0 (default) lets it finish.
 #   DATA_XZ=DIR: xz-compressed dataset files (NAME.npz.xz, from data_cache/) unpacked into
@@ -19,7 +19,7 @@ set -u
 : "${OUT:?set OUT to the folder the packed runs go to}"
 export XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONUNBUFFERED=1
 SEEDS=${SEEDS:-0 1 2}
-CONFIG=${CONFIG:-experiments/configs/mt10.py:cpu}
+CONFIG=${CONFIG:-ld_mpc_jax/configs/mt10.py:cpu}
 RUNS=${RUNS:-runs/gpu_mt10}
 rm -rf "$RUNS"; mkdir -p "$RUNS"
 nvidia-smi -L 2>/dev/null; git rev-parse HEAD 2>/dev/null || echo 'not a git checkout: record the commit by hand'
@@ -61,5 +61,5 @@ sleep 60; nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv 2>/dev
 wait
 echo "trained at $(( $(date +%s) - start )) s"
 for s in $SEEDS; do echo "== seed $s"; tr '\r' '\n' <"$RUNS/train_seed$s.log" | grep -v '^$' | tail -n 3; done
-python3 -m experiments.pack_runs --out="$OUT" $(for s in $SEEDS; do echo "$RUNS/seed$s"; done)
+python3 -m experiments.report pack --out="$OUT" $(for s in $SEEDS; do echo "--workdir=$RUNS/seed$s"; done)
 echo "packed at $(( $(date +%s) - start )) s"; ls -la "$OUT"

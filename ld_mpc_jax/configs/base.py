@@ -304,7 +304,7 @@ def get_config() -> ml_collections.ConfigDict:
   e.batch_size = 50
   # Planner environments per vmap inside that call (jax.lax.map's batch_size; 0: one jitted
   # call per environment instead). On a 2-core CPU a K = 64 plan already fills the cores and
-  # batching planners is slower per environment (experiments.benchmark_evaluation: lax.map one
+  # batching planners is slower per environment (experiments.benchmark_planning evaluation: lax.map one
   # at a time 0.56x), so the CPU default is 0; on an accelerator, use a large chunk.
   e.plan_chunk = 0
   # Split the lockstep environments of evaluation and online acting over all devices

@@ -1,11 +1,11 @@
 """Packs training runs for evaluation elsewhere: each run's latest checkpoint saved again with its
 EMA parameters alone, the rest of the run directory beside it, as OUT/NAME.tgz.
 
-  python -m experiments.pack_runs --out=DIR runs/gpu_offline/push_medium_seed0 ...
+  python -m experiments.report pack --out=DIR --workdir=runs/gpu_offline/push_medium_seed0 ...
 
 `params` and the optimizer state are zeroed (they compress to almost nothing), so such a
 checkpoint evaluates exactly as the original and does not resume training. The GPU launchers
-(experiments/gpu/mt10.sh, offline.sh) pack their runs with it, since the device tool returns at
+(scripts/gpu/mt10.sh, offline.sh) pack their runs with it, since the device tool returns at
 most 64 MiB.
 """
 
@@ -49,19 +49,23 @@ def pack(workdir: str, out: str) -> str | None:
   return path
 
 
+def define_flags() -> None:
+  """The mode's flags (defined on use only: tests import `pack` beside other modules' flags)."""
+  flags.DEFINE_string('out', None, 'Folder for NAME.tgz, one per run.')
+  flags.DEFINE_multi_string('workdir', [], 'A run directory to pack (repeat for several).')
+  flags.mark_flags_as_required(['out'])
+
+
 def main(argv):
-  from experiments import cli
+  from ld_mpc_jax.cli import errors as cli
+  workdirs = flags.FLAGS.workdir
   with cli.one_line_errors():
-    missing = [w for w in argv[1:] if not os.path.isdir(w)]
-    if not argv[1:] or missing:
+    if argv[1:]:
+      raise ValueError(f'name runs with --workdir=, not positionally: {" ".join(argv[1:])}')
+    missing = [w for w in workdirs if not os.path.isdir(w)]
+    if not workdirs or missing:
       raise FileNotFoundError(f'no run directory {missing[0]}' if missing else
-                              'name the run directories to pack')
-  for workdir in argv[1:]:
+                              'name the run directories to pack (--workdir=RUN, repeated)')
+  for workdir in workdirs:
     if pack(workdir, flags.FLAGS.out) is None:
       print(f'{os.path.basename(os.path.normpath(workdir))}: no checkpoint')
-
-
-if __name__ == '__main__':  # Flags only here: tests import `pack` beside other modules' flags.
-  flags.DEFINE_string('out', None, 'Folder for NAME.tgz, one per run.')
-  flags.mark_flags_as_required(['out'])
-  app.run(main)

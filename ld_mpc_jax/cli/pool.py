@@ -1,13 +1,13 @@
 """Pools evaluation JSONs (experiments.evaluate --out) from per-episode records.
 
-  python -m experiments.pool_evals runs/a/evaluation.json runs/b/evaluation.json ...
-  python -m experiments.pool_evals runs/online/ft_seed{0,1,2}/episodes.csv
-  python -m experiments.pool_evals run/seed0/episodes.csv.gz+bc/seed0.json.gz ...  # with BC
-  python -m experiments.pool_evals runs/seed0_first.json+runs/seed0_more.json runs/seed1.json
-  python -m experiments.pool_evals --noise_plot=noise.png runs/s{0,1,2}/evaluation.json  # sweeps
-  python -m experiments.pool_evals --check=results/readme_rows.json  # README numbers vs records
+  python -m experiments.report runs/a/evaluation.json runs/b/evaluation.json ...
+  python -m experiments.report runs/online/ft_seed{0,1,2}/episodes.csv
+  python -m experiments.report run/seed0/episodes.csv.gz+bc/seed0.json.gz ...  # with BC
+  python -m experiments.report runs/seed0_first.json+runs/seed0_more.json runs/seed1.json
+  python -m experiments.report --noise_plot=noise.png runs/s{0,1,2}/evaluation.json  # sweeps
+  python -m experiments.report --check=results/readme_rows.json  # README numbers vs records
 
-A file is an `experiments.evaluate --out` JSON, an `experiments.compare_selection --out` JSON or
+A file is an `experiments.evaluate --out` JSON, an `experiments.evaluate selection --out` JSON or
 a run's own `episodes.csv` (training or online fine-tuning). Each file's records count once. A
 file is one `run`, named by its path; a file whose records name several runs (compare_selection
 over several workdirs) keeps them apart as PATH:RUN, so episodes of different checkpoints never
@@ -32,7 +32,7 @@ import json
 import os
 import sys
 
-from experiments import cli
+from ld_mpc_jax.cli import errors as cli
 from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
 
 
@@ -160,22 +160,28 @@ def check(manifest_path: str, readme_path: str = 'README.md') -> list:
   return failures
 
 
-def main(paths: list) -> None:
-  if any(p in ('-h', '--help', '-help') for p in paths):
-    print(__doc__.strip())
-    return
-  manifests = [p.split('=', 1)[1] for p in paths if p.startswith('--check=')]
+def define_flags() -> None:
+  """The mode's flags (defined on use only: tests import this module beside other flags)."""
+  from absl import flags  # pylint: disable=g-import-not-at-top
+  flags.DEFINE_multi_string('check', [], 'A manifest of README numbers (results/readme_rows.json): '
+                            'recompute each from its records; exit code 1 on any difference.')
+  flags.DEFINE_string('noise_plot', None, 'PNG of the pooled observation-noise sweep.')
+
+
+def main(argv: list) -> None:
+  from absl import flags  # pylint: disable=g-import-not-at-top
+  paths, manifests, plot_path = list(argv[1:]), flags.FLAGS.check, flags.FLAGS.noise_plot
   if manifests:
     failures = [f for m in manifests for f in check(m)]
     print('\n'.join(failures) or f'every README number in {", ".join(manifests)} matches its records')
     sys.exit(1 if failures else 0)
-  plot_path = next((p.split('=', 1)[1] for p in paths if p.startswith('--noise_plot=')), None)
-  paths = [p for p in paths if not p.startswith('--noise_plot=')]
-  options = [p for p in paths if p.startswith('-')]
-  if options:
-    cli.fail(f'pool_evals takes file paths only, not options: {" ".join(options)} (see --help)')
+  run(paths, plot_path)
+
+
+def run(paths: list, plot_path: str | None = None) -> None:
+  """Prints the pooled tables of record files `paths` (and the noise sweep's plot)."""
   if not paths:
-    cli.fail('give one or more evaluation JSONs: python -m experiments.pool_evals A.json ...')
+    cli.fail('give one or more evaluation JSONs: python -m experiments.report A.json ...')
   results = [{'records': read_joined(path)} for path in paths]
   records = [r for res in results for r in res['records']]
   multi = [r for r in records if r.get('task') is not None]
@@ -199,7 +205,3 @@ def main(paths: list) -> None:
   elif plot_path:
     cli.fail('--noise_plot: none of the files has a noise sweep (experiments.evaluate '
              '--noise_sweep)')
-
-
-if __name__ == '__main__':
-  main(sys.argv[1:])

@@ -1,6 +1,6 @@
 """Evaluation speed: episodes one at a time against environments in lockstep, in the same run.
 
-  python -m experiments.benchmark_evaluation --workdir=runs/sweep/door_open_cpu/seed0 \
+  python -m experiments.benchmark_planning evaluation --workdir=runs/sweep/door_open_cpu/seed0 \
       --modes=plan,actor,proposal --episodes=50 --repeats=3 \
       --out=runs/benchmark/benchmark_evaluation.json
 
@@ -20,7 +20,7 @@ import os
 from absl import app, flags, logging
 import numpy as np
 
-from experiments import cli
+from ld_mpc_jax.cli import errors as cli
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory (a checkpoint).')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policy modes.')
@@ -31,6 +31,20 @@ _CHUNK = flags.DEFINE_integer('plan_chunk', None, 'Planner environments per vmap
 _REPEATS = flags.DEFINE_integer('repeats', 1, 'Repeated measurements (median reported).')
 _OUT = flags.DEFINE_string('out', 'runs/benchmark/benchmark_evaluation.json', 'JSON output.')
 flags.mark_flag_as_required('workdir')
+
+
+def _table(meta: dict, rows: list, num_episodes: int) -> list:
+  """The markdown lines of the measurement."""
+  lines = [f"Device: {meta['device']}, {meta['cpu_count']} cores; 1-min load average at start "
+           f"{meta['load_average_at_start']:.2f}; checkpoint {meta['workdir']} step {meta['step']}; "
+           f"{num_episodes} held-out episodes; medians over {meta['repeats']} run(s).", '',
+           '| policy | decisions | one at a time s | lockstep s (N envs) | speed-up | '
+           'same outcomes |', '| --- | ---: | ---: | ---: | ---: | ---: |']
+  for r in rows:
+    lines.append(f"| {r['mode']} | {r['decisions']} | {r['one_at_a_time_s']['median']:.1f} | "
+                 f"{r['lockstep_s']['median']:.1f} ({r['batch_size']}) | {r['speedup']:.2f}x | "
+                 f"{r['same_outcomes']:.0%} |")
+  return lines
 
 
 def main(argv):
@@ -83,19 +97,7 @@ def main(argv):
   os.makedirs(os.path.dirname(os.path.abspath(_OUT.value)), exist_ok=True)
   with open(_OUT.value, 'w') as f:
     json.dump([{**meta, **r} for r in rows], f, indent=1)
-  lines = [f"Device: {meta['device']}, {meta['cpu_count']} cores; 1-min load average at start "
-           f"{load:.2f}; checkpoint {_WORKDIR.value} step {step}; {len(episodes)} held-out "
-           f"episodes; medians over {_REPEATS.value} run(s).", '',
-           '| policy | decisions | one at a time s | lockstep s (N envs) | speed-up | '
-           'same outcomes |', '| --- | ---: | ---: | ---: | ---: | ---: |']
-  for r in rows:
-    lines.append(f"| {r['mode']} | {r['decisions']} | {r['one_at_a_time_s']['median']:.1f} | "
-                 f"{r['lockstep_s']['median']:.1f} ({r['batch_size']}) | {r['speedup']:.2f}x | "
-                 f"{r['same_outcomes']:.0%} |")
+  lines = _table(meta, rows, len(episodes))
   with open(os.path.splitext(_OUT.value)[0] + '.md', 'w') as f:
     f.write('\n'.join(lines) + '\n')
   print('\n'.join(lines))
-
-
-if __name__ == '__main__':
-  app.run(main)

@@ -1,6 +1,6 @@
 r"""Collects (or loads from the cache) every task's scripted dataset of a config, and measures it.
 
-  python -m experiments.collect_tasks --config=mt10.py:cpu
+  python -m experiments.collect tasks --config=mt10.py:cpu
 
 The datasets are those `experiments.train` uses for the same config (same presets, cache files
 under config.data.dir). Prints one line per task (episodes, transitions, episode success rate
@@ -14,7 +14,6 @@ import sys
 from absl import app, flags
 from ml_collections import config_flags
 
-from experiments.configs import resolve_config_arg
 
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
                                           lock_config=True)
@@ -50,8 +49,3 @@ def main(argv):
   if _OUT.value:
     with open(_OUT.value, 'w') as f:
       json.dump(rows, f, indent=1)
-
-
-if __name__ == '__main__':
-  sys.argv = resolve_config_arg(sys.argv)
-  app.run(main)

@@ -1,8 +1,8 @@
 """Config overrides by dotted name, shared by the launchers (no flags defined here).
 
 Values given as strings are parsed as ml_collections' own command-line flags parse them, by the
-type of the field they replace: `--set=eval.noise_stds=0.0,0.05` is a tuple of floats,
-`--set=plan.guidance_scale=0` a float, `False`/`false`/`0` a false bool.
+type of the field they replace: `--config.eval.noise_stds=0.0,0.05` is a tuple of floats,
+`--config.plan.guidance_scale=0` a float, `False`/`false`/`0` a false bool.
 """
 
 import re

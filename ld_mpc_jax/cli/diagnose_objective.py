@@ -1,6 +1,6 @@
 """Diagnoses the planner's objective on a trained checkpoint.
 
-  python -m experiments.diagnose_objective --workdir=runs/door_open_cpu [--ks=1,4,16,64]
+  python -m experiments.diagnose --workdir=runs/door_open_cpu [--ks=1,4,16,64]
 
 Writes <workdir>/diagnose_objective.json and .md, and prints the tables:
   1. Rank correlation (Spearman) between the planner's J and the Monte Carlo discounted return of
@@ -20,7 +20,7 @@ import os
 
 from absl import app, flags, logging
 
-from experiments import cli
+from ld_mpc_jax.cli import errors as cli
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory.')
 _KS = flags.DEFINE_list('ks', ['1', '4', '16', '64'], 'Candidate counts K to evaluate.')
@@ -53,7 +53,3 @@ def main(argv):
   with open(os.path.join(_WORKDIR.value, 'diagnose_objective.md'), 'w') as f:
     f.write(md)
   print(md)
-
-
-if __name__ == '__main__':
-  app.run(main)

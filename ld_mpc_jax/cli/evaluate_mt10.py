@@ -1,6 +1,6 @@
 r"""A multi-task run on Meta-World's own MT10 benchmark, evaluated as Meta-World evaluates it.
 
-  python -m experiments.evaluate_mt10 --workdir=runs/mt10_cpu --modes=plan,actor,proposal
+  python -m experiments.evaluate mt10 --workdir=runs/mt10_cpu --modes=plan,actor,proposal
 
 Builds `gym.make_vec('Meta-World/MT10', vector_strategy='sync', seed=--seed)` (ten environments,
 env k is task k of MT10, each resetting to one of its 50 goals drawn at random) and runs
@@ -18,7 +18,7 @@ import os
 
 from absl import app, flags, logging
 
-from experiments import cli
+from ld_mpc_jax.cli import errors as cli
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training workdir of a multi-task run.')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
@@ -167,7 +167,3 @@ def _write(names, step, results):
   with open(stem + '.md', 'w') as f:
     f.write(md)
   return md
-
-
-if __name__ == '__main__':
-  app.run(main)

@@ -1,7 +1,7 @@
 r"""Step time of the training update of this checkout against another checkout, in one process.
 
   git worktree add /tmp/baseline HEAD~1
-  python -m experiments.compare_update_speed --baseline=/tmp/baseline --config=door_open.py:cpu
+  python -m experiments.benchmark_training versions --baseline=/tmp/baseline --config=door_open.py:cpu
 
 The shared machines drift by ±15% within minutes, so two benchmark runs cannot rank code
 versions a few percent apart. This compiles the update of the same config from both checkouts
@@ -22,7 +22,7 @@ from absl import app, flags
 import jax
 import numpy as np
 
-from experiments.benchmark_training import load_config
+from ld_mpc_jax.cli.benchmark_training import load_config
 
 _BASELINE = flags.DEFINE_string('baseline', None, 'Root of the other checkout (a git worktree).')
 _CONFIG = flags.DEFINE_string('config', 'door_open.py:cpu', 'Config file, optionally :preset.')
@@ -82,7 +82,3 @@ def main(argv):
   print(f"{_CONFIG.value}: this checkout {np.median(times['this']) * 1e3:.1f} ms, baseline "
         f"{np.median(times['baseline']) * 1e3:.1f} ms per step (medians of {_STEPS.value}); "
         f"median ratio this/baseline {ratio:.3f}")
-
-
-if __name__ == '__main__':
-  app.run(main)

@@ -1,7 +1,7 @@
 """What happened inside chosen held-out episodes: the reward terms of the environment per step,
 for the actor prior and planner variants, on the same episodes as compare_selection.
 
-  python -m experiments.episode_trace --workdir=runs/obj2/door_open_weak/seed0 \\
+  python -m experiments.diagnose trace --workdir=runs/obj2/door_open_weak/seed0 \\
       --episodes=11,29,39 [--variant=safe2x:plan.safe_selection=True,...] [--seed=0] \\
       [--out=runs/trace.json]
 
@@ -20,7 +20,8 @@ import os
 
 from absl import app, flags, logging
 
-from experiments import cli, overrides
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.configs import overrides
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory (one checkpoint).')
 _EPISODES = flags.DEFINE_list('episodes', None, 'Held-out episode indices to trace.')
@@ -58,7 +59,3 @@ def main(argv):
     with open(_OUT.value, 'w') as f:
       json.dump(dict(workdir=_WORKDIR.value, seed=_SEED.value, rows=rows), f, indent=1)
     print(f'wrote {_OUT.value}')
-
-
-if __name__ == '__main__':
-  app.run(main, flags_parser=cli.parse_flags)
