@@ -12,6 +12,7 @@ so only the chosen one's are (two modes may share a flag name).
 """
 
 import importlib
+import os
 import sys
 from typing import Dict, Optional, Sequence, Tuple
 
@@ -23,17 +24,22 @@ def choose(argv: Sequence[str], modes: Dict[str, str], default: str,
   """(module name, argv without the mode word) for a command line.
 
   A first argument that is not a flag names the mode; `by_flag` maps a flag (`--seeds`) that
-  selects a mode by itself. An unknown mode word raises ValueError listing the modes."""
+  selects a mode by itself. An unknown mode word raises ValueError listing the modes; a first
+  argument that looks like a path (a record file of `report`) goes to the default mode."""
   argv = list(argv)
-  if len(argv) > 1 and not argv[1].startswith('-'):
-    word = argv[1]
-    if word not in modes:
-      raise ValueError(f'unknown mode {word!r}; choose from {sorted(modes)} (or none: {default})')
+  word = argv[1] if len(argv) > 1 and not argv[1].startswith('-') else None
+  if word in modes:
     return modes[word], [f'{argv[0]} {word}'] + argv[2:]
+  if word is not None and not _path_like(word):
+    raise ValueError(f'unknown mode {word!r}; choose from {sorted(modes)} (or none: {default})')
   for flag, module in (by_flag or {}).items():
     if any(a == flag or a.startswith(flag + '=') for a in argv[1:]):
       return module, argv
   return default, argv
+
+
+def _path_like(word: str) -> bool:
+  return '/' in word or '.' in word or os.path.exists(word)
 
 
 def split_config_overrides(argv: Sequence[str]) -> Tuple[list, list]:

@@ -152,12 +152,36 @@ def check(manifest_path: str, readme_path: str = 'README.md') -> list:
       continue
     for num in row['numbers']:
       files = ['+'.join(os.path.join(root, p) for p in f.split('+')) for f in num['files']]
-      mine = [r for f in files for r in read_joined(f)
-              if r['policy'] == num['policy'] and r.get('split', 'held_out') == 'held_out']
-      got = f"{sum(int(r['success']) for r in mine)}/{len(mine)}"
+      got = _paired_cell(files, *num['pair']) if 'pair' in num else _count_cell(files, num['policy'])
       if got != num['expect'] or num['expect'] not in lines[0]:
-        failures.append(f"{row['line']!r}, {num['policy']}: README {num['expect']}, records {got}")
+        what = ' vs '.join(num['pair']) if 'pair' in num else num['policy']
+        failures.append(f"{row['line']!r}, {what}: README {num['expect']}, records {got}")
   return failures
+
+
+def _count_cell(files: list, policy: str) -> str:
+  """'successes/episodes' of `policy` on held-out goals over `files`."""
+  mine = [r for f in files for r in read_joined(f)
+          if r['policy'] == policy and r.get('split', 'held_out') == 'held_out']
+  return f"{sum(int(r['success']) for r in mine)}/{len(mine)}"
+
+
+def _paired_cell(files: list, a: str, b: str) -> str:
+  """'A-only / B-only, p' of the exact McNemar test of policies a and b over `files` (each file's
+  episodes pair only within it), p to two significant digits (1.4e-9 for small ones)."""
+  paired = pool([{'records': read_joined(f)} for f in files], files)['held_out']['paired']
+  if f'{a} vs {b}' in paired:
+    t = paired[f'{a} vs {b}']
+    a_only, b_only = t['a_only'], t['b_only']
+  elif f'{b} vs {a}' in paired:
+    t = paired[f'{b} vs {a}']
+    a_only, b_only = t['b_only'], t['a_only']
+  else:
+    return f'no paired episodes of {a} and {b}'
+  p = t['p_value']
+  mantissa, exponent = f'{p:.1e}'.split('e')
+  text = f'{p:.2g}' if p >= 1e-4 else f'{mantissa}e{int(exponent)}'
+  return f'{a_only} / {b_only}, {text}'
 
 
 def define_flags() -> None:

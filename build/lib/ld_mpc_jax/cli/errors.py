@@ -1,0 +1,82 @@
+"""Launcher helpers: bad input gives one line on stderr and exit code 2, never a traceback."""
+
+import contextlib
+import os
+import re
+import sys
+import tempfile
+from typing import Iterable, NoReturn, Type
+
+
+def fail(message) -> NoReturn:
+  """Prints `error: message` on stderr and exits with code 2 (bad input)."""
+  print(f'error: {message}', file=sys.stderr)
+  sys.exit(2)
+
+
+@contextlib.contextmanager
+def one_line_errors(errors: Iterable[Type[BaseException]] = (ValueError, FileNotFoundError)):
+  """Turns `errors` raised inside the block into `fail`. Wrap input checks, not long work."""
+  try:
+    yield
+  except tuple(errors) as err:
+    fail(err)
+
+
+def check_subset(name: str, chosen: Iterable[str], valid: Iterable[str]) -> None:
+  """ValueError naming the unknown entries of a list flag."""
+  unknown = sorted(set(chosen) - set(valid))
+  if unknown:
+    raise ValueError(f'unknown {name} {unknown}; choose from {list(valid)}')
+
+
+def check_new_output(path: str, overwrite: bool, flag: str = '--out') -> None:
+  """ValueError when `path` exists and `overwrite` is off (an earlier result is never replaced
+  silently), or when it cannot be written. Call it before the long work, so that a refusal costs
+  nothing; it leaves no file behind."""
+  if os.path.exists(path) and not overwrite:
+    raise ValueError(f'{path} exists (an earlier result); choose another {flag} or pass '
+                     '--overwrite')
+  where = os.path.dirname(os.path.abspath(path))
+  while not os.path.exists(where):  # The folder that will hold it (made later).
+    where = os.path.dirname(where)
+  try:
+    if not os.path.isdir(where):
+      raise NotADirectoryError(f'{where} is not a folder')
+    if os.path.isdir(path):
+      raise IsADirectoryError(f'{path} is a folder')
+    with tempfile.TemporaryFile(dir=where):  # Writes there, as the result will.
+      pass
+  except OSError as err:
+    raise ValueError(f'{path} cannot be written ({err}); choose another {flag}') from None
+
+
+def parse_flags(argv):
+  """absl's flag parsing for `app.run(main, flags_parser=parse_flags)`, a bad flag failing in one
+  line. A config file's own error (an unknown :preset) is reported without the traceback that
+  ml_collections wraps into the flag error."""
+  from absl import flags  # pylint: disable=g-import-not-at-top
+  try:
+    return flags.FLAGS(argv)
+  except (AttributeError, KeyError) as err:  # ml_collections: an override of no such field.
+    fail(_unknown_field(argv, err))
+  except flags.Error as err:
+    cause = err
+    while cause.__cause__ or cause.__context__:
+      cause = cause.__cause__ or cause.__context__
+    name = re.match(r'flag (--[\w.-]+)', str(err))
+    message = f'{name.group(1)}: {cause}' if name and cause is not err else str(err)
+    fail(' '.join(message.split()))  # One line.
+
+
+def _unknown_field(argv, err) -> str:
+  """One line for a `--config.a.b=v` override that names a field the config does not have."""
+  from ld_mpc_jax.ops.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
+  name = str(err).strip('"\'')
+  for arg in argv:
+    flag = arg.split('=', 1)[0]
+    parts = flag[2:].split('.')
+    if flag.startswith('--') and name in parts[1:]:
+      missing = '.'.join(parts[:parts.index(name, 1) + 1])
+      return f'{flag}: the config has no field {missing!r}{renamed_hint(missing)}'
+  return f'a config override names a field the config does not have ({name!r})'

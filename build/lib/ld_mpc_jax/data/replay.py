@@ -1,0 +1,77 @@
+"""Replay buffer of fixed-length sub-sequences that stay inside one episode."""
+
+from typing import Dict
+
+import numpy as np
+
+from ld_mpc_jax.data import dataset as dataset_lib
+
+
+class ReplayBuffer:
+  """Uniform sampler of length-T windows over a Dataset.
+
+  A window starting at row s covers observations s .. s+T-1 and the T-1
+  actions/rewards between them; it is valid iff all of it lies in one episode,
+  i.e. s + T - 1 <= starts[e] + L_e for the episode e containing s. Every valid
+  window is equally likely. Sampling is vectorised (one gather per array) and
+  reproducible from `seed`.
+
+  Attributes:
+    dataset: the Dataset sampled from.
+    seq_len: T observations per sample (the trainer uses T = H + 2).
+    num_windows: number of distinct valid windows.
+  """
+
+  def __init__(self, dataset: dataset_lib.Dataset, seq_len: int, seed: int = 0):
+    if not isinstance(seq_len, (int, np.integer)) or seq_len < 2:
+      raise ValueError(
+          f'seq_len must be an integer >= 2 (T observations with at '
+          f'least one action between them), got {seq_len!r}.')
+    self.dataset = dataset
+    self.seq_len = int(seq_len)
+    # Episode e offers max(L_e - T + 2, 0) start rows: starts[e] + k for
+    # k = 0 .. L_e + 1 - T.
+    per_episode = np.maximum(
+        dataset.episode_lengths.astype(np.int64) - self.seq_len + 2, 0)
+    self.num_windows = int(per_episode.sum())
+    if self.num_windows == 0:
+      raise ValueError(
+          f'No episode is long enough for seq_len={self.seq_len}: windows need '
+          f'{self.seq_len - 1} transitions, the longest episode has '
+          f'{int(dataset.episode_lengths.max())}.')
+    keep = per_episode > 0
+    self._starts = dataset.episode_starts.astype(np.int64)[keep]
+    self._cum = np.cumsum(per_episode[keep])
+    self._rng = np.random.default_rng(seed)
+    self._obs = np.asarray(dataset.observations, np.float32)
+    self._act = np.asarray(dataset.actions, np.float32)
+    self._rew = np.asarray(dataset.rewards, np.float32)
+
+  def window_starts(self, flat: np.ndarray) -> np.ndarray:
+    """Maps window indices [B] in [0, num_windows) to first rows [B]."""
+    ep = np.searchsorted(self._cum, flat, side='right')
+    offset = flat - np.concatenate([[0], self._cum])[ep]
+    return self._starts[ep] + offset
+
+  def sample(self, batch_size: int) -> Dict[str, np.ndarray]:
+    """Draws `batch_size` windows uniformly (with replacement).
+
+    Returns:
+      dict(obs float32 [B, T, obs_dim], action float32 [B, T-1, act_dim],
+      reward float32 [B, T-1]); obs[:, t] is seen before action[:, t], and
+      reward[:, t] follows action[:, t].
+    """
+    if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
+      raise ValueError(f'batch_size must be a positive integer, got '
+                       f'{batch_size!r}.')
+    flat = self._rng.integers(0, self.num_windows, size=int(batch_size))
+    rows = self.window_starts(flat)[:, None] + np.arange(self.seq_len)
+    return dict(obs=self._obs[rows], action=self._act[rows[:, :-1]],
+                reward=self._rew[rows[:, :-1]])
+
+  def skip(self, batches: int, batch_size: int) -> None:
+    """Advances the sampler as `batches` calls of `sample(batch_size)` would, without
+    gathering the windows (one draw per call: numpy's bounded integers do not split across
+    calls), so that a resumed run draws what the uninterrupted run draws next."""
+    for _ in range(int(batches)):
+      self._rng.integers(0, self.num_windows, size=int(batch_size))

@@ -1,0 +1,228 @@
+"""Orbax checkpoints of the TrainState, with the config saved beside them."""
+
+import json
+import logging
+import os
+import shutil
+import sys
+from typing import Callable, List, Optional, Tuple
+
+import jax
+import ml_collections
+import orbax.checkpoint as ocp
+
+from ld_mpc_jax.ops import legacy
+from ld_mpc_jax.learn.train_state import TrainState, create_train_state
+
+CONFIG_FILE = 'config.json'
+def legacy_defaults() -> dict:
+  """{section: {field: value}}: what a config saved before a field existed is read with
+  (legacy.neutral_values).
+
+  Such a value changes nothing against the code before the field (evaluation_suite drops fields
+  at these values from its cache keys, so adding a field does not invalidate cached cells).
+  Changing a value already in these tables moves cached cells to another config's key: raise
+  evaluation_suite.CACHE_VERSION with it.
+  """
+  return legacy.neutral_values()
+
+
+def checkpoint_manager(workdir: str, max_to_keep: int = 3) -> ocp.CheckpointManager:
+  """Synchronous manager under <workdir>/checkpoints (a step is visible only once complete)."""
+  options = ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,
+                                         enable_async_checkpointing=False)
+  return ocp.CheckpointManager(os.path.abspath(os.path.join(workdir, 'checkpoints')),
+                               options=options)
+
+
+def has_checkpoint(workdir: str) -> bool:
+  """Whether `workdir` holds a complete checkpoint (creates nothing)."""
+  return (os.path.isdir(os.path.join(workdir, 'checkpoints'))
+          and checkpoint_manager(workdir).latest_step() is not None)
+
+
+def save_config(config: ml_collections.ConfigDict, workdir: str) -> str:
+  os.makedirs(workdir, exist_ok=True)
+  path = os.path.join(workdir, CONFIG_FILE)
+  tmp = path + '.tmp'
+  with open(tmp, 'w') as f:
+    f.write(config.to_json_best_effort(indent=2))
+  os.replace(tmp, path)
+  return path
+
+
+class WorkdirError(ValueError):
+  """A workdir this run must not write to (made with another config): one line, exit code 2."""
+
+
+def _flat(config: ml_collections.ConfigDict) -> dict:
+  """{'section.field': value} of `config` as JSON (tuples and lists alike)."""
+  out = {}
+  def walk(node, prefix):
+    for k, v in node.items():
+      if isinstance(v, dict):
+        walk(v, f'{prefix}{k}.')
+      else:
+        out[prefix + k] = v
+  walk(json.loads(config.to_json_best_effort()), '')
+  return out
+
+
+def config_changes(saved: ml_collections.ConfigDict,
+                   config: ml_collections.ConfigDict) -> List[str]:
+  """'field (old -> new)' for every field whose value differs, sorted by name; a field only one
+  side has shows as absent. `saved` is compared as loaded (`migrate_config`)."""
+  old, new = _flat(saved), _flat(config)
+  show = lambda flat, k: json.dumps(flat[k]) if k in flat else 'absent'
+  return [f'{k} ({show(old, k)} -> {show(new, k)})' for k in sorted(set(old) | set(new))
+          if k not in old or k not in new or old[k] != new[k]]
+
+
+def check_workdir(config: ml_collections.ConfigDict, workdir: str,
+                  continue_with_changes: bool = False) -> None:
+  """WorkdirError when `workdir` holds a run of another config; reads, never writes.
+
+  With `continue_with_changes`, a changed config continues the run, unless its networks no
+  longer fit the checkpoint (then nothing could be restored).
+  """
+  if not os.path.exists(os.path.join(workdir, CONFIG_FILE)):
+    return
+  saved = load_config(workdir)
+  changes = config_changes(saved, config)
+  if not changes:
+    return
+  if not continue_with_changes:
+    shown = ', '.join(changes[:6]) + (f' and {len(changes) - 6} more' if len(changes) > 6 else '')
+    raise WorkdirError(f'{workdir} holds a run of another config; this one differs in {shown}: '
+                       'choose another --workdir, or pass --continue_with_changes to continue '
+                       'that run under this config')
+  shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, abstract_state(c))
+  if has_checkpoint(workdir) and shapes(saved) != shapes(config):
+    raise WorkdirError(f'{workdir}: even with --continue_with_changes, its checkpoints cannot '
+                       f'continue under this config: the networks differ ({", ".join(changes)})')
+
+
+def record_config(config: ml_collections.ConfigDict, workdir: str) -> str:
+  """Saves config.json; a different earlier one is kept as config.<n>.json (n = 1, 2, ...)."""
+  path = os.path.join(workdir, CONFIG_FILE)
+  if os.path.exists(path) and config_changes(load_config(workdir), config):
+    n = 1
+    while os.path.exists(os.path.join(workdir, f'config.{n}.json')):
+      n += 1
+    os.replace(path, os.path.join(workdir, f'config.{n}.json'))
+  return save_config(config, workdir)
+
+
+def load_config(workdir: str) -> ml_collections.ConfigDict:
+  path = os.path.join(workdir, CONFIG_FILE)
+  if not os.path.exists(path):
+    raise FileNotFoundError(f'no {CONFIG_FILE} in {workdir}: is it a training workdir?')
+  with open(path) as f:
+    raw = json.load(f)
+  return migrate_config(ml_collections.ConfigDict(raw))
+
+
+def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """A saved config brought up to the current version, once, on load (legacy.migrate): fields
+  added since it was saved get the values that mean what its run did; renamed sections get
+  their new name (`objective` -> `critic`); a config of a newer version is refused on one line.
+  Sequence fields saved as JSON lists stay lists (a ConfigDict keeps a field's type on
+  assignment); the library reads them only as sequences."""
+  return legacy.migrate(config)
+
+
+def abstract_state(config: ml_collections.ConfigDict) -> TrainState:
+  """Shapes, dtypes and placement of a TrainState, without allocating it (restore target).
+
+  Placed on this process's first device: without a placement orbax takes the one saved with the
+  checkpoint, and a checkpoint written on a GPU then refuses to load on a CPU ("Topology
+  mismatch"). Data-parallel runs replicate the restored state themselves.
+  """
+  shapes = jax.eval_shape(lambda: create_train_state(config, jax.random.key(0)))
+  here = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+  return jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=here), shapes)
+
+
+def _warn(message: str) -> None:
+  print(f'warning: {message}', file=sys.stderr)
+
+
+def _one_line(err: BaseException, limit: int = 300) -> str:
+  text = ' '.join(f'{type(err).__name__}: {err}'.split()).split(' See full TensorStore')[0]
+  return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
+def _quiet_abandoned_reads() -> None:
+  """Drops the noise a failed orbax restore leaves: its other tensorstore reads finish after
+  asyncio's loop closed (hundreds of 'Event loop is closed' tracebacks, and 'exception was never
+  retrieved' log lines of asyncio). Installed once, only after a restore failed."""
+  if getattr(sys.unraisablehook, 'quiet_abandoned_reads', False):
+    return
+  previous = sys.unraisablehook
+  def hook(unraisable):
+    if not (unraisable.exc_type is RuntimeError
+            and str(unraisable.exc_value) == 'Event loop is closed'):
+      previous(unraisable)
+  hook.quiet_abandoned_reads = True
+  sys.unraisablehook = hook
+  logging.getLogger('asyncio').addFilter(
+      lambda record: 'exception was never retrieved' not in record.getMessage())
+
+
+def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.ConfigDict,
+                   usable: Optional[Callable[[int], Optional[str]]] = None,
+                   ) -> Tuple[Optional[int], Optional[TrainState], List[int]]:
+  """(step, state, skipped): the newest checkpoint that restores, newest first.
+
+  A step whose files fail to restore (damaged or truncated), or for which `usable(step)` gives
+  a reason (e.g. an online run's missing buffer file), is skipped with one warning line naming
+  it and why; `skipped` lists those steps. (None, None, []) without any checkpoint; WorkdirError
+  when every step was skipped.
+  """
+  skipped = []
+  for step in sorted(manager.all_steps(), reverse=True):
+    reason = usable(step) if usable is not None else None
+    if reason is None:
+      try:
+        state = manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
+      except Exception as err:  # pylint: disable=broad-except (orbax/tensorstore: many kinds)
+        reason = _one_line(err)
+        _quiet_abandoned_reads()
+      else:
+        return step, state, skipped
+    _warn(f'checkpoint step {step} in {manager.directory} skipped, {reason}; trying an '
+          'earlier one')
+    skipped.append(step)
+  if skipped:
+    raise WorkdirError(f'no intact checkpoint in {manager.directory}: steps '
+                       f'{", ".join(map(str, skipped))} all failed (warnings above)')
+  return None, None, []
+
+
+def set_aside(workdir: str, manager: ocp.CheckpointManager, steps: List[int]) -> None:
+  """Moves checkpoint `steps` to <workdir>/damaged_checkpoints/<step> (kept, out of the way of
+  the steps a resumed run saves again), then reloads the manager."""
+  for step in steps:
+    target = os.path.join(workdir, 'damaged_checkpoints', str(step))
+    shutil.rmtree(target, ignore_errors=True)
+    os.makedirs(os.path.dirname(target), exist_ok=True)
+    os.replace(os.path.join(str(manager.directory), str(step)), target)
+  if steps:
+    manager.reload()
+
+
+def restore_latest(manager: ocp.CheckpointManager,
+                   config: ml_collections.ConfigDict) -> Optional[TrainState]:
+  """The newest intact checkpoint (`restore_intact`), or None if there is none."""
+  return restore_intact(manager, config)[1]
+
+
+def load_for_evaluation(workdir: str):
+  """(config, ema_params, step) from a training workdir's config and newest intact checkpoint
+  (a newer damaged one is skipped with a warning line, and left as it is)."""
+  config = load_config(workdir)
+  manager = checkpoint_manager(workdir)
+  state = restore_latest(manager, config)
+  if state is None:
+    raise FileNotFoundError(f'no checkpoint under {workdir}/checkpoints')
+  return config, state.ema_params, int(state.step)

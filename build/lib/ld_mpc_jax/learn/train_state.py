@@ -1,0 +1,174 @@
+"""Train state and the jitted update step."""
+
+from typing import Any, Callable, Optional
+
+import flax
+import jax
+import jax.numpy as jnp
+from jax.sharding import Mesh
+import ml_collections
+import optax
+
+from ld_mpc_jax.ops import config_cache, sharding
+from ld_mpc_jax.model import tasks
+from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.learn.losses import make_loss_fn
+from ld_mpc_jax.model.models import build_networks, init_params, set_obs_normalization
+
+
+@flax.struct.dataclass
+class TrainState:
+  """Everything an update changes. Static hyperparameters live in the closures, not here."""
+  params: Any
+  opt_state: Any
+  ema_params: Any
+  step: jnp.ndarray
+
+
+def make_optimizer(config: ml_collections.ConfigDict) -> optax.GradientTransformation:
+  """Adam with linear warmup to a constant rate, after global-norm gradient clipping."""
+  t = config.train
+  warmup = max(t.warmup_steps, 1)
+  # lr * min(1, (count + 1) / warmup): step 0 already uses lr / warmup (a schedule from 0 would
+  # waste the first step), the full rate from step warmup - 1 on.
+  schedule = optax.linear_schedule(t.learning_rate / warmup, t.learning_rate, warmup - 1)
+  return optax.chain(optax.clip_by_global_norm(t.grad_clip), optax.adam(schedule))
+
+
+def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
+                       obs: Optional[jnp.ndarray] = None) -> TrainState:
+  """Fresh parameters; the EMA starts as a copy of them.
+
+  obs [N, obs_dim]: the dataset's observations, whose mean and std the encoder normalises with
+  (`config.model.normalize_obs`); None leaves the identity normalisation (mean 0, std 1).
+  """
+  params = init_params(config, key)
+  if obs is not None and config.model.normalize_obs:
+    params = set_obs_normalization(params, obs, config.model.obs_mask_constant)
+  tx = make_optimizer(config)
+
+  @jax.jit  # One program, not one small compiled operation per leaf.
+  def fresh(params):
+    return TrainState(params=params, opt_state=tx.init(params),
+                      ema_params=jax.tree_util.tree_map(jnp.copy, params),
+                      step=jnp.zeros((), jnp.int32))
+
+  return fresh(params)
+
+
+def ema_update(ema_params, params, decay: float):
+  """ema <- decay * ema + (1 - decay) * params, leaf by leaf."""
+  return optax.incremental_update(params, ema_params, step_size=1.0 - decay)
+
+
+def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) -> Callable:
+  """Returns jitted update(state, batch, key) -> (state, metrics); `state` is donated.
+
+  batch: obs [B, H+2, obs_dim], action [B, H+1, A], reward [B, H+1] (float32): windows of
+  T = H + 1 steps plus one for the value bootstrap (see losses.make_loss_fn); a multi-task
+  config also needs task int32 [B], task-major (ld_mpc_jax.model.tasks.multitask_loss).
+  Metrics are a dict of scalars, including the gradient norm before clipping. On one device the
+  same jitted function serves every config of the same value in this process
+  (ld_mpc_jax.ops.config_cache), so a second run of a config traces nothing again.
+
+  With `config.train.data_parallel` (or a `mesh` given), the same update is compiled for a 1-D
+  device mesh (default: all devices, ld_mpc_jax.ops.sharding): the batch split along its first
+  axis, state, key and metrics replicated. Pass the state through `sharding.replicate` and the
+  batch through `sharding.shard_batch`. Otherwise it is a plain single-device jit.
+  """
+  validate_config(config)
+  if mesh is None and not config.train.data_parallel:
+    return _jitted_update(config)
+  mesh = sharding.make_mesh() if mesh is None else mesh
+  sharding.local_batch_size(config.train.batch_size, mesh)  # Raises if B % devices != 0.
+  rep = sharding.replicated(mesh)
+  return jax.jit(_update_fn(config), in_shardings=(rep, sharding.batch_sharded(mesh), rep),
+                 out_shardings=(rep, rep), donate_argnums=0)
+
+
+@config_cache.by_config  # Traced once per config value in a process.
+def _jitted_update(config: ml_collections.ConfigDict) -> Callable:
+  update = _update_fn(config)
+  jitted = jax.jit(update, donate_argnums=0)
+  jitted.unjitted = update  # For make_multi_update.
+  return jitted
+
+
+def _update_fn(config: ml_collections.ConfigDict) -> Callable:
+  """The unjitted update(state, batch, key) -> (state, metrics) of `make_update`."""
+  nets = build_networks(config)
+  loss_fn = make_loss_fn(config, nets)
+  if tasks.is_multitask(config):  # batch['task'] [B] too; one share per task (tasks.py).
+    loss_fn = tasks.multitask_loss(loss_fn, tasks.num_tasks(config))
+  tx = make_optimizer(config)
+  decay = config.train.ema_decay
+  h, obs_dim, act_dim = config.horizon, config.obs_dim, config.action_dim
+
+  def update(state: TrainState, batch: dict, key: jax.Array):
+    b = batch['obs'].shape[0]
+    expected = {'obs': (b, h + 2, obs_dim), 'action': (b, h + 1, act_dim),
+                'reward': (b, h + 1)}
+    if tasks.is_multitask(config):
+      expected['task'] = (b,)
+    for name, shape in expected.items():
+      if name not in batch or tuple(batch[name].shape) != shape:
+        got = tuple(batch[name].shape) if name in batch else 'missing'
+        raise ValueError(f'batch[{name!r}] must have shape {shape} (horizon={h}), got {got}')
+    (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(
+        state.params, state.ema_params, batch, key)
+    updates, opt_state = tx.update(grads, state.opt_state, state.params)
+    params = optax.apply_updates(state.params, updates)
+    metrics['grad_norm'] = optax.global_norm(grads)
+    new_state = TrainState(params=params, opt_state=opt_state,
+                           ema_params=ema_update(state.ema_params, params, decay),
+                           step=state.step + 1)
+    return new_state, metrics
+
+  return update
+
+
+def make_multi_update(config: ml_collections.ConfigDict, num: int) -> Callable:
+  """Returns jitted update(state, batches, key) -> (state, metrics of the last update): `num`
+  updates in one call (lax.scan), batches stacked on a leading axis [num, B, ...], the i-th
+  update's key fold_in(key, i). One dispatch for `num` small updates: on a 2-core CPU about
+  3x fewer seconds per update at the online `:cpu` size (docs/online.md). State donated."""
+  update = make_update(config).unjitted
+
+  def multi(state, batches, key):
+    def body(state, inputs):
+      batch, i = inputs
+      return update(state, batch, jax.random.fold_in(key, i))
+    state, metrics = jax.lax.scan(body, state, (batches, jnp.arange(num)))
+    return state, jax.tree_util.tree_map(lambda x: x[-1], metrics)
+
+  jitted = jax.jit(multi, donate_argnums=0)
+  jitted.unjitted = multi  # For make_seeds_update.
+  return jitted
+
+
+def stack_states(states):
+  """One tree with a leading seed axis [N, ...] from N trees of the same structure."""
+  return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *states)
+
+
+def seed_slice(tree, i: int):
+  """Seed i's tree from one with a leading seed axis (`stack_states`)."""
+  return jax.tree_util.tree_map(lambda x: x[i], tree)
+
+
+def make_seeds_update(config: ml_collections.ConfigDict, num_seeds: int, per_call: int = 1
+                      ) -> Callable:
+  """Returns jitted update(state, batches, keys) -> (state, metrics) for `num_seeds`
+  independent agents (`config.train.num_seeds`): state, batches and keys [N] carry a leading
+  seed axis, and the update (`make_update`, or `per_call` updates in one call,
+  `make_multi_update`, batches [N, per_call, B, ...]) is vmapped over it; metrics [N]. With one
+  seed it is the unbatched update on the squeezed arguments, the same program a single run
+  compiles. State donated."""
+  one = (make_update(config).unjitted if per_call == 1
+         else make_multi_update(config, per_call).unjitted)
+  if num_seeds == 1:
+    squeeze = lambda tree: jax.tree_util.tree_map(lambda x: x[0], tree)
+    expand = lambda tree: jax.tree_util.tree_map(lambda x: x[None], tree)
+    return jax.jit(lambda state, batches, keys: expand(one(squeeze(state), squeeze(batches),
+                                                           keys[0])), donate_argnums=0)
+  return jax.jit(jax.vmap(one), donate_argnums=0)

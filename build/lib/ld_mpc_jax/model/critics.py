@@ -1,0 +1,142 @@
+"""Values of the best policy in the data's support, on latents: IQL-style expectile regression.
+
+The sequence objective's own value head (`config.critic.value = 'behaviour'`) regresses
+n-step returns of the data, so it values the behaviour policy, and it reads V(z_H) through a
+causal transformer that also sees the action prefix. With `value = 'expectile'` (the default)
+the terminal value comes from an ensemble of MLPs of z_H alone, trained as in IQL (Kostrikov et
+al. 2022, "Offline RL with Implicit Q-Learning"):
+  L_Q = E (r_t + gamma V_ema(z'_{t+1}) - Q(z_t, a_t))^2                    (TD, EMA target)
+(`critic.td_target = 'one_step'`; the default 'window' regresses Q onto the discounted rewards
+to the end of the training window plus V_ema there: n-step propagation, with the data's actions
+after the first, which short trainings need),
+  L_V = E L_tau(min_j Q_ema(z'_t, a_t) - V(z_t)),  L_tau(u) = |tau - 1(u < 0)| u^2
+where z' are the EMA encoder's latents. An upper expectile (tau > 0.5) of Q over the data's
+actions approaches the value of the best action the data contain, without querying Q outside
+them. The actor prior is then extracted by advantage-weighted regression (AWR, Peng et al. 2019;
+IQL eq. 7): weights min(exp(beta (Q_ema - V)), w_max) on the behaviour-cloning error.
+How the terminal value enters J: ld_mpc_jax.model.objective; the actor kinds: ld_mpc_jax.model.actors.
+
+Values are predicted in units of `config.critic.value_scale` (Meta-World rewards are up to
+10 per step, so returns reach hundreds); expectile regression is equivariant to that scale.
+"""
+
+from typing import Callable, Dict, Optional
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import ml_collections
+
+from ld_mpc_jax.nets import MLP
+from ld_mpc_jax.ops.numerics import window_returns
+
+# Q's target (`config.critic.td_target`): 'one_step' r_t + gamma V_ema(z'_{t+1}) (IQL);
+# 'window' the discounted rewards to the window's end plus V_ema there; 'policy': Q <- r_t +
+# gamma min_j Q_ema(z'_{t+1}, pi(z'_{t+1})) and V(z) <- min_j Q_ema(z, pi(z)) (TD-MPC2): values
+# of the current policy, which extrapolate beyond the data's actions.
+TD_TARGETS = ('one_step', 'window', 'policy')
+
+
+class Ensemble(nn.Module):
+  """`num` independent MLPs with scalar output: x [..., d] -> [num, ...]."""
+  hidden: tuple
+  num: int
+
+  @nn.compact
+  def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
+    heads = nn.vmap(MLP, variable_axes={'params': 0}, split_rngs={'params': True},
+                    in_axes=None, out_axes=0, axis_size=self.num)
+    return heads(tuple(self.hidden) + (1,), name='heads')(x)[..., 0]
+
+
+class Critics(nn.Module):
+  """V(z) ensemble and Q(z, a) ensemble, in value_scale units."""
+  hidden: tuple
+  num_values: int
+  num_q: int
+
+  def setup(self):
+    self.v = Ensemble(self.hidden, self.num_values)
+    self.q = Ensemble(self.hidden, self.num_q)
+
+  def value(self, z: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D] -> [num_values, ...]."""
+    return self.v(z)
+
+  def q_value(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
+    """z [..., D], a [..., A] -> [num_q, ...]."""
+    return self.q(jnp.concatenate([z, a], axis=-1))
+
+  def __call__(self, z, a):
+    return self.value(z), self.q_value(z, a)
+
+
+def build_critics(config: ml_collections.ConfigDict) -> Critics:
+  """The V and Q ensembles of `config.critic` (whether a model has them: models.uses_critics)."""
+  o = config.critic
+  return Critics(tuple(o.hidden), o.num_values, o.num_q)
+
+
+def expectile_loss(diff: jnp.ndarray, expectile: float) -> jnp.ndarray:
+  """L_tau(u) = |tau - 1(u < 0)| u^2, elementwise; diff = target - prediction."""
+  weight = jnp.where(diff < 0, 1.0 - expectile, expectile)
+  return weight * diff ** 2
+
+
+def awr_weights(advantage: jnp.ndarray, temperature: float, max_weight: float) -> jnp.ndarray:
+  """min(exp(temperature * advantage), max_weight), elementwise (IQL's clip at 100)."""
+  return jnp.minimum(jnp.exp(temperature * advantage), max_weight)
+
+
+def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
+                     policy: Optional[Callable] = None) -> Callable:
+  """Returns critic_loss(params, target_params, z, z_ema, z_model, action, reward).
+
+  policy(params, z [..., D]) -> a [..., A]: the actor prior's action, needed by
+  `critic.td_target = 'policy'` (TD-MPC2's targets: Q onto r + gamma min Q_ema(z', pi(z')),
+  V onto min Q_ema(z, pi(z)) by squared error instead of the expectile).
+
+  z, z_ema [B, H+2, D]: online and EMA encoder latents of the window; z_model [B, H+1, D] or
+  None: the dynamics model's latents from z_0 under the data's actions (stop-gradient), on which
+  V is trained as well, since that is where the planner reads it. action [B, H+1, A], reward
+  [B, H+1]. -> (losses {'q', 'v'}, awr_weights [B, H+1], metrics).
+  """
+  o, gamma, h = config.critic, config.gamma, config.horizon
+  apply = lambda p, *args, method: critics.apply({'params': p['critics']}, *args, method=method)
+
+  def critic_loss(params, target_params, z, z_ema, z_model, action, reward):
+    sg = jax.lax.stop_gradient
+    z_t, ze_t = z[:, :h + 1], z_ema[:, :h + 1]
+    v_next = jnp.mean(apply(target_params, z_ema[:, 1:], method=Critics.value), axis=0)
+    on_policy = o.td_target == 'policy'
+    if on_policy:  # TD-MPC2: the next action from the policy, the min over target Qs.
+      q_next = jnp.min(apply(target_params, z_ema[:, 1:], sg(policy(params, z_ema[:, 1:])),
+                             method=Critics.q_value), axis=0)
+      q_target = sg(reward / o.value_scale + gamma * q_next)
+    elif o.td_target == 'window':  # n-step: rewards to the window's end.
+      q_target = sg(window_returns(reward / o.value_scale, v_next[:, -1], gamma))
+    else:
+      q_target = sg(reward / o.value_scale + gamma * v_next)  # [B, H+1]
+    q = apply(params, z_t, action, method=Critics.q_value)  # [num_q, B, H+1]
+    l_q = jnp.mean((q - q_target) ** 2)
+    q_ema = sg(jnp.min(apply(target_params, ze_t, action, method=Critics.q_value), axis=0))
+    # V on the encoder's latents and, where given, on the model's, in one call on a new leading
+    # axis: [num_values, n, B, H+1]; the loss is the mean over both sets.
+    z_sets = (z_t,) if z_model is None else (z_t, z_model)
+    v_all = apply(params, jnp.stack(z_sets), method=Critics.value)
+    v = v_all[:, 0]  # [num_values, B, H+1], on the encoder's latents.
+    if on_policy:  # V(z) = Q(z, pi(z)): the value of the policy, the planner's terminal value.
+      q_pi = sg(jnp.min(apply(target_params, ze_t, sg(policy(params, ze_t)),
+                              method=Critics.q_value), axis=0))
+      v_target = jnp.stack([q_pi] * len(z_sets))[None]
+      l_v = jnp.mean((v_target - v_all) ** 2)
+    else:
+      l_v = jnp.mean(expectile_loss(q_ema - v_all, o.expectile))
+    advantage = o.value_scale * (q_ema - sg(jnp.mean(v, axis=0)))  # reward units
+    weights = awr_weights(advantage, o.awr_temperature, o.awr_max_weight)
+    metrics: Dict[str, jnp.ndarray] = {
+        'q_mean': o.value_scale * jnp.mean(q), 'v_mean': o.value_scale * jnp.mean(v),
+        'advantage_std': jnp.std(advantage), 'awr_weight_mean': jnp.mean(weights)}
+    return {'q': l_q, 'v': l_v}, sg(weights), metrics
+
+  return critic_loss

@@ -1,0 +1,118 @@
+"""Acting settings of online training: the planner's exploration noise, pessimism and search while
+acting, its intrinsic exploration term in J (optimism over the value members and the dynamics
+draws' disagreement, annealed), and the noise on the executed action (white inside the jitted
+plan, or correlated here). Evaluation never uses them."""
+
+from typing import Tuple
+
+import ml_collections
+import numpy as np
+
+from ld_mpc_jax.model import proposals
+from ld_mpc_jax.model.objective import Intrinsic
+
+SCHEDULES = ('constant', 'linear')
+
+
+def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """A copy of config for the planner while acting: `config.online`'s exploration noise on its
+  candidates, its acting pessimism (`online.act_pessimism`; evaluation keeps `plan.pessimism`):
+  unfamiliar states are model error offline, opportunity online; and its acting selection
+  (`online.act_safe_selection`; evaluation keeps `plan.safe_selection`; `plan.safe_confirm`
+  and `plan.fallback_drop` apply while acting only with it), its search
+  (`online.act_num_gaussian`, `online.act_iterations`; evaluation keeps `plan.num_gaussian`
+  and `plan.iterations`), its dynamics draws (`online.act_dynamics_draws`, 0: the plan's) and,
+  with `online.act_proposal` off, no proposal candidates. Under `online.act_schedule='linear'`
+  the acting pessimism is no setting but the plan's traced `intrinsic` (`acting_intrinsic`), so
+  `plan.pessimism` is 0 here."""
+  o, c = config.online, ml_collections.ConfigDict(config.to_dict())
+  c.plan.action_noise_std = o.action_noise_std
+  c.plan.prior_noise_std = o.prior_noise_std
+  c.plan.pessimism = o.act_pessimism if o.act_schedule == 'constant' else 0.0
+  c.plan.safe_selection = o.act_safe_selection
+  c.plan.safe_confirm = config.plan.safe_confirm and o.act_safe_selection
+  # The fallback hands the rest of an episode to the actor prior: a safe-selection gate too.
+  c.plan.fallback_drop = config.plan.fallback_drop if o.act_safe_selection else 0.0
+  c.plan.num_gaussian = o.act_num_gaussian
+  c.plan.iterations = o.act_iterations
+  c.plan.dynamics_draws = o.act_dynamics_draws or config.plan.dynamics_draws
+  if not o.act_proposal:  # The first round without the proposal's K - P sequences.
+    c.plan.num_candidates = config.plan.num_prior_candidates
+  return c
+
+
+def _linear(start: float, end: float, env_steps: int, first: int, total: int) -> float:
+  """start at `first` environment steps (and before), end at `total` (and after), linear between."""
+  frac = np.clip((env_steps - first) / max(total - first, 1), 0.0, 1.0)
+  return float(start + frac * (end - start))
+
+
+def executed_noise(config: ml_collections.ConfigDict, env_steps: int, learn_start: int) -> float:
+  """Std of the noise on the executed action at `env_steps`: linear from
+  `online.exec_noise_start` when the planner starts acting to `online.exec_noise_end` at
+  `online.env_steps`."""
+  o = config.online
+  return _linear(o.exec_noise_start, o.exec_noise_end, env_steps, learn_start, o.env_steps)
+
+
+def plan_start(config: ml_collections.ConfigDict, learn_start: int) -> int:
+  """Environment steps at the first planner wave: after the actor prior's seed waves with
+  demonstrations and `online.demo_seed_actor`, else where learning starts (`learn_start`)."""
+  o = config.online
+  return o.seed_steps if o.demos and o.demo_seed_actor else learn_start
+
+
+def acting_exploration(config: ml_collections.ConfigDict, env_steps: int,
+                       plan_start: int) -> Tuple[float, float]:
+  """(pessimism, disagreement weight) of the acting planner at `env_steps`:
+  `online.act_pessimism` and `online.act_disagreement`, or under `online.act_schedule='linear'`
+  linear from them at `plan_start` (the first planner wave) to `online.act_pessimism_end` and
+  `online.act_disagreement_end` at `online.env_steps`."""
+  o = config.online
+  if o.act_schedule == 'constant':
+    return float(o.act_pessimism), float(o.act_disagreement)
+  return (_linear(o.act_pessimism, o.act_pessimism_end, env_steps, plan_start, o.env_steps),
+          _linear(o.act_disagreement, o.act_disagreement_end, env_steps, plan_start,
+                  o.env_steps))
+
+
+def acting_intrinsic(config: ml_collections.ConfigDict, env_steps: int,
+                     plan_start: int) -> Intrinsic:
+  """The acting planner's traced intrinsic term at `env_steps` (planner.make_plan's `intrinsic`,
+  float32 scalars): `acting_exploration`'s values, except the pessimism under the 'constant'
+  schedule, which `acting_config` sets as `plan.pessimism` (0 here), as before the schedule."""
+  pessimism, disagreement = acting_exploration(config, env_steps, plan_start)
+  if config.online.act_schedule == 'constant':
+    pessimism = 0.0
+  return Intrinsic(pessimism=np.float32(pessimism), disagreement=np.float32(disagreement))
+
+
+def validate_acting(config: ml_collections.ConfigDict) -> None:
+  """One-line ValueErrors for the acting planner's exploration settings (`config.online`)."""
+  o, p = config.online, config.plan
+  if o.act_schedule not in SCHEDULES:
+    raise ValueError(f'config.online.act_schedule must be one of {SCHEDULES}, '
+                     f'got {o.act_schedule!r}')
+  if not isinstance(o.act_dynamics_draws, int) or o.act_dynamics_draws < 0:
+    raise ValueError('config.online.act_dynamics_draws must be an integer >= 0, '
+                     f'got {o.act_dynamics_draws!r}')
+  weights = (o.act_disagreement,) + ((o.act_disagreement_end,) if o.act_schedule == 'linear'
+                                      else ())
+  if any(weights) and (o.act_dynamics_draws or p.dynamics_draws) < 2:
+    raise ValueError('config.online.act_disagreement needs several dynamics draws while acting '
+                     'to disagree: set config.online.act_dynamics_draws >= 2')
+  if o.act_proposal:
+    return
+  if not proposals.get(config).sequence:
+    raise ValueError('config.online.act_proposal=False drops whole proposal sequences from the '
+                     f'first round; proposal_type {config.model.proposal_type!r} has none')
+  if p.num_prior_candidates + o.act_num_gaussian < 1:
+    raise ValueError('config.online.act_proposal=False leaves no candidate while acting: set '
+                     'config.plan.num_prior_candidates or config.online.act_num_gaussian >= 1')
+
+
+def ar1_noise(noise: np.ndarray, std: float, corr: float,
+              rng: np.random.Generator) -> np.ndarray:
+  """The next AR(1) (discrete Ornstein-Uhlenbeck) noise: corr x noise + sqrt(1 - corr^2) x std x
+  N(0, 1), same shape as `noise`; its stationary std is `std`."""
+  return corr * noise + np.sqrt(1.0 - corr**2) * std * rng.standard_normal(noise.shape)

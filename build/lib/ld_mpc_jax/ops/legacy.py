@@ -1,0 +1,134 @@
+"""The one migration of saved configs, keyed by the config's version (`config.version`).
+
+Library code reads config fields directly (defaults live in ld_mpc_jax/configs/base.py); a
+saved config is brought up to date once, on load (checkpointing.migrate_config -> `migrate`):
+each step of STEPS above the version it was saved with runs in order. Version 0 is every config
+saved before the field existed (until 2026-11-29): `to_v1` renames its old sections and fills
+the fields it lacks with the values that mean what its run did (the tables below, frozen: they
+never change, or old runs would change with them). A change that must read older configs
+differently raises CONFIG_VERSION and adds its step; a new field whose default changes nothing
+needs no step (a config of the previous version is filled with it by the step that adds it).
+This module is the one place old names are understood; elsewhere they are errors naming the new
+one (`renamed_hint`).
+"""
+
+import ml_collections
+
+# Old section name -> new: `objective` held the critic settings; J itself lives in
+# ld_mpc_jax/model/objective.py, so the word names J alone.
+RENAMED_SECTIONS = {'objective': 'critic'}
+# The critic settings of a run saved before they existed (as config.objective): the behaviour
+# value of the sequence objective, a BC actor, no latent rollouts in the loss.
+LEGACY_CRITIC = dict(value='behaviour', actor='bc', latent_rollout=False, num_values=1,
+                     num_q=2, hidden=(256, 256), expectile=0.7, value_scale=100.0,
+                     awr_temperature=1.0, awr_max_weight=100.0, rollout_steps=1,
+                     td_target='one_step', entropy_coef=1e-4, log_std_map='clip')
+# section -> {field: value for runs saved before it existed}.
+MODEL_FIELDS = {
+    'model': dict(proposal_type='diffusion_seq', dynamics_type='diffusion_ar',
+                  normalize_obs=False, normalize_dynamics=False, task_dim=96,
+                  obs_mask_constant=False),
+    'critic': dict(td_target='one_step', entropy_coef=1e-4, log_std_map='clip',
+                   rollout_unroll=True),
+    'loss': dict(w_consistency=0.0, w_q=0.0, w_v=0.0, w_demo_bc=0.0, w_noise_inv=0.0,
+               reward_balance=0.0),
+}
+TASK_DIM = MODEL_FIELDS['model']['task_dim']  # Before it was a field (TD-MPC2's width).
+# Evaluation, planner, data and training settings of configs saved before they existed; the
+# values mean what those runs did (no pessimism before `plan.pessimism`, no search, no gates;
+# the scripted Meta-World data with 500-step episodes; one device, one seed, no noise).
+FIELDS = {
+    'eval': dict(splits=('held_out', 'train'), seeds=(0,), batch_size=50, plan_chunk=0,
+                 baselines=('actor', 'proposal'), data_parallel=False, key_seed=-1,
+                 action_noise=0.0, obs_noise=0.0, obs_noise_dims='all'),
+    'plan': dict(pessimism=0.0, dynamics_draws=1, guidance_scale=0.0, guidance_dynamics_steps=1,
+                 num_gaussian=0, gaussian_std=2.0, iterations=0, num_refine=64, num_elites=8,
+                 temperature=0.5, min_std=0.05, selection='argmax', safe_selection=False,
+                 safe_margin=1.0, safe_margin_scaling='none', safe_confirm=False,
+                 confirm_draws=1, confirm_margin=-1.0, fallback_drop=0.0, fallback_floor=0.0,
+                 first_round=('proposal', 'gaussian'), latent_filter=0.0),
+    'data': dict(source='metaworld', path='', max_episode_steps=500),
+    'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0),
+}
+# The version ld_mpc_jax/configs/base.py writes (config.version).
+CONFIG_VERSION = 1
+
+
+def _online_fields(config: ml_collections.ConfigDict) -> dict:
+  """Online runs saved before acting had its own settings: acting as evaluation did."""
+  p = config.plan
+  return dict(act_pessimism=p.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
+              exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan',
+              act_safe_selection=p.safe_selection, train_goals='mt1',
+              act_num_gaussian=p.num_gaussian, act_iterations=p.iterations, demos=0,
+              demo_path='', demo_noise_std=0.1, demo_share_start=0.5, demo_share_end=0.25,
+              demo_pretrain_updates=0, demo_seed_actor=False, act_schedule='constant',
+              act_pessimism_end=0.0, act_disagreement=0.0, act_disagreement_end=0.0,
+              act_dynamics_draws=0, act_proposal=True)
+
+
+def to_v1(config: ml_collections.ConfigDict) -> None:
+  """Version 0 -> 1 (in place): old section names renamed, then every field above filled."""
+  rename_sections(config)  # Before the fills, which use the new names.
+  fill_model_fields(config)
+  for section, fields in FIELDS.items():
+    fill(config, section, fields)
+  if 'online' in config:
+    fill(config, 'online', _online_fields(config))
+
+
+STEPS = {1: to_v1}  # version -> the step that brings a config of version - 1 to it.
+
+
+def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """`config` (as saved) brought to CONFIG_VERSION in place and returned; one-line ValueError
+  for a config saved by a newer version of this code."""
+  version = int(config.version) if 'version' in config else 0
+  if version > CONFIG_VERSION:
+    raise ValueError(f'this config has version {version}, newer than this code reads '
+                     f'({CONFIG_VERSION}): update ld_mpc_jax to load it')
+  for step in range(version + 1, CONFIG_VERSION + 1):
+    STEPS[step](config)
+  config.version = CONFIG_VERSION
+  return config
+
+
+def neutral_values() -> dict:
+  """{'plan': ..., 'data': ...}: the planner and data fields' values that change nothing against
+  a run saved before the field (evaluation cache keys leave them out)."""
+  return {'plan': dict(FIELDS['plan']), 'data': dict(FIELDS['data'])}
+
+
+def rename_sections(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """Moves each old section of RENAMED_SECTIONS to its new name, where the new one is absent
+  (in place), and returns config."""
+  for old, new in RENAMED_SECTIONS.items():
+    if old in config and new not in config:
+      config[new] = config[old]
+      del config[old]
+  return config
+
+
+def renamed_hint(dotted: str) -> str:
+  """' (config.objective is now config.critic)' when the dotted field name (with or without a
+  leading 'config.') starts with a renamed section, else ''."""
+  parts = dotted.split('.')
+  section = parts[1] if parts[0] == 'config' and len(parts) > 1 else parts[0]
+  new = RENAMED_SECTIONS.get(section)
+  return f' (config.{section} is now config.{new})' if new else ''
+
+
+def fill(config: ml_collections.ConfigDict, section: str, fields: dict) -> None:
+  """Adds to config[section] the `fields` it lacks (in place)."""
+  for name, value in fields.items():
+    if name not in config[section]:
+      config[section][name] = value
+
+
+def fill_model_fields(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  """Adds the fields above that `config` (its sections renamed) lacks (in place), returns it."""
+  if 'critic' not in config:
+    config.critic = ml_collections.ConfigDict(LEGACY_CRITIC)
+  for section, fields in MODEL_FIELDS.items():
+    fill(config, section, fields)
+  return config

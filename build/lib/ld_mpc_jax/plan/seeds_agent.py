@@ -1,0 +1,74 @@
+"""S agents acting in lockstep, one per training seed (`train.num_seeds`; ld_mpc_jax.runs.online):
+a policy mode of ld_mpc_jax.plan.agent vmapped over a leading seed axis of the parameters, each
+agent on its own environments with its own key schedule."""
+
+import json
+from typing import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import ml_collections
+import numpy as np
+
+from ld_mpc_jax.plan.agent import NO_PLAN_INFO, episode_keys, float32_tree, make_act_fn, uses_prev
+
+_SEEDS_ACTS = {}  # One jitted function per setting, compiled once per process.
+
+
+def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
+  """Returns jitted act(params [S, ...], obs [S, obs_dim], keys [S], t [], prev, noise [],
+  intrinsic=None) -> (actions [S, A], carries, infos [S, 6]): `make_act` vmapped over a leading
+  seed axis of the parameters (S agents of `train.num_seeds`, each on its own environment and
+  key); the noise and the intrinsic term are the same for every agent."""
+  act = make_act_fn(config, mode)
+  one = lambda params, obs, key, t, prev, noise, intrinsic: act(
+      params, obs, jax.random.fold_in(key, t), prev, noise, intrinsic)
+  jitted = jax.jit(jax.vmap(one, in_axes=(0, 0, 0, None, 0, None, None)))
+  return lambda params, obs, keys, t, prev, noise=0.0, intrinsic=None: jitted(
+      params, obs, keys, t, prev, jnp.asarray(noise, jnp.float32), float32_tree(intrinsic))
+
+
+class SeedsAgentPolicy:
+  """S agents (stacked parameters [S, ...]) acting on N environments each in lockstep: one
+  jitted call per environment and decision for all S agents (`make_seeds_act`); each agent's
+  episodes keep the key schedule of `agent.BatchAgentPolicy` with its own seed, so an agent acts as
+  it would alone (to float tolerance: the vmapped plan may round differently)."""
+
+  def __init__(self, config: ml_collections.ConfigDict, params, mode: str, seeds: Sequence[int]):
+    self.params, self.seeds = params, list(seeds)
+    self.warm = uses_prev(config, mode)
+    self.action_dim = config.action_dim
+    spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
+    key = (json.dumps(spec, sort_keys=True, default=str), mode, 'seeds')
+    if key not in _SEEDS_ACTS:
+      _SEEDS_ACTS[key] = make_seeds_act(config, mode)
+    self.act = _SEEDS_ACTS[key]
+    self.keys = self.prev = None
+    self.action_noise, self.intrinsic = 0.0, None  # As agent.BatchAgentPolicy's.
+    self.last_info = None  # [S, N, 6] float32 of the last decision.
+
+  def set_params(self, params) -> None:
+    self.params = params
+
+  def start(self, episodes) -> None:
+    """episodes[s]: agent s's episodes of the wave (goals.Episode, one per environment)."""
+    self.keys = jnp.stack([episode_keys(seed, [ep.reset_seed for ep in eps])
+                           for seed, eps in zip(self.seeds, episodes)])  # [S, N]
+    self.prev = None
+
+  def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
+    """obs [S, N, obs_dim], active [N] -> actions [S, N, A] (zeros where inactive)."""
+    s, n = obs.shape[:2]
+    if self.prev is None:
+      self.prev = [None] * n
+    actions = np.zeros((s, n, self.action_dim), np.float32)
+    infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (s, n, 1))
+    for i in np.flatnonzero(active):
+      action, carry, info = self.act(self.params, jnp.asarray(obs[:, i], jnp.float32),
+                                     self.keys[:, i], t, self.prev[i], self.action_noise,
+                                     self.intrinsic)
+      if self.warm:
+        self.prev[i] = carry
+      actions[:, i], infos[:, i] = np.asarray(action), np.asarray(info)
+    self.last_info = infos
+    return actions

@@ -1,0 +1,1 @@
+"""Runs: one run loop (workdir, checkpoints, evaluations, reports), offline and online training."""

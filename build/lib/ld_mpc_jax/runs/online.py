@@ -1,0 +1,330 @@
+"""Online and offline-to-online training: the planner acts, its episodes feed the replay buffer.
+
+`train_online(config, workdir)` is the main job's online mode (`config.online.enabled`;
+ld_mpc_jax/configs/door_open_online.py). N = `online.num_envs` environments run one episode each
+in lockstep (a wave); episodes run their full `online.episode_steps` environment steps, as the
+scripted data do, and start from the goals of MT1 seed `config.data.seed` (or, with
+`online.train_goals='random'`, from a fresh goal configuration each). From scratch, the
+waves of the first `online.seed_steps` environment steps act with uniform random actions; after
+them the agent acts with its planner and EMA parameters (one jitted plan per environment, or
+`online.plan_chunk` environments per vmap, `agent.BatchAgentPolicy`), with the exploration noise
+`online.action_noise_std` / `online.prior_noise_std` on its candidates (`acting_config`), which
+evaluation never uses. Updates interleave with acting: once learning has started, after every
+decision updates run until floor(`online.update_ratio` x environment steps) have been made, so
+from scratch the seed steps' share comes at once (TD-MPC2 pretrains on its seed data likewise).
+With `online.demos` = N (ld_mpc_jax.data.demos), N successful scripted episodes on training
+goals (or a dataset file's) sit in their own buffer; every batch draws an annealed share of its
+windows from them (the actor prior also clones them with `loss.w_demo_bc` > 0),
+`online.demo_pretrain_updates` updates on them alone come before the first wave, and no wave
+acts at random: the planner acts from the first (or the actor prior in the seed waves, with
+`online.demo_seed_actor`), plus the executed-action noise; updates interleave from the first.
+With `online.init_from` (an offline run's workdir), the agent starts from that run's latest
+checkpoint (parameters, optimiser state, EMA) and samples from that run's dataset and its own
+episodes alike.
+
+Checkpoints come at wave ends, every `online.checkpoint_every` environment steps, under the
+orbax step = environment steps: the TrainState, and before it `online/buffer_<step>.npz` (the
+online episodes in the dataset file format, written atomically, with the counters and the
+sampler's RNG state in its metadata). Every other random draw is a function of `config.seed` and
+those counters, so a resumed run continues exactly as the uninterrupted one.
+"""
+
+import json
+import os
+import sys
+import time
+from typing import Any, Dict, Optional
+
+import jax
+import jax.numpy as jnp
+import ml_collections
+import numpy as np
+import tqdm
+
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax import data, envs
+from ld_mpc_jax.runs import loop as runs, online_report
+from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.model.exploration import (acting_config, acting_intrinsic, executed_noise,
+                                          plan_start)
+from ld_mpc_jax.model.models import set_obs_normalization
+from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, seed_slice, stack_states
+
+from ld_mpc_jax.data.demos import demo_share, sparse_dataset
+from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
+from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy, seat_configs
+
+
+
+def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collections.ConfigDict]:
+  """The config of the offline run `online.init_from` (None: from scratch).
+
+  Raises a one-line ValueError when it is not a training workdir with a checkpoint, when it was
+  trained on another task, or when its networks differ from config's (the parameters would not
+  fit).
+  """
+  path = config.online.init_from
+  if not path:
+    return None
+  try:
+    source = checkpointing.load_config(path)
+  except FileNotFoundError as err:
+    raise ValueError(f'config.online.init_from: {err}') from None
+  if source.task != config.task:  # Its dataset would be collected again on the wrong task.
+    raise ValueError(f'config.online.init_from={path!r} was trained on {source.task}, not '
+                     f'{config.task}: pass --config.task={source.task}')
+  if checkpointing.checkpoint_manager(path).latest_step() is None:
+    raise ValueError(f'config.online.init_from={path!r} has no checkpoint')
+  shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, checkpointing.abstract_state(c))
+  if shapes(source) != shapes(config):
+    fields = [f'model.{k}' for k in config.model if k != 'dropout' and  # JSON: lists = tuples.
+              json.dumps(source.model[k] if k in source.model else None)
+              != json.dumps(config.model[k])]
+    raise ValueError(f'config.online.init_from={path!r} has other networks than this config '
+                     f'(differs in {", ".join(fields) or "critic/horizon"})')
+  return source
+
+
+class OnlineJob:
+  """An online run as a `runs.Job`: each advance is one wave of episodes and its updates.
+
+  Holds the TrainState of every training seed stacked on a leading seed axis (one seed:
+  [1, ...]; `train.num_seeds`), one `Seat` per seed (run directory, buffer, environments), and
+  the counters (environment steps: the job's progress), which the seeds share: they act in
+  lockstep, each on its own episodes, and the update is vmapped over them
+  (`train_state.make_seeds_update`), so each seed's run is the one it would make alone.
+  """
+
+  def __init__(self, config, workdir: str, source, offline: Optional[data.Dataset]):
+    self.config, self.source, o = config, source, config.online
+    self.seats = [Seat(c, w, offline, i)
+                  for i, (c, w) in enumerate(seat_configs(config, workdir))]
+    self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
+                         pretrain_updates=0)
+    states = self._restore()
+    if states is None and source is not None:
+      states = [checkpointing.restore_latest(checkpointing.checkpoint_manager(o.init_from),
+                                             seat.config) for seat in self.seats]
+    elif states is None:  # From scratch; observation statistics come with the seed data.
+      states = [create_train_state(seat.config, jax.random.key(seat.config.seed))
+                for seat in self.seats]
+      self.counters['normalized'] = not config.model.normalize_obs
+    self.state = stack_states(states)
+    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in range(len(self.seats))])
+    self._views = None
+    # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
+    # pretrained on them, plus the executed-action noise), learn from the start.
+    self.learn_start = 0 if source is not None or o.demos else o.seed_steps
+    self.plan_start = plan_start(config, self.learn_start)  # The intrinsic term's schedule.
+    self.per_call = o.updates_per_call
+    self.update = make_seeds_update(config, len(self.seats), self.per_call)
+    self.keys = jnp.stack([seat.update_key for seat in self.seats])
+    # Each seed's update key at an update count: one jitted call, not one per seed.
+    self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
+    self.act_config = acting_config(config)
+    self.metrics, self.last, self.noise_std, self.intrinsic = {}, None, 0.0, None
+    self.runs = SeatRuns(self.seats)
+    self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
+                         unit='env step', dynamic_ncols=True)
+
+  def _restore(self):
+    """Each seed's TrainState at the newest step that every seed has intact, with its buffer
+    file, and seed 0's counters; None without a checkpoint. Newer steps (damaged, without a
+    buffer file, or not saved by every seed: a run killed between two seeds' saves) are skipped
+    with a warning (`runs.Run.restore`)."""
+    if not any(seat.run.manager.all_steps() for seat in self.seats):
+      return None
+    allowed = set.intersection(*(set(seat.run.manager.all_steps()) for seat in self.seats))
+
+    def usable(seat):
+      def reason(step):
+        if step not in allowed:
+          return 'not checkpointed by every seed of this run'
+        path = buffer_path(seat.run.workdir, step)
+        return None if os.path.exists(path) else f'no {path}'
+      return reason
+    while True:
+      states = [seat.run.restore(usable(seat)) for seat in self.seats]
+      steps = {seat.run.step for seat in self.seats}
+      if len(steps) == 1:
+        break
+      allowed = {s for s in allowed if s <= min(steps)}  # One seed fell back further.
+    for seat in self.seats:
+      counters = seat.buffer.load(buffer_path(seat.run.workdir, seat.run.step))
+      if seat.index == 0:  # Buffers saved before demonstrations existed lack the counter.
+        self.counters = dict(counters, pretrain_updates=counters.get('pretrain_updates', 0))
+    return states
+
+  @property
+  def progress(self) -> int:
+    return self.counters['env_steps']
+
+  def learning(self) -> bool:
+    return self.counters['env_steps'] >= self.learn_start
+
+  def views(self):
+    """Each seed's EMA parameters (one jitted slicing per change of the state)."""
+    if self._views is None:
+      self._views = self._unstack(self.state.ema_params)
+    return self._views
+
+  def catch_up(self) -> None:
+    """Updates until floor(update_ratio x environment steps) have been made.
+
+    From scratch, the first call sets the encoder's observation statistics from the seed
+    episodes and demonstrations (`config.model.normalize_obs`) before any update, then makes
+    the `online.demo_pretrain_updates` updates on the demonstrations alone (MoDem's BC
+    pretraining; not counted in the update ratio).
+    """
+    c, o = self.counters, self.config.online
+    if not c.get('normalized', True):  # Counters; fine-tuning starts normalized (no key).
+      params = stack_states([set_obs_normalization(
+          seed_slice(self.state.params, s.index),
+          np.concatenate([ep['obs'] for ep in s.buffer.episodes + s.buffer.demos]),
+          self.config.model.obs_mask_constant)
+                             for s in self.seats])
+      self.state = self.state.replace(  # Copies: the update donates both trees.
+          params=params, ema_params=jax.tree_util.tree_map(jnp.copy, params))
+      c['normalized'], self._views = True, None
+    if self.config.online.demos and c['pretrain_updates'] < o.demo_pretrain_updates:
+      self._updates(o.demo_pretrain_updates, 'pretrain_updates', share=1.0)
+    self._updates(int(o.update_ratio * c['env_steps']), 'updates',
+                  share=demo_share(self.config, c['env_steps']))
+
+  def _updates(self, target: int, counter: str, share: float) -> None:
+    """Updates until counters[counter] reaches `target`, `online.updates_per_call` per jitted
+    call, a `share` of each batch from the demonstrations (`Buffer.sample`)."""
+    c, batch, n = self.counters, self.config.train.batch_size, self.per_call
+    while c[counter] + n <= target:
+      per_seat = [seat.buffer.sample(batch, n, share) for seat in self.seats]
+      shape = (n, batch) if n > 1 else (batch,)
+      windows = {k: np.stack([w[k].reshape(shape + w[k].shape[1:]) for w in per_seat])
+                 for k in per_seat[0]}
+      step = c['updates'] + c['pretrain_updates']  # One key per update made.
+      self.state, self.metrics = self.update(self.state, windows, self._fold(self.keys, step))
+      c[counter] += n
+      self._views = None
+
+  def advance(self) -> None:
+    """One wave: its episodes into the buffers, its acting and update time into the counters."""
+    start = time.perf_counter()
+    mode = self.wave()
+    for seat in self.seats:
+      seat.buffer.add(seat.episodes)
+    seconds = time.perf_counter() - start
+    self.counters['train_seconds'] += seconds
+    self.last = (mode, seconds)
+
+  def acting_mode(self) -> str:
+    """Who acts in the next wave: 'random' (seed waves from scratch), 'actor' (seed waves with
+    demonstrations and `online.demo_seed_actor`: the actor prior pretrained on them), else
+    `online.act_mode` ('plan' or 'actor')."""
+    o = self.config.online
+    if not self.learning():
+      return 'random'
+    if o.demos and o.demo_seed_actor and self.counters['env_steps'] < o.seed_steps:
+      return 'actor'
+    return o.act_mode
+
+  def wave(self) -> str:
+    """One episode per environment of every seed, in lockstep, by the `acting_mode`; each
+    seat's `episodes` are dicts of obs [L+1, obs_dim], action [L, A], reward [L], success [L].
+    Returns the acting mode."""
+    o, first = self.config.online, self.counters['episodes']
+    mode = self.acting_mode()
+    planner = mode != 'random'
+    self.noise_std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
+    self.intrinsic = acting_intrinsic(self.config, self.counters['env_steps'], self.plan_start)
+    if planner:
+      self.catch_up()
+    acting = [SeatWave(self, seat, first) for seat in self.seats]
+    policy = WavePolicy(self, mode, acting) if planner else None
+    t, none = 0, [None] * len(acting)
+    while acting[0].active.any():  # The seeds' episodes have the same lengths.
+      actions, infos = (policy([w.obs for w in acting], t, acting[0].active) if planner
+                        else (none, none))
+      steps = [w.step(a, i) for w, a, i in zip(acting, actions, infos)]
+      self.counters['env_steps'] += steps[0]
+      self.bar.update(steps[0])
+      t += 1
+      if planner:
+        self.catch_up()
+        policy.refresh()
+    self.counters['episodes'] += o.num_envs
+    for w in acting:
+      w.seat.episodes = w.finish()
+    return mode
+
+  def checkpoint(self) -> None:
+    """Each seed's buffer file, then its orbax step (environment steps); older buffer files
+    go."""
+    step = self.counters['env_steps']
+    states = self._unstack(self.state)
+    for seat, state in zip(self.seats, states):
+      workdir, manager = seat.run.workdir, seat.run.manager
+      seat.buffer.save(buffer_path(workdir, step), self.counters)
+      seat.run.save(state, step, self.counters['train_seconds'])
+      keep = {f'buffer_{s}.npz' for s in manager.all_steps()}
+      for name in os.listdir(os.path.join(workdir, BUFFER_DIR)):
+        if name.startswith('buffer_') and name not in keep:
+          os.remove(os.path.join(workdir, BUFFER_DIR, name))
+
+  def eval_params(self):
+    """Each seed's EMA parameters (`_SeatRuns.periodic_eval`)."""
+    return self.views()
+
+  def log(self, before: int) -> None:
+    mode, seconds = self.last
+    for seat in self.seats:
+      seat.log(self, before, mode, seconds)
+    self.bar.set_postfix(updates=self.counters['updates'], success=np.mean(
+        [e['success'].any() for seat in self.seats for e in seat.episodes]))
+
+
+def train_online(config: ml_collections.ConfigDict, workdir: str,
+                 continue_with_changes: bool = False) -> Dict[str, Any]:
+  """Online (or offline-to-online) training and evaluation; returns the report.
+
+  Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json, online.csv
+  (one row per wave: environment steps, updates, training episodes' return and success),
+  losses.csv (the wave's last update's losses),
+  eval.csv (held-out success every `online.eval_every` environment steps), tb/, online.png,
+  episodes.csv, report.json and report.md, like the offline job. With `train.num_seeds` = N > 1
+  each seed writes these in <workdir>/seed<seed> (`seat_configs`), and the run adds pooled.json
+  and pooled.md (online_report.write_pooled); the returned report is then the pooled one, with
+  each seed's report under 'seeds' A workdir of another config is
+  refused before anything is written to it, unless `continue_with_changes` (`train_and_evaluate`).
+  """
+  validate_config(config)
+  envs.check_task(config.task)
+  source = check_init_from(config)
+  if source is not None:  # Fine-tuning trains on the offline run's data too.
+    config.data.update(source.data.to_dict())
+  for seat_config, seat_workdir in seat_configs(config, workdir):  # As they will be saved.
+    checkpointing.check_workdir(seat_config, seat_workdir, continue_with_changes)
+  os.makedirs(workdir, exist_ok=True)
+  offline = data.load_for_config(config) if source is not None else None
+  if offline is not None:
+    runs.check_config_for_data(config, offline)
+    if config.online.reward == 'sparse':  # Its data with the reward the run records.
+      offline = sparse_dataset(offline)
+  if not config.online.update_ratio:  # Once, before any work.
+    print('warning: config.online.update_ratio=0: no updates; the agent is evaluated as it '
+          f"starts ({'the offline run' if source is not None else 'untrained'})", file=sys.stderr)
+  job = OnlineJob(config, workdir, source, offline)
+  o, c = config.online, job.counters
+  if source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.
+    job.runs.periodic_eval(job.eval_params(), 0)
+  runs.loop(job.runs, job, o.env_steps, o.checkpoint_every, o.eval_every)
+  job.bar.close()
+  reports, records = [], []
+  for seat in job.seats:
+    final, _, summary, recs = seat.run.final_evaluation(seat.ema_params(job), c['env_steps'])
+    report = online_report.report(job, seat, final, summary)
+    reports.append(seat.run.write_report(report, online_report.summary_md(report), recs))
+    records.append(recs)
+  if len(job.seats) == 1:
+    return reports[0]
+  pooled = online_report.write_pooled(workdir, [s.config.seed for s in job.seats], reports,
+                                      records)
+  return dict(pooled, seeds=reports)

@@ -1,0 +1,189 @@
+"""The report files of an online run (ld_mpc_jax.runs.online): report.json and report.md of each
+training seed, and the pooled table of a run of several seeds (`train.num_seeds`)."""
+
+import json
+import os
+from typing import Any, Dict, List, Optional
+
+from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.runs import loop as runs
+from ld_mpc_jax.ops import stats
+from ld_mpc_jax.model.models import count_params
+from ld_mpc_jax.eval.run_files import ONLINE_CSV
+
+
+def report(job, seat, final, summary) -> Dict[str, Any]:
+  """report.json of one training seed (`seat`, an online.Seat) of `job` (an online.OnlineJob)."""
+  config, c, workdir, buffer = seat.config, job.counters, seat.run.workdir, seat.buffer
+  curve = [dict(env_steps=int(r['step']), episodes=int(r['episodes']),
+                success_rate=float(r['success_rate']), ci95=[float(r['ci_lo']), float(r['ci_hi'])],
+                mean_return=float(r['mean_return']))
+           for r in run_files.read_csv(os.path.join(workdir, runs.EVAL_CSV))]
+  return {
+      'task': config.task, 'mode': 'fine-tune' if job.source is not None else 'from scratch',
+      'init_from': config.online.init_from or None,
+      'env_steps': c['env_steps'], 'updates': c['updates'], 'episodes': c['episodes'],
+      'train_seconds': c['train_seconds'], 'seeds_in_run': len(job.seats),
+      'env_steps_per_s': c['env_steps'] / c['train_seconds'],
+      'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
+      'mean_return': final['mean_return'], 'eval_episodes': config.eval.episodes,
+      'eval_seeds': list(config.eval.seeds), 'evaluation': summary, 'curve': curve,
+      'num_params': count_params(seat.ema_params(job)),
+      'demos': len(buffer.demos), 'reward': config.online.reward,
+      'first_training_success': _first_success(workdir),
+      'acting': acting_summary(workdir, config.online.eval_every),
+      'buffer': {'online_episodes': len(buffer.episodes),
+                 'offline_episodes': (buffer.offline.num_episodes
+                                      if buffer.offline is not None else 0)},
+      **runs.provenance(config, seat.run.commit),
+  }
+
+
+POOLED_MD, POOLED_JSON = 'pooled.md', 'pooled.json'
+
+
+def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
+                 records: List[List[dict]]) -> Dict[str, Any]:
+  """pooled.json and pooled.md in `workdir`: each policy's successes per training seed and
+  pooled over them (Wilson 95% interval), on the first goal split of the final evaluation."""
+  policies, first = {}, {}
+  for seed, recs in zip(seeds, records):
+    split = recs[0]['split'] if recs else None
+    for r in recs:
+      if r['split'] == split:
+        policies.setdefault(r['policy'], {}).setdefault(seed, []).append(int(r['success']))
+        first.setdefault(r['policy'], []).append(r)
+  table = {m: {'per_seed': {str(s): [sum(v), len(v)] for s, v in per.items()},
+               'successes': sum(map(sum, per.values())),
+               'episodes': sum(map(len, per.values()))} for m, per in policies.items()}
+  for mode, row in table.items():
+    row['ci95'] = stats.wilson_interval(row['successes'], row['episodes'])
+    # Exact McNemar against the planner on the same episodes (records name their seed: 'run').
+    row['vs_plan'] = (stats.paired(first['plan'], first[mode])
+                      if mode != 'plan' and 'plan' in first else None)
+  out = dict(task=reports[0]['task'], env_steps=reports[0]['env_steps'], seeds=seeds,
+             split=records[0][0]['split'] if records and records[0] else None,
+             first_training_success={str(s): r['first_training_success']
+                                     for s, r in zip(seeds, reports)},
+             train_seconds=reports[0]['train_seconds'], policies=table,
+             acting={str(s): r['acting']['whole'] for s, r in zip(seeds, reports)})
+  lines = [f"# {out['task']}: {len(seeds)} training seeds in one run, "
+           f"{out['env_steps']:,} environment steps (simulator steps)", '',
+           f"{out['train_seconds']:.0f} s acting and training for all seeds together; final "
+           f"evaluation on {out['split']} goals, per seed and pooled (Wilson 95% interval).", '',
+           '| policy | ' + ' | '.join(f'seed {s}' for s in seeds)
+           + ' | pooled | 95% CI | planner only / this only, McNemar p |',
+           '| --- |' + ' --- |' * (len(seeds) + 3)]
+  for mode, row in table.items():
+    cells = [f"{row['per_seed'][str(s)][0]}/{row['per_seed'][str(s)][1]}"
+             if str(s) in row['per_seed'] else '-' for s in seeds]
+    vs = row['vs_plan']
+    paired = f"{vs['a_only']} / {vs['b_only']}, p = {vs['p_value']:.2g}" if vs else ''
+    lines.append(f"| {mode} | {' | '.join(cells)} | {row['successes']}/{row['episodes']} | "
+                 f"[{row['ci95'][0]:.2f}, {row['ci95'][1]:.2f}] | {paired} |")
+  first = ', '.join(f'seed {s}: {v:,}' if v is not None else f'seed {s}: none'
+                    for s, v in zip(seeds, out['first_training_success'].values()))
+  lines += ['', f'First successful training episode (environment steps): {first}.', '']
+  table = acting_table([(f'seed {s}', part) for s, part in zip(seeds, out['acting'].values())],
+                       'training seed')
+  lines += [ACTING_INTRO + ' Whole run, per seed:', '', *table, ''] if table else []
+  with open(os.path.join(workdir, POOLED_JSON), 'w') as f:
+    json.dump(out, f, indent=2)
+  with open(os.path.join(workdir, POOLED_MD), 'w') as f:
+    f.write('\n'.join(lines))
+  return out
+
+
+def _weighted(rows: List[dict], column: str) -> Optional[float]:
+  """The mean of a per-wave share or mean over the waves' planned decisions (None: none)."""
+  pairs = [(float(r[column]), int(r['planned'])) for r in rows
+           if r.get(column) not in (None, '') and int(r['planned'])]
+  pairs = [(v, n) for v, n in pairs if v == v]  # Columns without a value are NaN.
+  total = sum(n for _, n in pairs)
+  return sum(v * n for v, n in pairs) / total if total else None
+
+
+def acting_summary(workdir: str, every: int) -> Dict[str, Any]:
+  """How the planner acted, from online.csv: the share of planned decisions won by each kind of
+  candidate (`won_<kind>`) and that departed from the actor prior, and the mean spread of the
+  candidates' first actions (of the first round's, and of the proposal's), over the whole run
+  and per `every` environment steps (the held-out evaluations' spacing), weighted by each wave's
+  planned decisions. Waves logged before online.csv had a `planned` column are left out."""
+  rows = [r for r in run_files.read_csv(os.path.join(workdir, ONLINE_CSV))
+          if r.get('planned') not in (None, '')]
+  columns = [k for k in (rows[0] if rows else {})
+             if k.startswith('won_') or k in ('departed', 'spread_first', 'spread_proposal')]
+  def summary(part, env_steps):
+    return dict(env_steps=env_steps, planned=sum(int(r['planned']) for r in part),
+                **{k: _weighted(part, k) for k in columns})
+  spans = {}
+  for r in rows:
+    spans.setdefault(-(-int(r['env_steps']) // every), []).append(r)
+  return dict(whole=summary(rows, int(rows[-1]['env_steps']) if rows else 0),
+              spans=[summary(part, int(part[-1]['env_steps']))
+                     for _, part in sorted(spans.items())])
+
+
+ACTING_INTRO = ("While acting (training waves, with exploration): the share of planned decisions "
+                "won by each kind of candidate, that departed from the actor prior's own sequence, "
+                "and the spread of the candidates' first actions (std over candidates, mean over "
+                "action dimensions; the first round's, the proposal's).")
+
+
+def acting_table(rows: List[tuple], first: str) -> List[str]:
+  """A markdown table of `acting_summary` parts: rows of (label, summary); [] without a planned
+  decision."""
+  rows = [(label, part) for label, part in rows if part['planned']]
+  if not rows:
+    return []
+  names = [k for k in rows[0][1] if k not in ('env_steps', 'planned')]
+  show = lambda v, k: '-' if v is None else f'{v:.3f}' if k.startswith('spread') else f'{v:.0%}'
+  lines = [f"| {first} | planned decisions | {' | '.join(names)} |",
+           '| --- | --- |' + ' --- |' * len(names)]
+  return lines + [f"| {label} | {part['planned']:,} | "
+                  + ' | '.join(show(part[k], k) for k in names) + ' |' for label, part in rows]
+
+
+def acting_md(acting: Dict[str, Any]) -> List[str]:
+  """report.md's paragraph on `acting_summary`, per span and over the whole run."""
+  table = acting_table([(f"to {r['env_steps']:,}", r) for r in acting['spans']]
+                       + [('whole run', acting['whole'])], 'environment steps')
+  return [ACTING_INTRO, '', *table, ''] if table else []
+
+
+def _first_success(workdir: str) -> Optional[int]:
+  """Environment steps (simulator steps) at the end of the first wave with a successful
+  training episode (None: none succeeded), from online.csv."""
+  for row in run_files.read_csv(os.path.join(workdir, ONLINE_CSV)):
+    if float(row['episode_success']) > 0:
+      return int(row['env_steps'])
+  return None
+
+
+def summary_md(report: Dict[str, Any]) -> str:
+  """report.md: what ran, the held-out curve against environment steps, the final evaluation."""
+  start = (f"fine-tuned from `{report['init_from']}` (its dataset and "
+           f"{report['buffer']['online_episodes']} online episodes in the buffer)"
+           if report['init_from'] else f"from scratch ({report['buffer']['online_episodes']} "
+           'online episodes, seed episodes of random actions first)' if not report['demos']
+           else f"from scratch with {report['demos']} demonstrations "
+           f"({report['buffer']['online_episodes']} online episodes)")
+  first = report['first_training_success']
+  start += (f"; first successful training episode by {first:,} environment steps"
+            if first is not None else '; no training episode succeeded')
+  lines = [f"{report['env_steps']:,} environment steps, {report['updates']:,} updates, {start}; "
+           f"{report['train_seconds']:.0f} s acting and training "
+           f"({report['env_steps_per_s']:.1f} environment steps/s with updates and compilation, "
+           f"evaluations excluded); {report['num_params']:,} parameters.", '']
+  if report['curve']:
+    lines += ['Planner (EMA parameters, no exploration noise) on held-out goals during training:',
+              '', '| environment steps | episodes | success | 95% CI | mean return to first '
+              'success |',
+              '| --- | --- | --- | --- | --- |']
+    lines += [f"| {r['env_steps']:,} | {r['episodes']} | {r['success_rate']:.2f} | "
+              f"[{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}] | {r['mean_return']:.1f} |"
+              for r in report['curve']]
+    lines.append('')
+  lines += acting_md(report['acting'])
+  return runs.summary_md(f"LD-MPC online on {report['task']}", lines, report,
+                         'Final evaluation, EMA parameters: ', 'training')

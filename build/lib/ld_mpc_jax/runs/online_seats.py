@@ -1,0 +1,212 @@
+"""The training seeds of an online run (ld_mpc_jax.runs.online, `train.num_seeds`): each seed's
+config, run directory, buffer and environments (`Seat`), and its episodes of a wave while they
+run (`SeatWave`). The seeds' parameters live stacked in the job's TrainState."""
+
+import os
+from typing import Optional
+
+import jax
+import ml_collections
+import numpy as np
+
+from ld_mpc_jax import data, envs
+from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.runs import loop as runs
+from ld_mpc_jax.ops import sharding
+from ld_mpc_jax.plan.agent import BatchAgentPolicy
+from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
+from ld_mpc_jax.data.demos import get_demos
+from ld_mpc_jax.data.online_buffer import Buffer
+from ld_mpc_jax.model.exploration import acting_exploration, ar1_noise, executed_noise
+from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
+from ld_mpc_jax.envs import goals
+from ld_mpc_jax.model.search import CANDIDATES
+
+
+def seat_configs(config: ml_collections.ConfigDict, workdir: str):
+  """[(config, workdir)] of each training seed of a run: the run itself with one seed; with
+  `train.num_seeds` = N > 1, seeds config.seed + i in <workdir>/seed<seed>, each config as a
+  separate run of that seed would save it (num_seeds = 1)."""
+  n = config.train.num_seeds
+  if n == 1:
+    return [(config, workdir)]
+  out = []
+  for i in range(n):
+    c = ml_collections.ConfigDict(config.to_dict())
+    c.seed, c.train.num_seeds = config.seed + i, 1
+    out.append((c, os.path.join(workdir, f'seed{c.seed}')))
+  return out
+
+
+class Seat:
+  """One training seed of an online run: its config, run directory, buffer, environments and
+  what its last wave did; the parameters live in the job's stacked TrainState."""
+
+  def __init__(self, config, workdir: str, offline: Optional[data.Dataset], index: int):
+    o, self.config, self.index = config.online, config, index
+    self.run = runs.Run(config, workdir)
+    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config))
+    self.envs = [envs.make_env(config.task, seed=config.data.seed,
+                               action_repeat=config.eval.action_repeat,
+                               max_episode_steps=o.episode_steps,
+                               random_goals=o.train_goals == 'random')
+                 for _ in range(o.num_envs)]
+    self.update_key = jax.random.key(config.seed + 1)
+    self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
+    self.spreads = []  # Each planned decision's first-action spreads [2] (agent.NO_PLAN_INFO).
+    self.dense_max, self.episodes, self.policy = 0.0, [], None
+
+  def ema_params(self, job):
+    return job.views()[self.index]
+
+  def log(self, job, before: int, mode: str, seconds: float) -> None:
+    """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
+    metrics = {k: float(v[self.index]) for k, v in sorted(jax.device_get(job.metrics).items())}
+    step, episodes, c = job.counters['env_steps'], self.episodes, job.counters
+    if metrics:
+      self.run.check_loss(metrics['loss'], f'environment step {step}')
+    # Shares of planned decisions: NaN where nothing was planned (random waves, the actor acting).
+    decisions = int(self.winners[:-1].sum()) or float('nan')
+    row = dict(env_steps=step, episodes=c['episodes'], updates=c['updates'],
+               acting={'plan': 'planner', 'actor': 'actor', 'random': 'random'}[mode],
+               episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
+               episode_success=float(np.mean([e['success'].any() for e in episodes])),
+               max_step_reward=self.dense_max,  # Dense reward, also under a sparse one.
+               **{f'won_{k}': float(self.winners[j] / decisions)
+                  for j, k in enumerate(CANDIDATES.names())},
+               departed=float(self.winners[-1] / decisions),
+               exec_noise=executed_noise(self.config, before, job.learn_start)
+               if mode != 'random' else float('nan'),
+               env_steps_per_s=(step - before) / seconds,
+               **self._acting_columns(job, before, mode))
+    run_files.append_csv(os.path.join(self.run.workdir, ONLINE_CSV), row)
+    if metrics:  # Losses of the wave's last update, from the first update on.
+      run_files.append_csv(os.path.join(self.run.workdir, LOSSES_CSV),
+                           dict(env_steps=step, **metrics))
+    for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
+      if k != 'acting' and np.isfinite(v):  # NaN marks "not measured" in the CSV only.
+        self.run.writer.add_scalar(f'online/{k}', v, step)
+
+  def _acting_columns(self, job, before: int, mode: str) -> dict:
+    """The wave's planned decisions, the mean spread of their candidates' first actions (of
+    the first round's, and of the proposal's alone) and the intrinsic term's scheduled weights;
+    NaN where nothing was planned. (Last in the row: a run resumed from code without them keeps
+    its earlier columns in place.)"""
+    spreads = np.asarray(self.spreads, np.float64).reshape(-1, 2)
+    mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
+    pessimism, disagreement = (acting_exploration(self.config, before, job.plan_start)
+                               if mode == 'plan' else (float('nan'),) * 2)
+    return dict(planned=int(self.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
+                spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
+                act_disagreement=disagreement)
+
+
+class SeatRuns:
+  """What `runs.loop` evaluates with: each seed's periodic evaluation on its own parameters."""
+
+  def __init__(self, seats):
+    self.seats = seats
+
+  def periodic_eval(self, params, step: int) -> None:
+    for seat, p in zip(self.seats, params):
+      seat.run.periodic_eval(p, step)
+
+
+class WavePolicy:
+  """The policy acting for every seed's episodes of a wave (EMA parameters, exploration
+  noise): one seed acts as a single run does (`BatchAgentPolicy`, `online.plan_chunk`); several
+  act in one call per environment, vmapped over the seeds (`SeedsAgentPolicy`)."""
+
+  def __init__(self, job, mode: str, waves):
+    o, self.job = job.config.online, job
+    self.single = len(job.seats) == 1
+    if self.single:
+      mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
+              if job.act_config.eval.data_parallel else None)
+      self.inner = BatchAgentPolicy(job.act_config, job.views()[0], mode,
+                                    seed=job.seats[0].config.seed, chunk=o.plan_chunk,
+                                    mesh=mesh)
+      self.inner.start(waves[0].episodes)
+    else:
+      self.inner = SeedsAgentPolicy(job.act_config, job.state.ema_params, mode,
+                                    [seat.config.seed for seat in job.seats])
+      self.inner.start([w.episodes for w in waves])
+    # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
+    self.inner.action_noise = 0.0 if o.exec_noise_corr > 0 else job.noise_std
+    self.inner.intrinsic = job.intrinsic  # The planner's intrinsic term, this wave's weights.
+
+  def __call__(self, obs, t: int, active: np.ndarray):
+    """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 6] or None)."""
+    if self.single:
+      actions = self.inner(obs[0], t, active)
+      return [actions], [self.inner.last_info]
+    actions = self.inner(np.stack(obs), t, active)
+    return list(actions), list(self.inner.last_info)
+
+  def refresh(self) -> None:
+    """The job's current EMA parameters (after its updates)."""
+    self.inner.set_params(self.job.views()[0] if self.single else self.job.state.ema_params)
+
+
+class SeatWave:
+  """One seed's episodes of a wave while they run: its environments, observations, policy,
+  noise and what each episode recorded."""
+
+  def __init__(self, job, seat: Seat, first: int):
+    n, seed = len(seat.envs), seat.config.seed
+    self.job, self.seat = job, seat
+    seeds = envs.episode_seeds(seed, first + n, 'online')[first:]
+    self.episodes = [goals.Episode('online', first + i, 0, int(s), '', None)
+                     for i, s in enumerate(seeds)]
+    self.rng = np.random.default_rng([seed, first, 17])
+    self.obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(seat.envs, seeds)])
+    # Copies: `obs` rows are overwritten in place by every step below.
+    self.eps = [dict(obs=[np.copy(x)], action=[], reward=[], success=[]) for x in self.obs]
+    self.active = np.ones(n, bool)
+    self.noise = np.zeros((n, job.config.action_dim))
+    self.noise_rng = np.random.default_rng([seed, first, 29])
+    seat.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
+    seat.spreads, seat.dense_max = [], 0.0
+
+  def step(self, actions: Optional[np.ndarray], infos: Optional[np.ndarray]) -> int:
+    """One decision in each active environment, with the policy's `actions` [N, A] and
+    `infos` [N, 6] (None: uniform random actions); returns the environment steps taken, summed
+    over the environments (`info['substeps']`)."""
+    o, seat, n = self.job.config.online, self.seat, len(self.seat.envs)
+    if actions is not None:
+      self._count_winners(infos)
+      if o.exec_noise_corr > 0:
+        self.noise = ar1_noise(self.noise, self.job.noise_std, o.exec_noise_corr,
+                               self.noise_rng)
+        actions = np.clip(actions + self.noise, -1.0, 1.0).astype(np.float32)
+    else:
+      actions = self.rng.uniform(-1.0, 1.0, (n, self.job.config.action_dim)).astype(np.float32)
+    substeps = 0
+    for i in np.flatnonzero(self.active):
+      self.obs[i], reward, terminated, truncated, info = seat.envs[i].step(actions[i])
+      seat.dense_max = max(seat.dense_max, float(reward))
+      if o.reward == 'sparse':  # Success only: the case the idea was made for.
+        reward = float(info['success'])
+      for name, value in (('obs', self.obs[i]), ('action', actions[i]), ('reward', reward),
+                          ('success', info['success'])):
+        self.eps[i][name].append(np.copy(value))
+      substeps += info['substeps']
+      self.active[i] = not (terminated or truncated)
+    return substeps
+
+  def _count_winners(self, infos) -> None:
+    """Which kind of candidate won each acting decision (the last entry counts departures), and
+    the spreads of its candidates' first actions."""
+    if infos is None:
+      return
+    for info_i in infos[self.active]:
+      if info_i[0] >= 0:
+        self.seat.winners[int(info_i[0])] += 1
+        self.seat.spreads.append(info_i[4:6])
+      self.seat.winners[-1] += int(info_i[2])
+
+  def finish(self):
+    return [dict(obs=np.asarray(e['obs'], np.float32),
+                 action=np.asarray(e['action'], np.float32),
+                 reward=np.asarray(e['reward'], np.float32),
+                 success=np.asarray(e['success'], bool)) for e in self.eps]

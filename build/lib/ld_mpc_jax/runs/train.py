@@ -1,0 +1,177 @@
+"""The main job, offline: the task's dataset, updates, then the final evaluation and report.
+
+The run directory, checkpoints, evaluations and report files are `ld_mpc_jax.runs.loop`'; with
+`config.online.enabled` the job is online (`ld_mpc_jax.runs.online`) instead.
+"""
+
+import os
+import time
+from typing import Any, Dict
+
+import jax
+import ml_collections
+import numpy as np
+import tqdm
+
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax import data
+from ld_mpc_jax.eval import multitask_eval, run_files
+from ld_mpc_jax.runs import loop as runs
+from ld_mpc_jax.ops import sharding
+from ld_mpc_jax.model import tasks
+from ld_mpc_jax.model.config_checks import online_enabled, validate_config
+from ld_mpc_jax.model.models import count_params
+from ld_mpc_jax.learn.train_state import create_train_state, make_update
+
+
+
+def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
+                       continue_with_changes: bool = False) -> Dict[str, Any]:
+  """Trains LD-MPC on the task's offline dataset and evaluates it; returns the report.
+
+  Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json,
+  metrics.csv, eval.csv, tb/ (TensorBoard), losses.png, success.png, episodes.csv (one row per
+  evaluation episode), report.json and report.md; a multi-task config (config.tasks) also
+  tasks.png, and its report a per-task table ('per_task'). The returned report also holds the
+  per-episode records under 'records'.
+
+  A workdir that holds a run of another config is refused (`checkpointing.WorkdirError`, before
+  anything is written to it) unless `continue_with_changes`; its earlier config.json is then kept
+  as config.<n>.json.
+
+  With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.runs.online.train_online`).
+  """
+  if online_enabled(config):
+    from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
+    return online.train_online(config, workdir, continue_with_changes)
+  validate_config(config)
+  tasks.check_tasks(config)
+  checkpointing.check_workdir(config, workdir, continue_with_changes)
+  os.makedirs(workdir, exist_ok=True)
+  dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
+  runs.check_config_for_data(config, dataset)
+  run = runs.Run(config, workdir)
+  state = run.restore()
+  if state is None:
+    state = create_train_state(config, jax.random.key(config.seed), dataset.observations)
+  job = OfflineJob(config, run, dataset, state)
+  t = config.train
+  runs.loop(run, job, t.num_steps, t.checkpoint_every, t.eval_every)
+  job.bar.close()
+  run.manager.wait_until_finished()
+  state = job.state
+  final, baselines, summary, records = run.final_evaluation(
+      sharding.unreplicate(state.ema_params), int(state.step))
+  report = _report(config, dataset, job, final, baselines, summary, run.commit, records)
+  return run.write_report(report, _summary_md(report), records)
+
+
+class _Timer:
+  """Update steps per second between log points; the first interval (compilation) is not timed."""
+
+  def __init__(self, start_step: int):
+    self.steps, self.seconds, self.last_time, self.last_step = 0, 0.0, None, start_step
+
+  def tick(self, step: int) -> None:
+    now = time.perf_counter()
+    if self.last_time is not None:
+      self.steps += step - self.last_step
+      self.seconds += now - self.last_time
+    self.last_time, self.last_step = now, step
+
+  @property
+  def steps_per_s(self) -> float:
+    return self.steps / self.seconds if self.seconds else float('nan')
+
+
+class OfflineJob:
+  """Offline training as a `runs.Job`: each advance is one update on dataset windows."""
+
+  def __init__(self, config, run: runs.Run, dataset: data.Dataset, state):
+    t = config.train
+    self.config, self.run, self.progress = config, run, int(state.step)
+    self.start = self.progress  # Resumed at (0 from scratch).
+    self.prior_seconds = run.prior_seconds() if self.progress else 0.0
+    mesh = sharding.make_mesh() if t.data_parallel else None
+    self.update = make_update(config, mesh)
+    self.batch_size, self.put = t.batch_size, lambda batch: batch
+    if mesh is not None:  # Each process samples its share; the state lives on every device.
+      self.batch_size = sharding.local_batch_size(t.batch_size, mesh)
+      self.put = lambda batch: sharding.shard_batch(batch, mesh)
+      state = sharding.replicate(state, mesh)
+    self.state, self.metrics = state, None
+    # A resumed run continues the sampler's stream past the batches of the steps before its
+    # checkpoint, so it trains on the windows an uninterrupted run trains on (and ends on its
+    # parameters, bit for bit: benchmarks/fault_injection.py). Every process of a
+    # multi-process run draws its own windows (process 0 draws what a single-process run draws).
+    self.buffer = data.make_buffer(config, dataset, runs.window_length(config), seed=(
+        config.seed * 1_000_003 + 999_983 * jax.process_index()))
+    self.buffer.skip(self.progress, self.batch_size)
+    self.key = jax.random.key(config.seed + 1)
+    self.timer = _Timer(self.progress)
+    self.bar = tqdm.tqdm(total=t.num_steps, initial=self.progress, desc='train',
+                         dynamic_ncols=True)
+
+  def advance(self) -> None:
+    self.state, self.metrics = self.update(self.state, self.put(self.buffer.sample(
+        self.batch_size)), jax.random.fold_in(self.key, self.progress))
+    self.progress += 1
+    self.bar.update(1)
+
+  def log(self, before: int) -> None:
+    """metrics.csv and TensorBoard every `train.log_every` steps, at checkpoints and the end."""
+    done, t = self.progress, self.config.train
+    if done % t.log_every and done % t.checkpoint_every and done != t.num_steps:
+      return
+    self.timer.tick(done)
+    metrics = jax.device_get(self.metrics)
+    self.run.check_loss(metrics['loss'], f'step {done}')
+    eta = (t.num_steps - done) / self.timer.steps_per_s if self.timer.seconds else float('nan')
+    self.bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=f'{self.timer.steps_per_s:.2f}',
+                         eta_min=f'{eta / 60:.1f}')
+    row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
+           'steps_per_s': self.timer.steps_per_s}
+    run_files.append_csv(os.path.join(self.run.workdir, run_files.METRICS_CSV), row)
+    self.run.log_scalars('train', {k: v for k, v in row.items() if k != 'step'}, done)
+
+  def checkpoint(self) -> None:
+    self.run.save(self.state, self.progress, self.prior_seconds + self.timer.seconds)
+
+  def eval_params(self):
+    return sharding.unreplicate(self.state.ema_params)
+
+
+def _report(config, dataset, job, final, baselines, summary, commit, records):
+  names = tasks.task_names(config)
+  return {
+      'task': config.task, 'tasks': list(names),
+      'per_task': (multitask_eval.per_task(records, names)
+                   if tasks.is_multitask(config) and records else None),
+      'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
+      'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
+      'decisions_per_s': final['decisions_per_s'],
+      'eval_episodes': config.eval.episodes, 'eval_seeds': list(config.eval.seeds),
+      'baselines': baselines, 'evaluation': summary,
+      'train_seconds': job.prior_seconds + job.timer.seconds, 'steps': int(job.state.step),
+      'steps_this_run': job.progress - job.start,
+      'steps_per_s': job.timer.steps_per_s,
+      'num_params': count_params(job.state.ema_params),
+      'dataset': {'source': config.data.source, 'preset': config.data.preset,
+                  'path': config.data.path, 'episodes': dataset.num_episodes,
+                  'transitions': dataset.num_transitions},
+      **runs.provenance(config, commit),
+  }
+
+
+def _summary_md(report: Dict[str, Any]) -> str:
+  """report.md of an offline run: steps, speed and size, then the final evaluation."""
+  made = report['steps_this_run']
+  speed = (f"{report['steps_per_s']:.2f} steps/s without compilation"
+           if np.isfinite(report['steps_per_s'])
+           else f"{made} update step{'s' if made > 1 else ''} in this run, too few to time "
+           'without compilation' if made
+           else 'no update steps in this run: resumed at the final step')
+  intro = [f"{report['steps']} update steps in {report['train_seconds']:.0f} s of training "
+           f"({speed}); {report['num_params']:,} parameters.", '']
+  return runs.summary_md(f"LD-MPC on {report['task']}", intro, report, 'EMA parameters; ',
+                         'dataset')
