@@ -1,1 +1,0 @@
-"""Evaluation: lockstep rollouts, policy x split x seed grids, diagnostics, run files and plots."""

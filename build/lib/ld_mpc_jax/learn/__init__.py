@@ -1,1 +1,0 @@
-"""Learning: the loss as named terms, the train state and its jitted update, checkpoints."""

@@ -1,1 +1,0 @@
-"""Runs: one run loop (workdir, checkpoints, evaluations, reports), offline and online training."""
