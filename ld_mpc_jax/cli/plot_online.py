@@ -1,7 +1,7 @@
 """Online learning curves against TD-MPC2's published per-seed curves, on the same axes.
 
   python -m experiments.report curves --workdir=runs/online/door_seed0 \
-      --anchor=docs/anchors/tdmpc2_mw-door-open.csv --out=docs/online_door_open.png
+      --anchor=docs/anchors/tdmpc2_mw-door-open.csv --out=online_door_open.png
 
 Ours: held-out planner success of each run's periodic evaluations (`eval.csv`), with the Wilson
 95% band the run computed; the per-wave exploration diagnostics (`online.csv`: training-episode
