@@ -34,6 +34,10 @@ _PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for 
 _PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
 _ONLINE_SEEDS = flags.DEFINE_list('online_seeds', [], 'Numbers of training seeds in one online '
                                   'run to time, e.g. 1,3,5 (the first config must be online).')
+_ONLINE_OVERLAP = flags.DEFINE_enum('online_overlap', 'on', ['on', 'off', 'both'],
+                                    'Online updates dispatched ahead of the environment steps '
+                                    "that call for them ('on', as runs train), after ('off'), or "
+                                    "both, one after the other (the gain, in the same process).")
 _ONLINE_STEPS = flags.DEFINE_integer('online_env_steps', 4000, 'Environment steps (simulator '
                                      'steps) of each timed online run, seed waves included.')
 
@@ -70,8 +74,9 @@ def main(argv):
   if _ONLINE_SEEDS.value:
     from benchmarks import online_seeds
     spec = _CONFIGS.value[0]
+    overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
     entries = online_seeds.benchmark_seeds(configs[spec], [int(n) for n in _ONLINE_SEEDS.value],
-                                           _ONLINE_STEPS.value)
+                                           _ONLINE_STEPS.value, overlaps=overlaps)
     table = online_seeds.markdown(entries, spec, _ONLINE_STEPS.value, device['name'])
     print(table)
     bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)

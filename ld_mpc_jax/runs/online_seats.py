@@ -168,6 +168,14 @@ class SeatWave:
     seat.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
     seat.spreads, seat.dense_max = [], 0.0
 
+  def upcoming(self) -> int:
+    """Environment steps the next `step` will take, summed over the active environments (0 when
+    an environment cannot tell: the updates then wait for the steps, as before)."""
+    envs_ = [self.seat.envs[i] for i in np.flatnonzero(self.active)]
+    if not all(hasattr(e, 'next_substeps') for e in envs_):
+      return 0
+    return sum(e.next_substeps() for e in envs_)
+
   def step(self, actions: Optional[np.ndarray], infos: Optional[np.ndarray]) -> int:
     """One decision in each active environment, with the policy's `actions` [N, A] and
     `infos` [N, 6] (None: uniform random actions); returns the environment steps taken, summed
