@@ -167,6 +167,10 @@ def get_config() -> ml_collections.ConfigDict:
   # Dreamer and PlaNet filter their latent state with the model the same way). Against
   # observation noise (issue 71). 0: the encoder's latent alone; every policy mode.
   p.latent_filter = 0.0
+  # The learned progress reward in J (loss.w_progress > 0): potential-based shaping
+  # r_i + w (gamma Phi(z_{i+1}) - Phi(z_i)) (Ng et al. 1999: the optimal policy is kept), which over
+  # the horizon adds w gamma^H Phi(z_H) to every candidate's J (ld_mpc_jax.model.progress). 0: off.
+  p.progress_weight = 0.0
 
   # MPPI on the learned model (evaluation mode 'mppi'), TD-MPC2's planner settings.
   c.mppi = mp = ml_collections.ConfigDict()
@@ -237,6 +241,11 @@ def get_config() -> ml_collections.ConfigDict:
   # encoder taught to map a noisy observation to the clean one's latent (a denoising invariance
   # term, as in data-augmented RL such as DrQ, with the target from the clean observation).
   l.w_noise_inv = 1.0
+  # A reward learned from successes (issue 70; DEMO3 learns stage rewards from demonstrations):
+  # a head Phi(z) in (0, 1) fitted by cross-entropy to each state's progress along an episode
+  # that succeeds, a demonstration's or the agent's (t / steps to its first success, then 1), 0 on
+  # episodes that never do (online runs; ld_mpc_jax.model.progress). 0: no head at all.
+  l.w_progress = 0.0
   # Behaviour value target for V(z_i) (critic.value 'behaviour', ld_mpc_jax.learn.losses):
   # discounted rewards to the end of the window plus gamma^(H-i) times the EMA target network's
   # V(z_H) (TD-MPC2, DQN).

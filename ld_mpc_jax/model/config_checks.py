@@ -106,6 +106,13 @@ def _validate_plan(config: ml_collections.ConfigDict) -> None:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
   if 'latent_filter' in p and not 0.0 <= p.latent_filter < 1.0:
     raise ValueError(f'config.plan.latent_filter must be in [0, 1), got {p.latent_filter}')
+  if 'progress_weight' in p:  # The learned progress reward (ld_mpc_jax.model.progress).
+    if p.progress_weight < 0 or config.loss.w_progress < 0:
+      raise ValueError(f'config.plan.progress_weight and config.loss.w_progress must be >= 0, '
+                       f'got {p.progress_weight} and {config.loss.w_progress}')
+    if p.progress_weight > 0 and not config.loss.w_progress > 0:
+      raise ValueError('config.plan.progress_weight > 0 needs the progress head: set '
+                       'config.loss.w_progress > 0 (its loss weight) too')
 
 
 def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:

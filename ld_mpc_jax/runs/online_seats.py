@@ -45,7 +45,8 @@ class Seat:
   def __init__(self, config, workdir: str, offline: Optional[data.Dataset], index: int):
     o, self.config, self.index = config.online, config, index
     self.run = runs.Run(config, workdir)
-    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config))
+    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config),
+                         progress=config.loss.w_progress > 0)
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,
                                max_episode_steps=o.episode_steps,
