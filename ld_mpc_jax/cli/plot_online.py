@@ -20,13 +20,17 @@ from absl import app, flags
 from ld_mpc_jax.cli import errors as cli
 
 FLAGS = flags.FLAGS
-flags.DEFINE_multi_string('workdir', [], 'An online run directory (with eval.csv and online.csv); '
-                          'repeat the flag, or separate them with commas.')
-flags.DEFINE_string('anchor', '', 'TD-MPC2 per-seed CSV (step,success,seed); empty: none.')
-flags.DEFINE_string('out', 'online_curves.png', 'Output PNG.')
-flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (simulator steps).')
-flags.DEFINE_integer('late_from', 80_000, 'The exploration table averages the waves after this '
-                     'many environment steps.')
+
+
+def define_flags() -> None:
+  """The mode's flags (defined on use only: tests import this module beside other flags)."""
+  flags.DEFINE_multi_string('workdir', [], 'An online run directory (with eval.csv and '
+                            'online.csv); repeat the flag, or separate them with commas.')
+  flags.DEFINE_string('anchor', '', 'TD-MPC2 per-seed CSV (step,success,seed); empty: none.')
+  flags.DEFINE_string('out', 'online_curves.png', 'Output PNG.')
+  flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (simulator steps).')
+  flags.DEFINE_integer('late_from', 80_000, 'The exploration table averages the waves after '
+                       'this many environment steps.')
 
 
 def read_csv(path):
