@@ -1,7 +1,7 @@
 """Benchmarking tools, apart from the model code: FLOP counts and profiles of a plan call.
 
 Installed with the project (pyproject.toml), so that the launchers that use them
-(experiments.benchmark_*, experiments.profile_plan) run from any directory.
+(experiments.benchmark_*, experiments.diagnose profile) run from any directory.
 """
 
 

@@ -2,6 +2,10 @@
 (`train.num_seeds`, ld_mpc_jax.runs.online): environment steps and updates per second of each seed,
 and the wall time of N seeds against one, measured in the same process one after the other.
 
+With `overlaps` (True, False) each N also runs with every update waiting for the environment
+steps that call for it (the loop before the updates were dispatched ahead of the steps: the same
+updates, so the ratio is the gain of taking the environment loop off the critical path).
+
 Each N trains `env_steps` from scratch in a temporary workdir with evaluation off; the rate is
 taken over the waves after `skip` waves (the first acting waves compile the planner and the
 update), from each run's own online.csv (one row per wave, env_steps_per_s of the wave).
@@ -22,30 +26,43 @@ def _wave_rates(workdir: str, skip: int) -> List[float]:
   return [float(r['env_steps_per_s']) for r in rows[skip:] if r['acting'] != 'random']
 
 
-def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env_steps: int,
-                    skip: int = 1) -> List[Dict[str, float]]:
-  """One entry per N in `seeds`: wall seconds of the whole run (compilation included), the
-  median environment steps per second of one seed over its acting waves after `skip`, the
-  updates per second that implies (`online.update_ratio` x that, per seed), and both summed over
-  the N seeds."""
-  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
-  out = []
-  for n in seeds:
-    c = ml_collections.ConfigDict(config.to_dict())
-    c.train.num_seeds, c.online.env_steps = n, env_steps
-    c.online.eval_every = c.online.checkpoint_every = env_steps
-    c.eval.episodes = 0
+def _run(c: ml_collections.ConfigDict, overlap: bool, skip: int):
+  """(wall seconds, acting waves' rates) of one online run; without `overlap` every update
+  waits for the steps that call for it."""
+  from ld_mpc_jax.runs import online, online_seats  # pylint: disable=g-import-not-at-top
+  upcoming = online_seats.SeatWave.upcoming
+  try:
+    if not overlap:
+      online_seats.SeatWave.upcoming = lambda self: 0
     with tempfile.TemporaryDirectory() as workdir:
       start = time.perf_counter()
       online.train_online(c, workdir)
       wall = time.perf_counter() - start
-      first = workdir if n == 1 else os.path.join(workdir, f'seed{c.seed}')
-      rates = _wave_rates(first, skip)
-    rate = statistics.median(rates) if rates else float('nan')
-    out.append(dict(num_seeds=n, wall_s=wall, waves_timed=len(rates),
-                    env_steps_per_s_per_seed=rate,
-                    updates_per_s_per_seed=rate * c.online.update_ratio,
-                    env_steps_per_s_all_seeds=rate * n))
+      first = workdir if c.train.num_seeds == 1 else os.path.join(workdir, f'seed{c.seed}')
+      return wall, _wave_rates(first, skip)
+  finally:
+    online_seats.SeatWave.upcoming = upcoming
+
+
+def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env_steps: int,
+                    skip: int = 1, overlaps: Sequence[bool] = (True,)) -> List[Dict[str, float]]:
+  """One entry per N in `seeds` (and per setting of `overlaps`, updates dispatched ahead of the
+  steps or not): wall seconds of the whole run (compilation included), the median environment
+  steps per second of one seed over its acting waves after `skip`, the updates per second that
+  implies (`online.update_ratio` x that, per seed), and both summed over the N seeds."""
+  out = []
+  for n in seeds:
+    for overlap in overlaps:
+      c = ml_collections.ConfigDict(config.to_dict())
+      c.train.num_seeds, c.online.env_steps = n, env_steps
+      c.online.eval_every = c.online.checkpoint_every = env_steps
+      c.eval.episodes = 0
+      wall, rates = _run(c, overlap, skip)
+      rate = statistics.median(rates) if rates else float('nan')
+      out.append(dict(num_seeds=n, overlap=overlap, wall_s=wall, waves_timed=len(rates),
+                      env_steps_per_s_per_seed=rate,
+                      updates_per_s_per_seed=rate * c.online.update_ratio,
+                      env_steps_per_s_all_seeds=rate * n))
   base = out[0]['env_steps_per_s_per_seed']
   for e in out:  # Time of N seeds' steps against one seed's, from the steady rates.
     e['time_ratio_vs_first'] = base / e['env_steps_per_s_per_seed']
@@ -55,10 +72,11 @@ def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env
 def markdown(entries: List[Dict[str, float]], spec: str, env_steps: int, device: str) -> str:
   lines = [f'Online training, {spec}, {env_steps:,} environment steps per seed (simulator steps), '
            f'on {device}; median over acting waves after the first.', '',
-           '| seeds in one run | env steps/s per seed | updates/s per seed | env steps/s, all '
-           'seeds | time of the run per env step vs the first row | wall s (with compile) |',
-           '| --- | --- | --- | --- | --- | --- |']
-  lines += [f"| {e['num_seeds']} | {e['env_steps_per_s_per_seed']:.1f} | "
+           '| seeds in one run | updates dispatched ahead of the steps | env steps/s per seed | '
+           'updates/s per seed | env steps/s, all seeds | time of the run per env step vs the '
+           'first row | wall s (with compile) |', '| --- | --- | --- | --- | --- | --- | --- |']
+  lines += [f"| {e['num_seeds']} | {'yes' if e.get('overlap', True) else 'no'} | "
+            f"{e['env_steps_per_s_per_seed']:.1f} | "
             f"{e['updates_per_s_per_seed']:.1f} | {e['env_steps_per_s_all_seeds']:.1f} | "
             f"{e['time_ratio_vs_first']:.2f} | {e['wall_s']:.0f} |" for e in entries]
   return '\n'.join(lines) + '\n'

@@ -1,116 +1,20 @@
-"""Evaluates a trained LD-MPC checkpoint under the Meta-World protocol, on held-out and train goals.
+"""Evaluates trained runs on held-out goals, every policy on the same episodes.
 
-  python -m experiments.evaluate --workdir=runs/door_open_cpu --seeds=0,1,2
-      [--modes=plan,actor,proposal] [--splits=held_out,train] [--set=plan.warm_start_steps=0]
-  python -m experiments.evaluate --workdir=runs/mt10_cpu    # a multi-task run: every task
+  python -m experiments.evaluate --workdir=DIR --seeds=0,1,2      # one checkpoint, pooled seeds
+  python -m experiments.evaluate --workdir=DIR --config.plan.safe_selection=True   # a setting
+  python -m experiments.evaluate selection --workdir=A --workdir=B --variant=safe --out=sel.json
+                                  # planner settings against the actor prior, over training seeds
+  python -m experiments.evaluate mt10 --workdir=DIR --out=mt10.json  # Meta-World's MT10 protocol
+  python -m experiments.evaluate bc --run=DIR --out=bc.json        # BC on the same demonstrations
 
-Loads <workdir>/config.json and the latest checkpoint (EMA parameters) and runs every policy on
-the same episodes of each goal split and evaluation seed (environments in lockstep, one jitted
-call per decision). Prints pooled success with Wilson intervals and exact McNemar tests between
-policies, and writes the per-episode records and the summary to <workdir>/evaluation.json
-(or --out; an existing file is kept unless --overwrite; written once the policies are evaluated,
-then again with the noise sweep and video).
-Optionally an observation-noise sweep (--noise_sweep: every policy of --modes at each std of
-eval.noise_stds on the same held-out episodes, noise on eval.obs_noise_dims; <out>_noise.md and
-<out>_noise.png beside the JSON, whose `noise_sweep` keeps the per-episode records; pool three
-training seeds' JSONs with experiments.pool_evals) and a short video (mp4 with imageio-ffmpeg;
-rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless machine).
+Modes: (none) one checkpoint; `selection`; `mt10`; `bc`. `--help` lists the chosen mode's flags.
 """
 
-import json
-import os
+from ld_mpc_jax.cli import dispatch
 
-from absl import app, flags, logging
-
-from experiments import cli
-
-_WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory.')
-_MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
-_SPLITS = flags.DEFINE_list('splits', ['held_out', 'train'], 'Goal splits, held_out first.')
-_SEEDS = flags.DEFINE_list('seeds', ['0'], 'Evaluation seeds (pooled).')
-_EPISODES = flags.DEFINE_integer('episodes', None, 'Episodes per policy, split and seed '
-                                 '(default: config).')
-_NOISE = flags.DEFINE_bool('noise_sweep', False, 'Observation-noise sweep of every --modes '
-                            'policy at eval.noise_stds (held-out goals): table and plot.')
-_VIDEO = flags.DEFINE_bool('video', False, 'Render a 2-episode video of the planner.')
-_OVERRIDE = flags.DEFINE_multi_string('set', [], 'Config override, e.g. plan.action_steps=4.')
-_OUT = flags.DEFINE_string('out', None, 'JSON output (default: <workdir>/evaluation.json).')
-_VIDEO_OUT = flags.DEFINE_string('video_out', None, 'mp4 of --video (default: '
-                                  '<workdir>/planner.mp4).')
-_OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out or --video_out '
-                               'file.')
-flags.mark_flag_as_required('workdir')
-
-
-def main(argv):
-  del argv
-  logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax.learn import checkpointing
-  from ld_mpc_jax.eval import evaluation_suite, multitask_eval
-  from ld_mpc_jax.model import tasks
-  from ld_mpc_jax.model.config_checks import validate_config
-  from ld_mpc_jax.eval.run_files import git_commit
-  from ld_mpc_jax.runs.loop import run_evaluation
-  from experiments.overrides import parse_items, with_overrides
-  with cli.one_line_errors():
-    seeds = [int(s) for s in _SEEDS.value]
-    path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
-    cli.check_new_output(path, _OVERWRITE.value)  # Before the long work: exists, or unwritable.
-    video = _VIDEO_OUT.value or os.path.join(_WORKDIR.value, 'planner.mp4')
-    if _VIDEO.value:
-      cli.check_new_output(video, _OVERWRITE.value, flag='--video_out')
-    config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
-    config = with_overrides(config, parse_items(_OVERRIDE.value))
-    validate_config(config)
-    bad = set(_SPLITS.value) - {'held_out', 'train'} or set(_MODES.value) - {
-        'plan', 'actor', 'proposal', 'mppi'}
-    if bad:
-      raise ValueError(f'unknown split or mode {sorted(bad)}')
-    splits, evaluate = multitask_eval.grid(config, _SPLITS.value)  # No train split for
-    if splits != tuple(_SPLITS.value):  # TD-MPC2 data: its goals were random per episode.
-      print(f'goal splits {list(splits)} only: the data were not collected on MT1 goals')
-  episodes = _EPISODES.value or config.eval.episodes
-  records = evaluate(config, params, None, step, _MODES.value, splits, seeds, episodes,
-                     run=config.seed)  # A multi-task agent: every task, records per task.
-  summary = evaluation_suite.summarize(records)
-  if tasks.is_multitask(config):
-    names = tasks.task_names(config)
-    print(multitask_eval.markdown(multitask_eval.per_task(records, names), names))
-  print(evaluation_suite.markdown(summary))
-  out = {'step': step, 'episodes': episodes, 'seeds': seeds, 'overrides': _OVERRIDE.value,
-         'git_commit': git_commit(), 'summary': summary, 'records': records}
-  _write(path, out)  # The records are kept should the extras below fail.
-  if _NOISE.value:  # Every policy of --modes at every eval.noise_stds, held-out goals.
-    from ld_mpc_jax.eval import noise_sweep
-    records = noise_sweep.run_sweep(config, params, _WORKDIR.value, step, _MODES.value, seeds,
-                                    episodes, config.eval.noise_stds, run=config.seed)
-    rows = noise_sweep.table(records)
-    out['noise_sweep'] = dict(dims=config.eval.obs_noise_dims, rows=rows, records=records)
-    stem = os.path.splitext(path)[0]
-    with open(stem + '_noise.md', 'w') as f:
-      f.write(noise_sweep.markdown(rows))
-    noise_sweep.plot(rows, stem + '_noise.png', f'{config.task}, noise on '
-                     f'{config.eval.obs_noise_dims} dimensions')
-    print(noise_sweep.markdown(rows) + f'wrote {stem}_noise.md and {stem}_noise.png')
-  if _VIDEO.value:
-    try:  # `video`: its own name; `path` is the JSON's.
-      video = run_evaluation(config, params, 'plan', 2, seeds[0], video_path=video)['video_path']
-      out['video'] = video
-      print(f'video: {video}')
-    except Exception as err:  # pylint: disable=broad-except
-      out['video_error'] = f'{type(err).__name__}: {err}'
-      print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
-  _write(path, out)
-  print(f'wrote {path}')
-
-
-def _write(path: str, out: dict) -> None:
-  """`out` as JSON at `path`, atomically (a file that exists is always whole)."""
-  os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-  with open(path + '.tmp', 'w') as f:
-    json.dump(out, f, indent=1)
-  os.replace(path + '.tmp', path)
-
+MODES = {'selection': 'compare_selection', 'mt10': 'evaluate_mt10', 'bc': 'bc_baseline'}  # mode word -> module of ld_mpc_jax.cli
+DEFAULT = 'evaluate'
+BY_FLAG = {}  # a flag that selects a mode by itself
 
 if __name__ == '__main__':
-  app.run(main)
+  dispatch(__doc__, MODES, DEFAULT, BY_FLAG)

@@ -1,72 +1,23 @@
-"""Trains and evaluates LD-MPC.
+"""Trains LD-MPC: one run, several training seeds, or the ablation ladder.
 
   python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_cpu
-  python -m experiments.train --config=mt10.py:cpu --workdir=runs/mt10_cpu   # one agent, MT10
-  python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_tdmpc2 \
-      --config.data.source=tdmpc2 --config.data.path='mt80/chunk_*.pt'   # TD-MPC2's data
-  python -m experiments.train --config=door_open.py --workdir=runs/door_open_dp \
-      --config.train.data_parallel=True     # batch split over all devices (docs/scaling.md)
-  python -m experiments.train --config=door_open_online.py:cpu --workdir=runs/online_cpu  # online
+  python -m experiments.train --config=door_open_online.py:cpu --workdir=runs/online  # online
+  python -m experiments.train --config=door_open_online.py:cpu --workdir=runs/three \
+      --config.train.num_seeds=3          # three training seeds in one process (vmapped)
+  python -m experiments.train --config=door_open.py:cpu --seeds=0,1,2 --workdir=runs/sweep
+                                          # one process per seed, then evaluated and pooled
+  python -m experiments.train ablations --workdir=runs/ablations     # the ablation ladder
 
-A bare config name resolves to experiments/configs/<name>; `:preset` selects a preset; any field
-can be overridden, e.g. --config.task=drawer-open-v3 --config.train.num_steps=2000.
+A bare config name resolves to the package's configs (ld_mpc_jax/configs/); `:preset` selects a
+preset; any field is set with --config.field=value, e.g. --config.task=push-v3. Modes: (none)
+one run; --seeds=... a seed sweep; `ablations`. `--help` lists the chosen mode's flags.
 """
 
-import os
-import sys
+from ld_mpc_jax.cli import dispatch
 
-from absl import app, flags, logging
-from ml_collections import config_flags
-
-from experiments import cli
-from experiments.configs import resolve_config_arg
-
-_CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
-                                          lock_config=True)
-_WORKDIR = flags.DEFINE_string('workdir', None, 'Run directory (checkpoints, logs, report).')
-_CONTINUE = flags.DEFINE_bool('continue_with_changes', False, 'Continue the run in --workdir '
-                              'although its config.json differs from this config (kept as '
-                              'config.<n>.json); without it such a workdir is refused.')
-# Several processes (hosts) training one model: docs/scaling.md. None: detected from the cluster
-# environment (SLURM, Open MPI, Cloud TPU) by jax.distributed.initialize.
-_DISTRIBUTED = flags.DEFINE_bool('distributed', False, 'Call jax.distributed.initialize first.')
-_COORDINATOR = flags.DEFINE_string('coordinator_address', None, 'host:port of process 0.')
-_NUM_PROCESSES = flags.DEFINE_integer('num_processes', None, 'Number of processes.')
-_PROCESS_ID = flags.DEFINE_integer('process_id', None, 'This process, 0..num_processes-1.')
-flags.mark_flags_as_required(['config', 'workdir'])
-
-
-def main(argv):
-  del argv
-  logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
-  import jax
-  if _DISTRIBUTED.value:  # Before anything touches a device.
-    jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
-                               num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
-  from ld_mpc_jax.learn.checkpointing import WorkdirError
-  from ld_mpc_jax.model.config_checks import online_enabled, validate_config
-  from ld_mpc_jax.data import DatasetError, sources
-  from ld_mpc_jax.model.tasks import check_tasks
-  from ld_mpc_jax.runs.train import train_and_evaluate
-  try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
-    validate_config(_CONFIG.value)
-    check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
-    sources.check_source(_CONFIG.value)
-    if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
-      from ld_mpc_jax.runs.online import check_init_from
-      check_init_from(_CONFIG.value)
-  except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
-    cli.fail(' '.join(str(err).split()))
-  try:
-    train_and_evaluate(_CONFIG.value, _WORKDIR.value, _CONTINUE.value)
-  except (DatasetError, WorkdirError) as err:  # Data that do not fit, another run's workdir.
-    print(f'error: {err}', file=sys.stderr)
-    sys.exit(2)
-  if jax.process_index() == 0:  # The one process that writes the report.
-    name = 'report.md' if _CONFIG.value.train.num_seeds == 1 else 'pooled.md'
-    print(open(os.path.join(_WORKDIR.value, name)).read())
-
+MODES = {'ablations': 'ablations'}  # mode word -> module of ld_mpc_jax.cli
+DEFAULT = 'train'
+BY_FLAG = {'--seeds': 'sweep'}  # a flag that selects a mode by itself
 
 if __name__ == '__main__':
-  sys.argv = resolve_config_arg(sys.argv)
-  app.run(main, flags_parser=cli.parse_flags)  # A bad flag or :preset: one line, exit code 2.
+  dispatch(__doc__, MODES, DEFAULT, BY_FLAG)

@@ -41,7 +41,7 @@ if ctypes.util.find_library('OSMesa'):
 import jax
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 
 
 @pytest.fixture

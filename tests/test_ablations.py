@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments import ablations
+from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.plan import agent, planner
 from ld_mpc_jax.model import models, objective
 

@@ -11,8 +11,8 @@ import numpy as np
 import orbax.checkpoint as ocp
 import pytest
 
-from experiments.configs import door_open
-from experiments.overrides import with_overrides
+from ld_mpc_jax.configs import door_open
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.learn.train_state import create_train_state
@@ -38,7 +38,7 @@ def test_old_config_without_the_field_loads_with_its_run_value(tmp_path, section
 
 @pytest.mark.parametrize('safe', [False, True])
 def test_old_online_run_acted_with_its_plan_selection(tmp_path, safe):
-  from experiments.configs import door_open_online
+  from ld_mpc_jax.configs import door_open_online
   raw = json.loads(door_open_online.get_config('smoke').to_json_best_effort())
   del raw['version']  # Saved before configs had a version (version 0).
   raw['plan']['safe_selection'] = safe
@@ -50,7 +50,7 @@ def test_old_online_run_acted_with_its_plan_selection(tmp_path, safe):
 
 
 def test_old_online_run_searched_while_acting_as_it_evaluated(tmp_path):
-  from experiments.configs import door_open_online
+  from ld_mpc_jax.configs import door_open_online
   raw = json.loads(door_open_online.get_config('cpu').to_json_best_effort())
   del raw['version']  # Saved before configs had a version (version 0).
   raw['plan']['num_gaussian'], raw['plan']['iterations'] = 16, 2
@@ -71,7 +71,7 @@ def test_old_run_values_do_not_follow_todays_defaults(tmp_path, monkeypatch):
   """Most of the old runs' values are also today's defaults; a migration that filled today's
   defaults would pass the test above. With every one of these defaults changed in base.py, a
   config saved without the fields still loads with what the old runs used."""
-  from experiments.configs import base
+  from ld_mpc_jax.configs import base
   other = lambda v: (not v) if isinstance(v, bool) else v + 1 if isinstance(v, int) else v + 'x'
   make_base = base.get_config
 

@@ -7,15 +7,15 @@ import sys
 
 import pytest
 
-from experiments import cli
+from ld_mpc_jax.cli import errors as cli
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 @pytest.mark.parametrize('args,message', [
     (['experiments.collect', '--task=door-openn-v3', '--out=x.npz'], "'door-openn-v3'"),
-    (['experiments.bc_baseline', '--steps=0'], '--steps must be >= 1, got 0'),
-    (['experiments.ablations', '--variants=ldmpc,nope'], "unknown variants ['nope']"),
+    (['experiments.evaluate', 'bc', '--steps=0'], '--steps must be >= 1, got 0'),
+    (['experiments.train', 'ablations', '--variants=ldmpc,nope'], "unknown variants ['nope']"),
     (['experiments.benchmark_planning', '--widths=huge'], "unknown widths ['huge']"),
 ])
 def test_bad_flag_is_one_line_and_exit_code_2(tmp_path, args, message):
@@ -49,7 +49,7 @@ def test_an_existing_output_is_kept_unless_overwrite(tmp_path):
 
 
 def test_config_args_in_either_form_come_back_joined_and_resolved():
-  from experiments.configs import CONFIG_DIR, resolve_config_arg
+  from ld_mpc_jax.configs import CONFIG_DIR, resolve_config_arg
   argv = ['prog', '--config', 'door_open.py:cpu', '--config.seed', '3', '--config.plan.pessimism',
           '-0.5', '--config.flag', '--workdir=w', '--config.data.preset=weak']
   assert resolve_config_arg(argv) == [

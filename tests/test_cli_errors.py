@@ -44,7 +44,7 @@ def test_bad_preset_or_batch_is_one_line_and_exit_code_2(tmp_path, args, words):
 
 
 def test_a_workdir_of_another_config_is_one_line_and_exit_code_2(tmp_path):
-  from experiments.configs import door_open
+  from ld_mpc_jax.configs import door_open
   from ld_mpc_jax.learn import checkpointing
   workdir = tmp_path / 'run'
   checkpointing.save_config(door_open.get_config('smoke'), str(workdir))

@@ -2,7 +2,7 @@
 
 import jax.numpy as jnp
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.ops import config_cache, registry
 from ld_mpc_jax import make_plan
 from ld_mpc_jax.model import models

@@ -4,7 +4,7 @@ against the windows of the seed data; acting settings; the multi-task batch."""
 import numpy as np
 import pytest
 
-from experiments.configs import door_open, door_open_online, mt10
+from ld_mpc_jax.configs import door_open, door_open_online, mt10
 from ld_mpc_jax.model import config_checks
 from ld_mpc_jax import data
 

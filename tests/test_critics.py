@@ -8,7 +8,7 @@ import numpy as np
 import optax
 import pytest
 
-from experiments.overrides import with_overrides
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.model import critics, models, objective
 from ld_mpc_jax.ops import legacy

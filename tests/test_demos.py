@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments.configs import door_open_online
+from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax import data
 from ld_mpc_jax.runs import online
 from ld_mpc_jax.data import demos

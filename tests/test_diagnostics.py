@@ -193,7 +193,7 @@ def test_departure_gains_cli_summarizes_a_saved_file_and_fails_in_one_line(tmp_p
   path.write_text(json.dumps(dict(episodes=[dict(episode=4, success=1, first_success=1,
                                                  decisions=dec)])))
   repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-  run = lambda *args: subprocess.run([sys.executable, '-m', 'experiments.departure_gains', *args],
+  run = lambda *args: subprocess.run([sys.executable, '-m', 'experiments.diagnose', 'departures', *args],
                                      capture_output=True, text=True, timeout=120, cwd=repo)
   out = run(f'--summarize={path}')
   assert out.returncode == 0, out.stderr[-1000:]

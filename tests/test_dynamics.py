@@ -5,7 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from experiments import ablations
+from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.model import dynamics, models
 
 

@@ -26,7 +26,7 @@ def fake(config, params, mode, num_episodes, seed, video_path=None, **kwargs):
     f.write({MARKER!r})
   return dict(video_path=video_path)
 runs.run_evaluation = fake
-from experiments import evaluate
+from ld_mpc_jax.cli import evaluate
 app.run(evaluate.main)
 """
 

@@ -8,7 +8,7 @@ import types
 import numpy as np
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import evaluation_suite
 

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments.configs import door_open_online
+from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax import validate_config
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.model import exploration, models, objective

@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing, train_state
 from tests.golden import make_golden
 

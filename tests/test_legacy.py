@@ -4,7 +4,7 @@ only the fields it lacks."""
 import ml_collections
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.ops import legacy
 
 # What a run saved before these fields existed did (hand-written, not read from legacy).
@@ -52,7 +52,7 @@ def test_one_migration_keyed_by_the_config_version():
   import json
   import ml_collections
   import pytest
-  from experiments.configs import door_open
+  from ld_mpc_jax.configs import door_open
   current = door_open.get_config('smoke')
   assert current.version == legacy.CONFIG_VERSION
   old = json.loads(current.to_json())
@@ -68,3 +68,18 @@ def test_one_migration_keyed_by_the_config_version():
                                          version=legacy.CONFIG_VERSION + 1))
   with pytest.raises(ValueError, match='newer than this code reads'):
     legacy.migrate(newer)
+
+
+def test_a_version_1_config_gets_the_progress_reward_off():
+  import json
+  import ml_collections
+  from ld_mpc_jax.configs import door_open
+  from ld_mpc_jax.model import progress
+  current = door_open.get_config('smoke')
+  v1 = json.loads(current.to_json())
+  v1['version'] = 1
+  del v1['loss']['w_progress'], v1['plan']['progress_weight']
+  migrated = legacy.migrate(ml_collections.ConfigDict(v1))
+  assert migrated.version == legacy.CONFIG_VERSION == 2
+  assert (migrated.loss.w_progress, migrated.plan.progress_weight) == (0.0, 0.0)
+  assert not progress.enabled(migrated)  # No head: its parameters are those it saved.

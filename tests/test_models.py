@@ -72,7 +72,7 @@ def test_objective_is_causal(smoke_config, smoke_params):
 
 
 def test_reference_config_builds_with_expected_sizes():
-  from experiments.configs import door_open
+  from ld_mpc_jax.configs import door_open
   c = door_open.get_config()
   params = jax.eval_shape(lambda k: init_params(c, k), jax.random.key(0))
   assert params['encoder']['mlp']['dense_0']['kernel'].shape == (39, 256)

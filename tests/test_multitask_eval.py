@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from experiments.configs import door_open, mt10
+from ld_mpc_jax.configs import door_open, mt10
 from ld_mpc_jax.eval import evaluation_suite, multitask_eval
 from ld_mpc_jax.ops import stats
 

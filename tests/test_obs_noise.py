@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments.overrides import with_overrides
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.eval import evaluation_suite, noise_sweep
 from ld_mpc_jax.learn import losses
 from ld_mpc_jax.model import models

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments.configs import door_open_online
+from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.eval import evaluation_suite, run_files
 from ld_mpc_jax.model.search import CANDIDATE_KINDS
 from ld_mpc_jax.runs import online, online_seats
@@ -139,7 +139,7 @@ def test_bad_online_config_exits_2_with_one_line(tmp_path, override, match):
 
 def test_fine_tuning_from_a_run_of_another_task_is_refused_naming_the_flag(tmp_path):
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
-  from experiments.configs import door_open  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
   offline = door_open.get_config('smoke')
   offline.task = 'push-v3'
   checkpointing.save_config(offline, str(tmp_path / 'push_run'))

@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from experiments.configs import door_open_online
+from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data
 from ld_mpc_jax.runs import online
@@ -68,3 +68,35 @@ def test_the_seeds_of_one_run_are_independent(runs):
   assert not np.allclose(first[0]['action'], second[0]['action'])
   p0, p1 = (_params(str(runs / 'both' / f'seed{s}'), _config(s, 1)) for s in (0, 1))
   assert not np.allclose(jax.tree_util.tree_leaves(p0)[0], jax.tree_util.tree_leaves(p1)[0])
+
+
+def test_updates_dispatched_before_the_environments_step_are_the_updates_made_after(
+    runs, tmp_path, monkeypatch):
+  """The environment loop off the critical path changes nothing: seed 1 trained with every
+  update waiting for the steps that call for it (the order before) ends on the same bits."""
+  from ld_mpc_jax.runs import online_seats  # pylint: disable=g-import-not-at-top
+  made = []
+  monkeypatch.setattr(online_seats.SeatWave, 'upcoming', lambda self: made.append(0) or 0)
+  online.train_online(_config(1, 1), str(tmp_path / 'waiting'))
+  assert made  # The planner's decisions asked, and no update was dispatched ahead.
+  ours, theirs = (_params(d, _config(1, 1)) for d in (str(runs / 'alone1'), str(tmp_path / 'waiting')))
+  for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(theirs), strict=True):
+    np.testing.assert_array_equal(a, b)
+  for a, b in zip(_episodes(str(runs / 'alone1')), _episodes(str(tmp_path / 'waiting')), strict=True):
+    np.testing.assert_array_equal(a['action'], b['action'])
+
+
+def test_the_next_decision_takes_action_repeat_steps_until_the_limit():
+  from ld_mpc_jax.envs.metaworld_env import make_env  # pylint: disable=g-import-not-at-top
+  env = make_env('door-open-v3', seed=0, action_repeat=2, max_episode_steps=5)
+  assert env.next_substeps() == 0  # Not reset.
+  env.reset()
+  taken = []
+  while True:
+    expected = env.next_substeps()
+    *_, terminated, truncated, info = env.step(np.zeros(4, np.float32))
+    taken.append((expected, info['substeps']))
+    if terminated or truncated:
+      break
+  assert taken == [(2, 2), (2, 2), (1, 1)]
+  assert env.next_substeps() == 0

@@ -2,8 +2,8 @@
 
 import pytest
 
-from experiments import overrides
-from experiments.overrides import parse_items, with_overrides
+from ld_mpc_jax.configs import overrides
+from ld_mpc_jax.configs.overrides import parse_items, with_overrides
 
 
 def test_overrides_convert_strings_to_the_field_type_and_copy(smoke_config):

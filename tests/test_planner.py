@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments.overrides import with_overrides
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax import encode, init_params, make_plan, validate_config
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan import planner

@@ -1,10 +1,10 @@
-"""experiments.plot_online: the tables printed beside the curves, from a run's CSVs."""
+"""experiments.report curves: the tables printed beside the curves, from a run's CSVs."""
 
 import csv
 
 import pytest
 
-from experiments import plot_online
+from ld_mpc_jax.cli import plot_online
 
 
 def _write(path, rows):

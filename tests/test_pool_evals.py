@@ -1,11 +1,14 @@
-"""experiments.pool_evals: pooling evaluation records over files."""
+"""experiments.report: pooling evaluation records over files."""
 
+import os
 import gzip
 import json
 
 import pytest
 
-from experiments import pool_evals
+from ld_mpc_jax.cli import pool as pool_evals
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def _result(outcomes: dict) -> dict:
@@ -64,7 +67,7 @@ def test_main_prints_per_task_table_pooled_over_files(tmp_path, capsys):
     paths.append(tmp_path / f'{name}.json.gz')  # Compressed records read as they are.
     with gzip.open(paths[-1], 'wt') as f:
       json.dump(res, f)
-  pool_evals.main([str(p) for p in paths])
+  pool_evals.run([str(p) for p in paths])
   out = capsys.readouterr().out
   assert '| reach-v3 | 3/4 = 0.75' in out and '| push-v3 | 0/4 = 0.00' in out
   assert '**average** | **0.38**' in out
@@ -79,7 +82,7 @@ def test_main_pools_multi_and_single_task_files_together(tmp_path, capsys):
   paths = [tmp_path / 'multi.json', tmp_path / 'single.json']
   paths[0].write_text(json.dumps(multi))
   paths[1].write_text(json.dumps(_result({'plan': [1, 1]})))
-  pool_evals.main([str(p) for p in paths])
+  pool_evals.run([str(p) for p in paths])
   out = capsys.readouterr().out
   assert '| reach-v3 | 1/2 = 0.50' in out
   assert 'the pooled table below has all 4 records' in out
@@ -90,12 +93,12 @@ def test_main_rejects_files_without_records(tmp_path, capsys):
   path = tmp_path / 'old.json'
   path.write_text(json.dumps({'modes': {'plan': {'success_rate': 1.0}}}))
   with pytest.raises(SystemExit) as err:
-    pool_evals.main([str(path)])
+    pool_evals.run([str(path)])
   assert err.value.code == 2 and 'no per-episode records' in capsys.readouterr().err
 
 
 def test_compare_sweeps_pairs_the_same_episodes():
-  from experiments import compare_sweeps
+  from ld_mpc_jax.cli import compare_sweeps
   rec = lambda run, ep, policy, success: dict(run=run, split='held_out', eval_seed=0,
                                               episode=ep, policy=policy, success=success)
   a = {'records': [rec(0, 0, 'plan', 1), rec(0, 1, 'plan', 1), rec(1, 0, 'plan', 1),
@@ -108,7 +111,7 @@ def test_compare_sweeps_pairs_the_same_episodes():
 
 
 def test_compare_sweeps_side_of_several_files_pools_their_records(tmp_path):
-  from experiments import compare_sweeps
+  from ld_mpc_jax.cli import compare_sweeps
   rec = lambda run, success: dict(run=run, split='held_out', eval_seed=0, episode=0,
                                   policy='plan', success=success)
   paths = []
@@ -122,7 +125,7 @@ def test_compare_sweeps_side_of_several_files_pools_their_records(tmp_path):
 
 
 def test_compare_sweeps_reads_episodes_csv_and_refuses_other_goals(tmp_path, capsys):
-  from experiments import compare_sweeps
+  from ld_mpc_jax.cli import compare_sweeps
   from ld_mpc_jax.eval import run_files
   rec = lambda ep, success, goal: dict(run=1, policy='plan', split='held_out', eval_seed=0,
                                        episode=ep, reset_seed=7, goal_id=goal, success=success,
@@ -147,22 +150,26 @@ def test_main_reads_a_runs_episodes_csv(tmp_path, capsys):
     rows.append(f'0,plan,held_out,0,{i},{i},g{i},{p},,{10.0 * p},50,100')
     rows.append(f'0,actor,held_out,0,{i},{i},g{i},{a},,2.5,50,100')
   path.write_text('\n'.join(rows) + '\n')
-  pool_evals.main([str(path)])
+  pool_evals.run([str(path)])
   out = capsys.readouterr().out
   assert '| held_out | planner | 3/4 = 0.75 |' in out and '| 7.5 | not recorded |' in out
   assert '| held_out | planner vs actor prior | 4 | 2 | 0 | 0.5 |' in out
 
 
-def test_main_prints_its_usage_for_help_and_refuses_other_options(capsys):
-  pool_evals.main(['--help'])
-  assert 'python -m experiments.pool_evals' in capsys.readouterr().out
-  with pytest.raises(SystemExit) as err:
-    pool_evals.main(['a.json', '--policies=plan'])
-  assert err.value.code == 2 and 'file paths only' in capsys.readouterr().err
+def test_report_prints_its_usage_for_help_and_refuses_unknown_flags():
+  import subprocess, sys  # pylint: disable=g-import-not-at-top,multiple-imports
+  done = subprocess.run([sys.executable, '-m', 'experiments.report', '--help'], capture_output=True,
+                        text=True, cwd=ROOT)
+  assert 'python -m experiments.report curves' in done.stdout  # absl's --help exits 1.
+  assert '--noise_plot' in done.stdout  # The mode's own flags.
+  done = subprocess.run([sys.executable, '-m', 'experiments.report', 'a.json', '--policies=plan'],
+                        capture_output=True, text=True, cwd=ROOT)
+  assert done.returncode == 2 and done.stderr.strip().startswith('error:')
+  assert len(done.stderr.strip().splitlines()) == 1 and 'policies' in done.stderr
 
 
 def test_compare_sweeps_pairs_compare_selection_files_by_training_seed(tmp_path, capsys):
-  from experiments import compare_sweeps
+  from ld_mpc_jax.cli import compare_sweeps
   sides = []
   for name, seed_of, success in (('a', {'x': 3, 'y': 4}, 1), ('b', {'u': 4, 'v': 3}, 0)):
     records = []
@@ -184,7 +191,7 @@ def test_compare_sweeps_pairs_compare_selection_files_by_training_seed(tmp_path,
 
 
 def test_compare_sweeps_pairs_two_differently_named_policies():
-  from experiments import compare_sweeps
+  from ld_mpc_jax.cli import compare_sweeps
   rec = lambda policy, ep, success: dict(run=0, split='held_out', eval_seed=0, episode=ep,
                                          policy=policy, success=success)
   a = {'records': [rec('plan[k64]', 0, 1), rec('plan[k64]', 1, 0)]}
@@ -195,7 +202,7 @@ def test_compare_sweeps_pairs_two_differently_named_policies():
 
 
 def test_compare_sweeps_takes_the_recorded_training_seed_without_the_workdir(tmp_path):
-  from experiments import compare_sweeps
+  from ld_mpc_jax.cli import compare_sweeps
   rec = lambda run, seed, success: dict(run=run, train_seed=seed, split='held_out', eval_seed=0,
                                         episode=0, policy='plan[argmax]', success=success)
   for name, records in (('a', [rec('/gone/x', 5, 1)]), ('b', [rec('/gone/y', 5, 0)])):
@@ -215,7 +222,7 @@ def test_where_behind_prints_the_bins_and_fails_in_one_line(tmp_path):
   path.write_text(json.dumps({'records': [rec('actor', 0, 1, 30), rec('actor', 1, 1, 150),
                                           rec('plan', 0, 1, 20), rec('plan', 1, 0, None)]}))
   repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-  run = lambda *a: subprocess.run([sys.executable, '-m', 'experiments.where_behind', *a],
+  run = lambda *a: subprocess.run([sys.executable, '-m', 'experiments.report', 'behind', *a],
                                   capture_output=True, text=True, timeout=60, cwd=repo)
   done = run(str(path))
   assert done.returncode == 0, done.stderr[-2000:]
@@ -253,7 +260,7 @@ def test_noise_sweeps_pool_with_bc_protocol_records_as_std_zero(tmp_path, capsys
   """pool_evals pools noise sweeps over files; a BC file whose sweep lacks std 0 counts its
   protocol records there; the policies pair on the episodes of each joined file."""
   import json
-  from experiments import pool_evals
+  from ld_mpc_jax.cli import pool as pool_evals
   rec = lambda policy, ep, ok, std=None: dict(
       policy=policy, split='held_out', eval_seed=0, episode=ep, run=0, success=ok,
       **({} if std is None else {'obs_noise': std}))
@@ -263,7 +270,7 @@ def test_noise_sweeps_pool_with_bc_protocol_records_as_std_zero(tmp_path, capsys
   bc = dict(records=[rec('bc', i, int(i < 3)) for i in range(4)],
             noise_sweep=dict(records=[rec('bc', i, int(i < 1), 0.05) for i in range(4)]))
   (tmp_path / 'bc.json').write_text(json.dumps(bc))
-  pool_evals.main([f'{tmp_path}/ev.json+{tmp_path}/bc.json'])
+  pool_evals.run([f'{tmp_path}/ev.json+{tmp_path}/bc.json'])
   out = capsys.readouterr().out
   assert '| 0 | bc | 3/4 = 0.75 |' in out and '| 0.05 | bc | 1/4 = 0.25 |' in out
   assert '| 0.05 | bc | 1/4 = 0.25 | [0.05, 0.70] | 0.33 | 3 / 0, p = 0.25 |' in out
@@ -273,11 +280,11 @@ def test_a_tagged_file_pairs_the_same_policy_under_other_settings(tmp_path, caps
   """PATH#TAG: the file's policies become POLICY#TAG, joined to another file of the same run
   they pair with its policies episode by episode."""
   import json
-  from experiments import pool_evals
+  from ld_mpc_jax.cli import pool as pool_evals
   rec = lambda ep, ok: dict(policy='plan', split='held_out', eval_seed=0, episode=ep, run=0,
                             success=ok)
   (tmp_path / 'a.json').write_text(json.dumps(dict(records=[rec(i, 1) for i in range(4)])))
   (tmp_path / 'b.json').write_text(json.dumps(dict(records=[rec(i, int(i > 0)) for i in range(4)])))
-  pool_evals.main([f'{tmp_path}/a.json+{tmp_path}/b.json#f'])
+  pool_evals.run([f'{tmp_path}/a.json+{tmp_path}/b.json#f'])
   out = capsys.readouterr().out
   assert '| plan#f | 3/4 = 0.75 |' in out and '| held_out | planner vs plan#f | 4 | 1 | 0 |' in out

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
-from experiments import ablations
+from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.model import models, proposals
 from ld_mpc_jax.plan import planner
 

@@ -1,5 +1,5 @@
 """README.md's commands run as written: every `python -m experiments.X ...` it shows names a module
-that exists and flags (and config fields, presets and `--set` fields) that parse. Dry run only:
+that exists and flags (and config fields, presets and the `--config.` fields of modes that load a saved run) that parse. Dry run only:
 the flags are parsed in a subprocess per module, nothing is trained or evaluated."""
 
 import collections
@@ -13,6 +13,8 @@ import sys
 
 import pytest
 
+from ld_mpc_jax import cli
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # Run in a subprocess per module (each module defines its flags on absl's global FLAGS): parses
@@ -21,22 +23,26 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 _CHECK = r'''
 import importlib, json, sys
 from absl import flags
-from experiments.configs import door_open, resolve_config_arg
-from experiments.overrides import parse_items, with_overrides
+from ld_mpc_jax import cli
+from ld_mpc_jax.configs import door_open, resolve_config_arg
+from ld_mpc_jax.configs.overrides import parse_items, with_overrides
 name, commands = sys.argv[1], json.loads(sys.argv[2])
-module = importlib.import_module(name)
+module = importlib.import_module(name)  # The mode's module, ld_mpc_jax.cli.<mode>.
+if hasattr(module, 'define_flags'):
+  module.define_flags()
 FLAGS, errors = flags.FLAGS, []
 for argv in commands:
   FLAGS.unparse_flags()
   try:
-    if hasattr(module, 'resolve_config_arg'):  # The launcher resolves --config=NAME.py itself.
-      argv = resolve_config_arg(argv)
+    argv, items = resolve_config_arg(argv), []  # As ld_mpc_jax.cli.dispatch does.
+    if hasattr(module, 'OVERRIDES'):
+      argv, items = cli.split_config_overrides(argv)
     sys.argv = [name] + argv  # ml_collections reads the --config.x overrides from sys.argv.
     FLAGS(sys.argv)  # Unknown flags or config fields, bad values, missing flags.
     if 'config' in FLAGS and FLAGS['config'].present:
       FLAGS.config.to_dict()  # The config file and its :preset load.
-    if 'set' in FLAGS:  # Every --set field exists and its value parses.
-      with_overrides(door_open.get_config(), parse_items(FLAGS.set))
+    if items:  # Every --config.field of a mode that loads a saved config exists and parses.
+      with_overrides(door_open.get_config(), parse_items(items))
     errors.append(None)
   except Exception as err:  # pylint: disable=broad-except
     errors.append(f'{type(err).__name__}: {err}')
@@ -63,30 +69,31 @@ def readme_commands(text: str):
           if c.startswith('python -m experiments.')]
 
 
-def named_modules(text: str):
-  """The backticked names of the README's "Others:" paragraph (commands listed by name)."""
-  match = re.search(r'^Others:(.*?)(?:\n\n|\Z)', text, re.S | re.M)
-  return re.findall(r'`(\w+)`', match.group(1)) if match else []
-
-
 def check_commands(commands, cwd):
   """{tuple(command): None or the error} for argument lists as `readme_commands` gives them."""
-  by_module = collections.defaultdict(list)
+  by_module, results = collections.defaultdict(list), {}
   for command in commands:
-    by_module[command[0]].append(command)
-  results, procs = {}, {}
-  for module, group in by_module.items():
-    if importlib.util.find_spec(module) is None:
-      results.update({tuple(c): f'no module {module}' for c in group})
+    if importlib.util.find_spec(command[0]) is None:
+      results[tuple(command)] = f'no module {command[0]}'
       continue
+    cmd = importlib.import_module(command[0])
+    try:
+      mode, argv = cli.choose(command, cmd.MODES, cmd.DEFAULT, cmd.BY_FLAG)
+    except ValueError as err:
+      results[tuple(command)] = str(err)
+      continue
+    by_module[f'ld_mpc_jax.cli.{mode}'].append((command, argv[1:]))
+  procs = {}
+  for module, group in by_module.items():
     procs[module] = subprocess.Popen(
-        [sys.executable, '-c', _CHECK, module, json.dumps([c[1:] for c in group])], cwd=cwd,
+        [sys.executable, '-c', _CHECK, module, json.dumps([argv for _, argv in group])], cwd=cwd,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env=dict(os.environ, PYTHONPATH=REPO))
   for module, proc in procs.items():  # Started together: the imports overlap.
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err[-2000:]
-    results.update(zip(map(tuple, by_module[module]), json.loads(out.splitlines()[-1])))
+    results.update(zip((tuple(c) for c, _ in by_module[module]),
+                       json.loads(out.splitlines()[-1])))
   return results
 
 
@@ -105,10 +112,18 @@ def test_the_readme_commands_parse(readme, tmp_path):
   assert not os.listdir(tmp_path)  # A dry run: nothing written.
 
 
-def test_the_commands_the_readme_names_exist(readme):
-  names = named_modules(readme)
-  missing = [n for n in names if importlib.util.find_spec(f'experiments.{n}') is None]
-  assert not missing, missing
+def test_the_readme_shows_every_command_and_experiments_holds_only_the_seven(readme):
+  shown = {c[0].split('.', 1)[1] for c in readme_commands(readme)}
+  commands = {f[:-3] for f in os.listdir(os.path.join(REPO, 'experiments'))
+              if f.endswith('.py') and f != '__init__.py'}
+  assert commands == {'train', 'evaluate', 'collect', 'report', 'diagnose', 'benchmark_planning',
+                      'benchmark_training'}
+  assert shown == commands, shown ^ commands
+  for name in commands:  # Thin: the code lives in ld_mpc_jax.cli.
+    with open(os.path.join(REPO, 'experiments', f'{name}.py')) as f:
+      assert f.read().count('\n') <= 120, name
+    for mode in importlib.import_module(f'experiments.{name}').MODES.values():
+      assert importlib.util.find_spec(f'ld_mpc_jax.cli.{mode}') is not None, (name, mode)
 
 
 def test_a_command_that_does_not_exist_is_caught(tmp_path):
@@ -119,11 +134,13 @@ python -m experiments.train --config=door_open.py:cpu --workdir=DIR --no_such_fl
 ```
 | `python -m experiments.train --config=door_open.py:nopreset --workdir=DIR` | x |
 | `python -m experiments.train --config=door_open.py --workdir=DIR --config.plan.nope=1` | x |
-| `python -m experiments.evaluate --workdir=DIR --set=plan.safe_selection=True,plan.safe_margin=2`
+| `python -m experiments.evaluate --workdir=DIR --config.plan.safe_selection=True,plan.safe_margin=2`
 | `python -m experiments.evaluate --seeds=0` | x |
 | `python -m experiments.nope --workdir=DIR` | x |
-
-Others: `collect`, `not_a_command`: each takes `--help`.
+| `python -m experiments.evaluate --workdir=DIR --set=plan.safe_selection=True` | x |
+| `python -m experiments.report nomode a.json` | x |
+| `python -m experiments.evaluate selection --workdir=A --workdir=B --out=x.json --config.plan.nope=1`
+| `python -m experiments.train --config=door_open.py:cpu --seeds=0,1 --workdir=DIR --config.seed=2`
 '''
   commands = readme_commands(text)
   assert commands[0] == ['experiments.train', '--config=door_open.py:cpu', '--workdir=DIR',
@@ -133,7 +150,10 @@ Others: `collect`, `not_a_command`: each takes `--help`.
   assert 'no_such_flag' in errors[1]
   assert 'nopreset' in errors[2]
   assert 'nope' in errors[3]
-  assert "'plan.safe_selection'" in errors[4]  # '--set' takes one field: 'True,plan...' is no bool.
+  assert "'plan.safe_selection'" in errors[4]  # One field per flag: 'True,plan...' is no bool.
   assert 'workdir' in errors[5]  # A required flag left out.
   assert errors[6] == 'no module experiments.nope'
-  assert named_modules(text) == ['collect', 'not_a_command']
+  assert '--config.field=value' in errors[7]  # The old spelling, named.
+  assert 'unknown mode' in errors[8] and 'curves' in errors[8]
+  assert errors[9] is not None  # selection: fields are checked only where the mode loads a
+  assert errors[10] is None     # config; the sweep mode (--seeds) takes --config.x itself.

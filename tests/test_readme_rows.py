@@ -6,7 +6,7 @@ import json
 import os
 import shutil
 
-from experiments import pool_evals
+from ld_mpc_jax.cli import pool as pool_evals
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MANIFEST = os.path.join(ROOT, 'results', 'readme_rows.json')
@@ -43,7 +43,21 @@ def test_the_check_fails_on_an_altered_record_or_readme(tmp_path):
   with gzip.open(path, 'wt') as f:
     f.write('\n'.join(lines) + '\n')
   failures = pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))
-  assert len(failures) == 1 and f"README {first['expect']}" in failures[0]
+  assert f"plan: README {first['expect']}" in failures[0]
+  # The same episode moves the paired test too, when that row shows one.
+  assert len(failures) == 1 + any('pair' in n for n in manifest['rows'][0]['numbers'])
+  if len(failures) == 2:
+    assert 'plan vs actor: README 1 / 2, 1' in failures[1]
   readme = (tmp_path / 'README.md').read_text()
   (tmp_path / 'README.md').write_text(readme.replace(manifest['rows'][1]['line'], 'gone'))
-  assert len(pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))) == 2
+  assert len(pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))) == len(failures) + 1
+
+
+def test_the_check_recomputes_a_paired_test_from_the_records(tmp_path):
+  manifest = _copy(tmp_path)
+  row = next(r for r in manifest['rows'] if r['line'] == '| door-open `weak` |')
+  num = next(n for n in row['numbers'] if 'pair' in n)
+  assert pool_evals._paired_cell([os.path.join(ROOT, f) for f in num['files']], *num['pair']) == (
+      '23 / 8, 0.011')
+  assert pool_evals._paired_cell([os.path.join(ROOT, f) for f in num['files']],
+                                 *reversed(num['pair'])) == '8 / 23, 0.011'  # Either order.

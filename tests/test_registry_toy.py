@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments.overrides import with_overrides
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan import planner
 from ld_mpc_jax.learn import train_state
@@ -102,7 +102,7 @@ def test_unknown_dynamics_kind_is_a_one_line_error(smoke_config):
 def test_task_conditioning_is_declared_by_the_kind(toy_config):
   """Multi-task: the toy's declared input layer gets a task bias; a declared layer the module
   lacks is an error, not a silently unconditioned network."""
-  from experiments.configs import mt10
+  from ld_mpc_jax.configs import mt10
   mt = with_overrides(mt10.get_config('smoke'), {'model.dynamics_type': 'toy_linear'})
   params = models.init_params(mt, jax.random.key(0))
   assert set(params['task']['proj']['dynamics']) == {'linear'}

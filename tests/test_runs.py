@@ -4,7 +4,7 @@ import os
 
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.runs import loop as runs

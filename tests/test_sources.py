@@ -4,7 +4,7 @@ config trains on (TD-MPC2 chunks read by a stand-in torch; scripted collection s
 import numpy as np
 import pytest
 
-from experiments.configs import door_open, mt10
+from ld_mpc_jax.configs import door_open, mt10
 from ld_mpc_jax import envs
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.data import sources

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments.configs import door_open, mt10
+from ld_mpc_jax.configs import door_open, mt10
 from ld_mpc_jax.model import models, tasks
 from ld_mpc_jax.model.critics import Critics
 from ld_mpc_jax.learn.losses import make_loss_fn

@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.runs import loop as runs, train
@@ -207,7 +207,7 @@ def test_same_seed_trains_bit_identical_parameters(unevaluated_runs):
 def test_packed_run_evaluates_as_trained_and_holds_no_training_state(unevaluated_runs, tmp_path):
   import tarfile
   import jax
-  from experiments import pack_runs
+  from ld_mpc_jax.cli import pack_runs
   workdir, _ = unevaluated_runs['a']
   path = pack_runs.pack(workdir, str(tmp_path / 'out'))
   assert os.path.basename(path) == 'a.tgz'

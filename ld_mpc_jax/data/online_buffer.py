@@ -23,18 +23,19 @@ class Buffer:
   bool). Windows are sampled uniformly over the offline data and the online episodes
   (`ReplayBuffer`), and a share of each batch uniformly over the demonstrations, with one
   persistent generator, whose state the checkpoint keeps. The demonstrations are not saved:
-  they are drawn again, the same, from the config (`demos.get_demos`).
+  they are drawn again, the same, from the config (`demos.get_demos`). With `progress`, windows
+  carry the learned progress reward's targets (`replay.progress_targets`).
   """
 
   def __init__(self, seq_len: int, offline: Optional[dataset_lib.Dataset], seed: int,
-               demos: Optional[List[Episode]] = None):
-    self.seq_len, self.offline = seq_len, offline
+               demos: Optional[List[Episode]] = None, progress: bool = False):
+    self.seq_len, self.offline, self.progress = seq_len, offline, progress
     self.episodes: List[Episode] = []
     self.demos = list(demos or [])
     self.rng = np.random.default_rng([seed, 23])
     self._sampler = None
     self._demo_sampler = (ReplayBuffer(dataset_lib.Dataset.from_episodes(self.demos), seq_len,
-                                       seed=self.rng) if self.demos else None)
+                                       seed=self.rng, progress=progress) if self.demos else None)
 
   def add(self, episodes: List[Episode]) -> None:
     self.episodes.extend(episodes)
@@ -51,7 +52,7 @@ class Buffer:
           self.offline is not None) else []
       # default_rng(Generator) is that generator: the sampler draws from self.rng.
       self._sampler = ReplayBuffer(dataset_lib.Dataset.from_episodes(old + self.episodes),
-                                   self.seq_len, seed=self.rng)
+                                   self.seq_len, seed=self.rng, progress=self.progress)
     return self._sampler
 
   def sample(self, batch_size: int, groups: int = 1, demo_share: float = 0.0

@@ -22,7 +22,8 @@ class ReplayBuffer:
     num_windows: number of distinct valid windows.
   """
 
-  def __init__(self, dataset: dataset_lib.Dataset, seq_len: int, seed: int = 0):
+  def __init__(self, dataset: dataset_lib.Dataset, seq_len: int, seed: int = 0,
+               progress: bool = False):
     if not isinstance(seq_len, (int, np.integer)) or seq_len < 2:
       raise ValueError(
           f'seq_len must be an integer >= 2 (T observations with at '
@@ -46,6 +47,7 @@ class ReplayBuffer:
     self._obs = np.asarray(dataset.observations, np.float32)
     self._act = np.asarray(dataset.actions, np.float32)
     self._rew = np.asarray(dataset.rewards, np.float32)
+    self._progress = progress_targets(dataset) if progress else None
 
   def window_starts(self, flat: np.ndarray) -> np.ndarray:
     """Maps window indices [B] in [0, num_windows) to first rows [B]."""
@@ -59,15 +61,19 @@ class ReplayBuffer:
     Returns:
       dict(obs float32 [B, T, obs_dim], action float32 [B, T-1, act_dim],
       reward float32 [B, T-1]); obs[:, t] is seen before action[:, t], and
-      reward[:, t] follows action[:, t].
+      reward[:, t] follows action[:, t]. With `progress`, also progress float32 [B, T]: each
+      observation's `progress_targets`.
     """
     if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
       raise ValueError(f'batch_size must be a positive integer, got '
                        f'{batch_size!r}.')
     flat = self._rng.integers(0, self.num_windows, size=int(batch_size))
     rows = self.window_starts(flat)[:, None] + np.arange(self.seq_len)
-    return dict(obs=self._obs[rows], action=self._act[rows[:, :-1]],
-                reward=self._rew[rows[:, :-1]])
+    out = dict(obs=self._obs[rows], action=self._act[rows[:, :-1]],
+               reward=self._rew[rows[:, :-1]])
+    if self._progress is not None:  # The learned progress reward's targets (loss.w_progress).
+      out['progress'] = self._progress[rows]
+    return out
 
   def skip(self, batches: int, batch_size: int) -> None:
     """Advances the sampler as `batches` calls of `sample(batch_size)` would, without
@@ -75,3 +81,17 @@ class ReplayBuffer:
     calls), so that a resumed run draws what the uninterrupted run draws next."""
     for _ in range(int(batches)):
       self._rng.integers(0, self.num_windows, size=int(batch_size))
+
+
+def progress_targets(dataset: dataset_lib.Dataset) -> np.ndarray:
+  """float32 [N]: each observation row's progress along its episode, the target of the learned
+  progress reward (ld_mpc_jax.learn.losses): t / (t* + 1) for the t-th observation of an
+  episode whose first success follows action t* (so its success state has 1), 1 after it, and
+  0 on every row of an episode that never succeeds."""
+  out = np.zeros(len(dataset.rewards), np.float32)
+  for start, length in zip(dataset.episode_starts, dataset.episode_lengths):
+    solved = np.flatnonzero(dataset.successes[start:start + length])
+    if solved.size:
+      t = np.arange(length + 1, dtype=np.float32)
+      out[start:start + length + 1] = np.minimum(t / (solved[0] + 1), 1.0)
+  return out

@@ -182,6 +182,16 @@ class MetaWorldWrapper(gym.Wrapper):
     inner._freeze_rand_vec = False  # pylint: disable=protected-access
     inner.seeded_rand_vec = True  # Its np_random (seeded by reset), not NumPy's global state.
 
+  def next_substeps(self) -> int:
+    """Environment steps the next decision will take unless the episode terminates inside it (by
+    success with `terminate_on_success`: then at least 1). Lets an online run dispatch the updates
+    those steps call for before stepping (ld_mpc_jax.runs.online)."""
+    if self._needs_reset:
+      return 0
+    if self.terminate_on_success:
+      return 1
+    return min(self.action_repeat, self.max_episode_steps - self._env_steps)
+
   def step(self, action: np.ndarray
            ) -> Tuple[np.ndarray, float, bool, bool, Dict[str, Any]]:
     """action: [act_dim] -> (obs [obs_dim], reward, terminated, truncated, info)."""

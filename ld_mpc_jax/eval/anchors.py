@@ -1,6 +1,6 @@
 """Policies against an anchor policy (the actor prior by default) on the same episodes: pooled
 and per-run success with paired tests, where in the episode the planner falls behind, per task;
-and their markdown tables (experiments.compare_selection, experiments.where_behind)."""
+and their markdown tables (experiments.evaluate selection, experiments.report behind)."""
 
 from typing import Dict, List, Sequence
 

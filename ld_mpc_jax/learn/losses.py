@@ -23,6 +23,9 @@ like every other position.
            on every observation of the window) and this term, |enc(o + noise) - sg(enc(o))|^2,
            pulls a noisy observation's latent onto the clean one's; the consistency and value
            targets are encoded from the clean o (+ w_noise_inv L_noise_inv in L).
+  L_progress with the learned progress reward (`loss.w_progress` > 0, windows carrying
+           'progress'): the progress head's cross-entropy on the clean, detached latents
+           (ld_mpc_jax.model.progress; + w_progress L_progress in L).
 Metrics: 'loss' and 'loss_<term>' for each term the config uses, plus the critics' and the
 value kind's own metrics.
 """
@@ -33,7 +36,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax.model import actors, dynamics, objective, proposals
+from ld_mpc_jax.model import actors, dynamics, objective, progress, proposals
 from ld_mpc_jax.model.critics import make_critic_loss
 from ld_mpc_jax.model.models import Networks
 from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
@@ -41,7 +44,7 @@ from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
 # Loss weight of each term (config.loss.<weight>), in the order they are summed.
 WEIGHTS = (('dyn', 'w_dyn'), ('act', 'w_act'), ('rew', 'w_rew'), ('val', 'w_val'),
            ('actor', 'w_actor'), ('consistency', 'w_consistency'), ('q', 'w_q'), ('v', 'w_v'),
-           ('demo_bc', 'w_demo_bc'), ('noise_inv', 'w_noise_inv'))
+           ('demo_bc', 'w_demo_bc'), ('noise_inv', 'w_noise_inv'), ('progress', 'w_progress'))
 
 
 def reward_loss(r_logits: jnp.ndarray, reward: jnp.ndarray, num_bins: int, vmin: float,
@@ -180,6 +183,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     terms['actor'] = actor.loss(config, nets, params, z, action, weights, k_pi)
     if 'demo' in batch:  # Structure, not value: known when tracing.
       terms['demo_bc'] = demo_bc_loss(nets, params, sg(z[:, :-1]), action, batch['demo'])
+    if 'progress' in batch and nets.progress is not None:  # The learned progress reward.
+      terms['progress'] = progress.loss(nets.progress, params, z_clean, batch['progress'])
     loss = weighted_sum(terms, config.loss)
     metrics['loss'] = loss
     for name, _ in WEIGHTS:

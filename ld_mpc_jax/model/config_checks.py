@@ -69,9 +69,6 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   t = config.train
   if not isinstance(t.num_seeds, int) or isinstance(t.num_seeds, bool) or t.num_seeds < 1:
     raise ValueError(f'config.train.num_seeds must be an integer >= 1, got {t.num_seeds!r}')
-  if t.num_seeds > 1 and not online_enabled(config):
-    raise ValueError('config.train.num_seeds > 1 trains online runs only so far; run offline '
-                     'seeds as separate runs (--config.seed=N)')
   if t.num_seeds > 1 and (t.data_parallel or config.eval.data_parallel):
     raise ValueError('config.train.num_seeds > 1 runs on one device: set '
                      'config.train.data_parallel and config.eval.data_parallel off')
@@ -106,6 +103,13 @@ def _validate_plan(config: ml_collections.ConfigDict) -> None:
     raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
   if 'latent_filter' in p and not 0.0 <= p.latent_filter < 1.0:
     raise ValueError(f'config.plan.latent_filter must be in [0, 1), got {p.latent_filter}')
+  if 'progress_weight' in p:  # The learned progress reward (ld_mpc_jax.model.progress).
+    if p.progress_weight < 0 or config.loss.w_progress < 0:
+      raise ValueError(f'config.plan.progress_weight and config.loss.w_progress must be >= 0, '
+                       f'got {p.progress_weight} and {config.loss.w_progress}')
+    if p.progress_weight > 0 and not config.loss.w_progress > 0:
+      raise ValueError('config.plan.progress_weight > 0 needs the progress head: set '
+                       'config.loss.w_progress > 0 (its loss weight) too')
 
 
 def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax.model import actors, dynamics, objective, proposals, tasks
+from ld_mpc_jax.model import actors, dynamics, objective, progress, proposals, tasks
 from ld_mpc_jax.ops import config_cache
 from ld_mpc_jax.model.actors import Actor
 from ld_mpc_jax.model.config_checks import validate_config
@@ -130,6 +130,7 @@ class Networks(NamedTuple):
   objective: SequenceObjective
   actor: Actor
   critics: Optional[Critics] = None  # Expectile V and Q ensembles (ld_mpc_jax.model.critics).
+  progress: Optional[nn.Module] = None  # The learned progress reward (ld_mpc_jax.model.progress).
 
 
 def uses_critics(config: ml_collections.ConfigDict) -> bool:
@@ -150,13 +151,14 @@ def build_networks(config: ml_collections.ConfigDict) -> Networks:
                   stochastic=actors.get(config).stochastic,
                   log_std_map=config.critic.log_std_map),
       critics=build_critics(config) if uses_critics(config) else None,
+      progress=progress.build(config) if progress.enabled(config) else None,
   )
 
 
 def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   """Initial parameters: {'encoder', 'proposal', 'dynamics', 'objective', 'actor'} -> pytree,
-  plus 'critics' when the config uses them (`uses_critics`) and 'task' for a
-  multi-task config (ld_mpc_jax.model.tasks).
+  plus 'critics' when the config uses them (`uses_critics`), 'progress' with the learned
+  progress reward (`loss.w_progress`) and 'task' for a multi-task config (ld_mpc_jax.model.tasks).
 
   One compiled program: initialising operation by operation compiles hundreds of small ones
   (about 16 s against 4 s on a 2-core CPU at smoke size).
@@ -189,6 +191,8 @@ def _init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   }
   if nets.critics is not None:
     params['critics'] = nets.critics.init(keys['critics'], z, jnp.zeros((1, a)))['params']
+  if nets.progress is not None:  # Its own key: the other networks' start as without it.
+    params['progress'] = nets.progress.init(jax.random.fold_in(key, 3), z)['params']
   return tasks.init_task_params(config, jax.random.fold_in(key, 2), params)
 
 

@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
+from ld_mpc_jax.model import progress
 from ld_mpc_jax.model.critics import Critics
 from ld_mpc_jax.ops.numerics import (discounted_return, soft_cross_entropy, two_hot, two_hot_decode,
                             window_returns)
@@ -179,14 +180,20 @@ def make_member_scores(config: ml_collections.ConfigDict, nets) -> ScoreFn:
   """J under each value member: (params, latents [K, H+1, D], actions [K, H, A]) -> [M, K].
 
   J_m = sum_i gamma^i r_i + gamma^H V_m(z_H), rewards from the sequence objective (two-hot,
-  decoded), V_m from the value kind (module docstring)."""
+  decoded), V_m from the value kind (module docstring); plus w gamma^H Phi(z_H) with the learned
+  progress reward (`plan.progress_weight` = w, ld_mpc_jax.model.progress)."""
   m, gamma = config.model, config.gamma
   members = get(config).make_members(config, nets)
+
+  shaped = config.plan.progress_weight > 0 and getattr(nets, 'progress', None) is not None
 
   def score(params, latents, actions):
     r_logits, v_logits = nets.objective.apply({'params': params['objective']}, latents, actions)
     rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [K, H]
-    return discounted_return(rewards[None], members(params, latents, v_logits), gamma)
+    scores = discounted_return(rewards[None], members(params, latents, v_logits), gamma)
+    if shaped:  # The learned progress reward, as potential-based shaping (model/progress.py).
+      scores = scores + progress.bonus(config, nets.progress, params, latents)
+    return scores
 
   return score
 

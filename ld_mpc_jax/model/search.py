@@ -268,7 +268,7 @@ def gates(config: ml_collections.ConfigDict) -> Tuple[bool, bool]:
   """(confirm, fallback): whether safe selection's confirmation (`plan.safe_confirm`) and its
   fallback to the actor prior (`plan.fallback_drop` > 0) act. Both are gates of safe selection:
   without `plan.safe_selection` they are inert, so that their defaults can be the recommended
-  values and `--set=plan.safe_selection=True` alone switches the recommended setting on."""
+  values and `--config.plan.safe_selection=True` alone switches the recommended setting on."""
   p = config.plan
   return bool(p.safe_selection and p.safe_confirm), bool(p.safe_selection and p.fallback_drop > 0)
 

@@ -1,6 +1,6 @@
 """The one migration of saved configs, keyed by the config's version (`config.version`).
 
-Library code reads config fields directly (defaults live in experiments/configs/base.py); a
+Library code reads config fields directly (defaults live in ld_mpc_jax/configs/base.py); a
 saved config is brought up to date once, on load (checkpointing.migrate_config -> `migrate`):
 each step of STEPS above the version it was saved with runs in order. Version 0 is every config
 saved before the field existed (until 2026-11-29): `to_v1` renames its old sections and fills
@@ -50,8 +50,8 @@ FIELDS = {
     'data': dict(source='metaworld', path='', max_episode_steps=500),
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0),
 }
-# The version experiments/configs/base.py writes (config.version).
-CONFIG_VERSION = 1
+# The version ld_mpc_jax/configs/base.py writes (config.version).
+CONFIG_VERSION = 2
 
 
 def _online_fields(config: ml_collections.ConfigDict) -> dict:
@@ -77,7 +77,17 @@ def to_v1(config: ml_collections.ConfigDict) -> None:
     fill(config, 'online', _online_fields(config))
 
 
-STEPS = {1: to_v1}  # version -> the step that brings a config of version - 1 to it.
+# Fields added in version 2, with the values that change nothing (the learned progress reward).
+V2_FIELDS = {'loss': dict(w_progress=0.0), 'plan': dict(progress_weight=0.0)}
+
+
+def to_v2(config: ml_collections.ConfigDict) -> None:
+  """Version 1 -> 2 (in place): the learned progress reward's fields, off."""
+  for section, fields in V2_FIELDS.items():
+    fill(config, section, fields)
+
+
+STEPS = {1: to_v1, 2: to_v2}  # version -> the step that brings a config of version - 1 to it.
 
 
 def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
@@ -96,7 +106,7 @@ def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
 def neutral_values() -> dict:
   """{'plan': ..., 'data': ...}: the planner and data fields' values that change nothing against
   a run saved before the field (evaluation cache keys leave them out)."""
-  return {'plan': dict(FIELDS['plan']), 'data': dict(FIELDS['data'])}
+  return {'plan': dict(FIELDS['plan'], **V2_FIELDS['plan']), 'data': dict(FIELDS['data'])}
 
 
 def rename_sections(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:

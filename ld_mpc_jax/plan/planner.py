@@ -275,7 +275,7 @@ def make_plan(config: ml_collections.ConfigDict,
   """Builds the jit-compiled planner.
 
   Args:
-    config: an LD-MPC config (see experiments/configs/base.py).
+    config: an LD-MPC config (see ld_mpc_jax/configs/base.py).
     score_fn: optional replacement for the learned objective,
       (params, latents [K, H+1, D], actions [K, H, A]) -> J [K] or J per member [M, K]; for
       tests and custom objectives.

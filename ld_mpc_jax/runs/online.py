@@ -1,7 +1,7 @@
 """Online and offline-to-online training: the planner acts, its episodes feed the replay buffer.
 
 `train_online(config, workdir)` is the main job's online mode (`config.online.enabled`;
-experiments/configs/door_open_online.py). N = `online.num_envs` environments run one episode each
+ld_mpc_jax/configs/door_open_online.py). N = `online.num_envs` environments run one episode each
 in lockstep (a wave); episodes run their full `online.episode_steps` environment steps, as the
 scripted data do, and start from the goals of MT1 seed `config.data.seed` (or, with
 `online.train_goals='random'`, from a fresh goal configuration each). From scratch, the
@@ -168,8 +168,13 @@ class OnlineJob:
       self._views = self._unstack(self.state.ema_params)
     return self._views
 
-  def catch_up(self) -> None:
-    """Updates until floor(update_ratio x environment steps) have been made.
+  def catch_up(self, ahead: int = 0) -> None:
+    """Updates until floor(update_ratio x (environment steps + `ahead`)) have been made.
+
+    `ahead`: steps the environments are about to take. The updates they call for are dispatched
+    before the environments step, so that XLA computes them (asynchronously, on its own threads)
+    while MuJoCo steps: the same updates in the same order as when they wait for the steps (the
+    buffers change only between waves), the environment loop off the critical path.
 
     From scratch, the first call sets the encoder's observation statistics from the seed
     episodes and demonstrations (`config.model.normalize_obs`) before any update, then makes
@@ -188,8 +193,8 @@ class OnlineJob:
       c['normalized'], self._views = True, None
     if self.config.online.demos and c['pretrain_updates'] < o.demo_pretrain_updates:
       self._updates(o.demo_pretrain_updates, 'pretrain_updates', share=1.0)
-    self._updates(int(o.update_ratio * c['env_steps']), 'updates',
-                  share=demo_share(self.config, c['env_steps']))
+    steps = c['env_steps'] + ahead
+    self._updates(int(o.update_ratio * steps), 'updates', share=demo_share(self.config, steps))
 
   def _updates(self, target: int, counter: str, share: float) -> None:
     """Updates until counters[counter] reaches `target`, `online.updates_per_call` per jitted
@@ -243,6 +248,8 @@ class OnlineJob:
     while acting[0].active.any():  # The seeds' episodes have the same lengths.
       actions, infos = (policy([w.obs for w in acting], t, acting[0].active) if planner
                         else (none, none))
+      if planner:  # The updates these steps call for, dispatched to run while they step.
+        self.catch_up(ahead=acting[0].upcoming())
       steps = [w.step(a, i) for w, a, i in zip(acting, actions, infos)]
       self.counters['env_steps'] += steps[0]
       self.bar.update(steps[0])

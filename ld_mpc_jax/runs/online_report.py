@@ -42,10 +42,9 @@ def report(job, seat, final, summary) -> Dict[str, Any]:
 POOLED_MD, POOLED_JSON = 'pooled.md', 'pooled.json'
 
 
-def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
-                 records: List[List[dict]]) -> Dict[str, Any]:
-  """pooled.json and pooled.md in `workdir`: each policy's successes per training seed and
-  pooled over them (Wilson 95% interval), on the first goal split of the final evaluation."""
+def pool_seeds(seeds: List[int], records: List[List[dict]]) -> Dict[str, Any]:
+  """{policy: successes per training seed and pooled (Wilson 95% interval), McNemar against the
+  planner on the same episodes} on the first goal split of each seed's final evaluation."""
   policies, first = {}, {}
   for seed, recs in zip(seeds, records):
     split = recs[0]['split'] if recs else None
@@ -61,6 +60,29 @@ def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
     # Exact McNemar against the planner on the same episodes (records name their seed: 'run').
     row['vs_plan'] = (stats.paired(first['plan'], first[mode])
                       if mode != 'plan' and 'plan' in first else None)
+  return table
+
+
+def pooled_md(table: Dict[str, Any], seeds: List[int]) -> List[str]:
+  """The markdown lines of `pool_seeds`' table."""
+  lines = ['| policy | ' + ' | '.join(f'seed {s}' for s in seeds)
+           + ' | pooled | 95% CI | planner only / this only, McNemar p |',
+           '| --- |' + ' --- |' * (len(seeds) + 3)]
+  for mode, row in table.items():
+    cells = [f"{row['per_seed'][str(s)][0]}/{row['per_seed'][str(s)][1]}"
+             if str(s) in row['per_seed'] else '-' for s in seeds]
+    vs = row['vs_plan']
+    paired = f"{vs['a_only']} / {vs['b_only']}, p = {vs['p_value']:.2g}" if vs else ''
+    lines.append(f"| {mode} | {' | '.join(cells)} | {row['successes']}/{row['episodes']} | "
+                 f"[{row['ci95'][0]:.2f}, {row['ci95'][1]:.2f}] | {paired} |")
+  return lines
+
+
+def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
+                 records: List[List[dict]]) -> Dict[str, Any]:
+  """pooled.json and pooled.md in `workdir`: each policy's successes per training seed and
+  pooled over them (Wilson 95% interval), on the first goal split of the final evaluation."""
+  table = pool_seeds(seeds, records)
   out = dict(task=reports[0]['task'], env_steps=reports[0]['env_steps'], seeds=seeds,
              split=records[0][0]['split'] if records and records[0] else None,
              first_training_success={str(s): r['first_training_success']
@@ -71,16 +93,7 @@ def write_pooled(workdir: str, seeds: List[int], reports: List[Dict[str, Any]],
            f"{out['env_steps']:,} environment steps (simulator steps)", '',
            f"{out['train_seconds']:.0f} s acting and training for all seeds together; final "
            f"evaluation on {out['split']} goals, per seed and pooled (Wilson 95% interval).", '',
-           '| policy | ' + ' | '.join(f'seed {s}' for s in seeds)
-           + ' | pooled | 95% CI | planner only / this only, McNemar p |',
-           '| --- |' + ' --- |' * (len(seeds) + 3)]
-  for mode, row in table.items():
-    cells = [f"{row['per_seed'][str(s)][0]}/{row['per_seed'][str(s)][1]}"
-             if str(s) in row['per_seed'] else '-' for s in seeds]
-    vs = row['vs_plan']
-    paired = f"{vs['a_only']} / {vs['b_only']}, p = {vs['p_value']:.2g}" if vs else ''
-    lines.append(f"| {mode} | {' | '.join(cells)} | {row['successes']}/{row['episodes']} | "
-                 f"[{row['ci95'][0]:.2f}, {row['ci95'][1]:.2f}] | {paired} |")
+           *pooled_md(table, seeds)]
   first = ', '.join(f'seed {s}: {v:,}' if v is not None else f'seed {s}: none'
                     for s, v in zip(seeds, out['first_training_success'].values()))
   lines += ['', f'First successful training episode (environment steps): {first}.', '']

@@ -45,7 +45,8 @@ class Seat:
   def __init__(self, config, workdir: str, offline: Optional[data.Dataset], index: int):
     o, self.config, self.index = config.online, config, index
     self.run = runs.Run(config, workdir)
-    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config))
+    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config),
+                         progress=config.loss.w_progress > 0)
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,
                                max_episode_steps=o.episode_steps,
@@ -167,6 +168,14 @@ class SeatWave:
     self.noise_rng = np.random.default_rng([seed, first, 29])
     seat.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
     seat.spreads, seat.dense_max = [], 0.0
+
+  def upcoming(self) -> int:
+    """Environment steps the next `step` will take, summed over the active environments (0 when
+    an environment cannot tell: the updates then wait for the steps, as before)."""
+    envs_ = [self.seat.envs[i] for i in np.flatnonzero(self.active)]
+    if not all(hasattr(e, 'next_substeps') for e in envs_):
+      return 0
+    return sum(e.next_substeps() for e in envs_)
 
   def step(self, actions: Optional[np.ndarray], infos: Optional[np.ndarray]) -> int:
     """One decision in each active environment, with the policy's `actions` [N, A] and

@@ -22,6 +22,7 @@ from ld_mpc_jax.model import tasks
 from ld_mpc_jax.model.config_checks import online_enabled, validate_config
 from ld_mpc_jax.model.models import count_params
 from ld_mpc_jax.learn.train_state import create_train_state, make_update
+from ld_mpc_jax.runs.online_seats import seat_configs
 
 
 
@@ -39,17 +40,23 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   anything is written to it) unless `continue_with_changes`; its earlier config.json is then kept
   as config.<n>.json.
 
-  With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.runs.online.train_online`).
+  With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.runs.online.train_online`);
+  with `train.num_seeds` = N > 1, N seeds in one process (`ld_mpc_jax.runs.train_seeds`), each in
+  <workdir>/seed<seed>, and the returned report is the pooled one.
   """
   if online_enabled(config):
     from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
     return online.train_online(config, workdir, continue_with_changes)
   validate_config(config)
   tasks.check_tasks(config)
-  checkpointing.check_workdir(config, workdir, continue_with_changes)
+  for seed_config, seed_workdir in seat_configs(config, workdir):  # Each seed's, as saved.
+    checkpointing.check_workdir(seed_config, seed_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
   runs.check_config_for_data(config, dataset)
+  if config.train.num_seeds > 1:  # N seeds in one process, vmapped (ld_mpc_jax.runs.train_seeds).
+    from ld_mpc_jax.runs import train_seeds  # pylint: disable=g-import-not-at-top
+    return train_seeds.train_seeds(config, workdir, dataset, _report, _summary_md)
   run = runs.Run(config, workdir)
   state = run.restore()
   if state is None:

@@ -1,4 +1,4 @@
-"""End to end: every ablation variant (experiments.ablations) builds, trains one step and plans."""
+"""End to end: every ablation variant (experiments.train ablations) builds, trains one step and plans."""
 
 import chex
 import jax
@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from experiments import ablations
+from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan import planner
 from ld_mpc_jax.learn.train_state import create_train_state, make_update

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.eval import evaluation_suite
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -17,7 +17,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 @pytest.mark.long
 def test_bc_baseline_runs_the_planners_held_out_episodes(tmp_path):
   data_dir, out = str(tmp_path / 'data'), str(tmp_path / 'bc.json')
-  cmd = [sys.executable, '-m', 'experiments.bc_baseline', '--task=door-open-v3',
+  cmd = [sys.executable, '-m', 'experiments.evaluate', 'bc', '--task=door-open-v3',
          '--preset=medium', '--episodes=2', '--steps=2', '--eval_episodes=3',
          f'--data_dir={data_dir}', f'--out={out}']
   done = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)

@@ -18,7 +18,7 @@ def test_benchmark_training_writes_json(tmp_path):
   out = str(tmp_path / 'bench.json')
   cmd = [sys.executable, '-m', 'experiments.benchmark_training', '--configs=door_open.py:smoke',
          '--repeats=2', '--warmup=1', f'--out={out}', '--peak_size=256', '--peak_repeats=2',
-         '--set=critic.latent_rollout=False']  # Less to compile; value targets still scan.
+         '--config.critic.latent_rollout=False']  # Less to compile; value targets still scan.
   done = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)
   assert done.returncode == 0, done.stderr[-3000:]
   with open(out) as f:
@@ -43,7 +43,7 @@ def test_compare_update_speed_runs_both_checkouts():
   """This checkout against itself at smoke size: both versions time, ratio printed."""
   repo = REPO
   done = subprocess.run(
-      [sys.executable, '-m', 'experiments.compare_update_speed', f'--baseline={repo}',
+      [sys.executable, '-m', 'experiments.benchmark_training', 'versions', f'--baseline={repo}',
        '--config=door_open.py:smoke', '--steps=2'],
       cwd=repo, env=dict(os.environ, PYTHONPATH=repo), capture_output=True, text=True,
       timeout=600)
@@ -55,7 +55,7 @@ def test_compare_update_speed_runs_both_checkouts():
   diff = re.search(r'max relative difference of the (\d+) shared metrics ([\d.e+-]+)',
                    done.stdout)
   assert diff and int(diff.group(1)) > 5 and float(diff.group(2)) < 1e-6
-  bad = subprocess.run([sys.executable, '-m', 'experiments.compare_update_speed',
+  bad = subprocess.run([sys.executable, '-m', 'experiments.benchmark_training', 'versions',
                         '--baseline=/nonexistent'], cwd=repo, capture_output=True, text=True,
                        env=dict(os.environ, PYTHONPATH=repo), timeout=120)
   assert bad.returncode == 2 and 'has no ld_mpc_jax package' in bad.stderr

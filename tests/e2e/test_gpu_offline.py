@@ -1,4 +1,4 @@
-"""End to end: experiments/gpu/offline.sh trains two seeds (the second from the first's
+"""End to end: scripts/gpu/offline.sh trains two seeds (the second from the first's
 compilation cache), compares selection on each, and packs runs that evaluate as trained."""
 
 import json
@@ -22,9 +22,9 @@ def test_offline_script_trains_compares_and_packs_ema_only_runs(tmp_path):
   evals.write_text('quick --variant=argmax: --baselines=actor --episodes=1 --seed=0\n')
   env = dict(os.environ, OUT=str(tmp_path / 'out'), RUNS=str(tmp_path / 'runs'),
              DATA=str(tmp_path / 'data'), PY=sys.executable, SEEDS='0 1',
-             CONFIG='experiments/configs/door_open.py:smoke', SETTINGS='smk:door-open-v3:medium',
+             CONFIG='ld_mpc_jax/configs/door_open.py:smoke', SETTINGS='smk:door-open-v3:medium',
              EVAL_FILE=str(evals), EVAL_T='200', MUJOCO_GL=os.environ.get('MUJOCO_GL', 'osmesa'))
-  done = subprocess.run(['bash', 'experiments/gpu/offline.sh'], cwd=ROOT, env=env,
+  done = subprocess.run(['bash', 'scripts/gpu/offline.sh'], cwd=ROOT, env=env,
                         capture_output=True, text=True, timeout=600)
   assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
   assert 'first seeds compiled at' in done.stdout

@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from experiments.configs import mt10
+from ld_mpc_jax.configs import mt10
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.runs import train

@@ -20,7 +20,7 @@ _SCRIPT = r'''
 import json
 import jax
 import numpy as np
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
@@ -86,7 +86,7 @@ _PLAN_SCRIPT = r'''
 import json
 import jax
 import numpy as np
-from experiments.configs import door_open
+from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.plan import agent
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.model.models import init_params

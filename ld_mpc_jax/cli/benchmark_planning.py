@@ -1,0 +1,216 @@
+"""Planning benchmark: latency, compile time, FLOPs and fraction of peak, LD-MPC vs MPPI.
+
+  python -m experiments.benchmark_planning                                    # everything
+  python -m experiments.benchmark_planning --widths=cpu --variants=reference,fast,mppi
+  python -m experiments.benchmark_planning --config=door_open.py --repeats=20 \
+      --out=benchmark_planning.json
+
+Every LD-MPC variant is a set of config overrides of the same model, run at the reference width
+(the config file without preset) and/or at the `:cpu` preset's width (the trained model's size);
+the rest of the config (plan settings included) comes from --config. `mppi` is the TD-MPC2-style
+baseline (ld_mpc_jax.plan.mppi) with a TD-MPC2-sized MLP world model. Parameters are random (latency
+does not depend on their values). Writes a JSON list of entries to --out and a markdown table
+next to it (.md), again after every configuration, so that a run cut short (a device lease's time
+limit, say) keeps the configurations it measured. Method: docs/benchmark.md.
+"""
+
+import dataclasses
+import importlib.util
+import os
+import sys
+import time
+
+from absl import app, flags
+import jax
+import jax.numpy as jnp
+import ml_collections
+from ml_collections import config_flags
+import numpy as np
+
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.configs import CONFIG_DIR
+from ld_mpc_jax.configs.overrides import with_overrides
+from benchmarks import planning
+from benchmarks.hardware import device_info, measure_peak  # Shared with benchmark_training.
+
+
+# name -> overrides (dotted config field -> value, or a function of the config for values that
+# depend on the width). Applied on top of --config with the width's model section.
+_DDIM_8X2 = {'plan.action_steps': 8, 'plan.dynamics_steps': 2, 'plan.action_eta': 0.0,
+             'plan.dynamics_eta': 0.0}
+_DDIM_4X1 = {'plan.action_steps': 4, 'plan.dynamics_steps': 1, 'plan.action_eta': 0.0,
+             'plan.dynamics_eta': 0.0}
+_FAST_WARM = {**_DDIM_4X1, 'plan.num_prior_candidates': 16, 'plan.warm_start_steps': 2,
+              'plan.warm_start_t': 0.5}
+_SAFE = {'plan.safe_selection': True, 'plan.safe_margin': 2.0,
+         'plan.safe_margin_scaling': 'expected_max'}
+_CHEAP_OBJECTIVE = {'model.objective_blocks': lambda c: max(1, c.model.objective_blocks // 5)}
+VARIANTS = {
+    'reference': {},
+    'ddim_8x2': _DDIM_8X2,
+    'ddim_4x1': _DDIM_4X1,
+    'ddim_8x2_k32': {**_DDIM_8X2, 'plan.num_candidates': 32},
+    'ddim_8x2_cheap_obj': {**_DDIM_8X2, **_CHEAP_OBJECTIVE},
+    # Previous plan re-noised to t = 0.5 and denoised in 4 steps instead of 8 from noise.
+    'warm_start': {**_DDIM_8X2, 'plan.warm_start_steps': 4, 'plan.warm_start_t': 0.5},
+    # The previous :cpu preset's planner: DDIM 4x1 with 16 of the 64 candidates from the actor
+    # prior.
+    'fast': {**_DDIM_4X1, 'plan.num_prior_candidates': 16},
+    # `fast` warm-started (the :cpu preset's planner now): the shifted previous plan re-noised
+    # to t = 0.5, 2 proposal steps.
+    'fast_warm': _FAST_WARM,
+    'fast_k32_cheap_obj': {**_DDIM_4X1, 'plan.num_candidates': 32, **_CHEAP_OBJECTIVE},
+    # `fast_warm` with safe selection (margin 2 x E[max]), with one confirmation rollout of the
+    # pair, and with eight (plan.confirm_draws): what the safe gate costs per call.
+    'fast_warm_safe': {**_FAST_WARM, **_SAFE},
+    'fast_warm_confirm': {**_FAST_WARM, **_SAFE, 'plan.safe_confirm': True},
+    'fast_warm_confirm8': {**_FAST_WARM, **_SAFE, 'plan.safe_confirm': True,
+                           'plan.confirm_draws': 8},
+    'mppi': None,  # The baseline; runs once, independent of the width.
+}
+WIDTHS = {'ref': None, 'cpu': 'cpu'}  # width name -> preset of the config file.
+
+_CONFIG = config_flags.DEFINE_config_file(
+    'config', os.path.join(CONFIG_DIR, 'door_open.py'), 'Config file (optionally :preset).',
+    lock_config=True)
+_REPEATS = flags.DEFINE_integer('repeats', 20, 'Timed calls per configuration (after warm-up).')
+_WARMUP = flags.DEFINE_integer('warmup', 2, 'Untimed calls after compilation.')
+_OUT = flags.DEFINE_string('out', 'benchmark_planning.json', 'JSON output; .md written beside.')
+_VARIANTS = flags.DEFINE_list('variants', list(VARIANTS), f'Subset of {list(VARIANTS)}.')
+_WIDTHS = flags.DEFINE_list('widths', list(WIDTHS), f'Subset of {list(WIDTHS)}.')
+_PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
+_PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
+
+
+def time_calls(fn, params, z, keys, carry_fn=None, carry=None, warmup: int = 2):
+  """Compiles fn(params, z, key[, carry]) ahead of time, then times it.
+
+  Returns (compiled executable, compile seconds, first jitted call seconds, latencies [s]).
+  carry_fn(out) -> the next call's carry (the previous plan, for warm starts).
+  """
+  args = lambda key, c: (params, z, key) if carry is None else (params, z, key, c)
+  t0 = time.perf_counter()
+  compiled = fn.lower(*args(keys[0], carry)).compile()
+  compile_s = time.perf_counter() - t0
+  t0 = time.perf_counter()
+  out = jax.block_until_ready(fn(*args(keys[0], carry)))
+  first_s = time.perf_counter() - t0
+  for key in keys[1:1 + warmup]:
+    carry = carry_fn(out) if carry_fn else carry
+    out = jax.block_until_ready(fn(*args(key, carry)))
+  latencies = []
+  for key in keys[1 + warmup:]:
+    carry = carry_fn(out) if carry_fn else carry
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(fn(*args(key, carry)))
+    latencies.append(time.perf_counter() - t0)
+  return compiled, compile_s, first_s, latencies
+
+
+def variant_config(base: ml_collections.ConfigDict, sizes: ml_collections.ConfigDict,
+                   overrides: dict):
+  """base with the network sizes of `sizes` (a preset's config: its `model` and its value and Q
+  heads' `critic.hidden`) and overrides applied -> (config, resolved overrides)."""
+  c = ml_collections.ConfigDict(base.to_dict())
+  c.model = ml_collections.ConfigDict(sizes.model.to_dict())
+  c.critic.hidden = sizes.critic.hidden
+  resolved = {dotted: value(c) if callable(value) else value
+              for dotted, value in overrides.items()}
+  return with_overrides(c, resolved), resolved
+
+
+def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warmup: int) -> dict:
+  import ld_mpc_jax as ldmpc
+  from benchmarks import flops
+  params = ldmpc.init_params(config, jax.random.key(0))
+  plan = ldmpc.make_plan(config)
+  z = ldmpc.encode(params, np.linspace(-1.0, 1.0, config.obs_dim, dtype=np.float32))
+  keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
+  warm = config.plan.warm_start_steps > 0
+  carry = jnp.zeros((config.horizon, config.action_dim)) if warm else None
+  compiled, compile_s, first_s, lat = time_calls(
+      plan, params, z, keys, (lambda out: out.sequence) if warm else None, carry, warmup)
+  args = (params, z, keys[0]) + ((carry,) if warm else ())
+  xla = flops.xla_plan_flops(config, plan, args, plan_once=flops.compiled_flops(compiled))
+  hand = flops.plan_flops(config)
+  p = config.plan
+  return dict(name=f'{name}/{width}', variant=name, width=width, overrides=overrides,
+              model={k: config.model[k] for k in ('latent_dim', 'width', 'proposal_blocks',
+                                                  'dynamics_blocks', 'objective_blocks')},
+              num_params=ldmpc.count_params(params), num_candidates=p.num_candidates,
+              steps=(f'{p.warm_start_steps if warm else p.action_steps}x{p.dynamics_steps}'),
+              compile_s=compile_s, first_call_s=first_s, latencies_ms=lat,
+              gflop=hand['total'] / 1e9, gflop_xla=xla['total'] / 1e9,
+              gflop_xla_uncorrected=xla['plan_once'] / 1e9,
+              gflop_breakdown={k: v / 1e9 for k, v in hand.items() if k != 'total'})
+
+
+def run_mppi(repeats: int, warmup: int) -> dict:
+  from ld_mpc_jax.plan import mppi
+  from benchmarks import flops
+  from ld_mpc_jax.model.models import count_params
+  mppi_cfg, model_cfg = mppi.MPPIConfig(), mppi.TDMPC2Config()
+  params = mppi.init_tdmpc2_params(model_cfg, jax.random.key(0))
+  obs = np.linspace(-1.0, 1.0, model_cfg.obs_dim, dtype=np.float32)
+  z = mppi.TDMPC2Model(model_cfg).apply({'params': params}, obs, method=mppi.TDMPC2Model.encode)
+  plan = mppi.make_tdmpc2_mppi(mppi_cfg, model_cfg)
+  keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
+  carry = jnp.zeros((mppi_cfg.horizon, mppi_cfg.action_dim))
+  compiled, compile_s, first_s, lat = time_calls(plan, params, z, keys, lambda out: out.mean,
+                                                 carry, warmup)
+  xla = flops.xla_mppi_flops(plan, (params, z, keys[0], carry),
+                             mppi.make_tdmpc2_value_fn(model_cfg), params, mppi_cfg,
+                             plan_once=flops.compiled_flops(compiled))
+  hand = flops.tdmpc2_mppi_flops(mppi_cfg, model_cfg)
+  return dict(name='mppi', variant='mppi', width='tdmpc2-5M',
+              overrides={'mppi': dataclasses.asdict(mppi_cfg),
+                         'model': dataclasses.asdict(model_cfg)},
+              num_params=count_params(params), num_candidates=mppi_cfg.num_samples,
+              steps=f'{mppi_cfg.iterations} it', compile_s=compile_s, first_call_s=first_s,
+              latencies_ms=lat, gflop=hand['total'] / 1e9, gflop_xla=xla['total'] / 1e9,
+              gflop_xla_uncorrected=xla['plan_once'] / 1e9)
+
+
+def load_preset(preset):
+  """get_config(preset) of the file --config names."""
+  path = config_flags.get_config_filename(flags.FLAGS['config']).partition(':')[0]
+  spec = importlib.util.spec_from_file_location('_benchmark_config', path)
+  module = importlib.util.module_from_spec(spec)
+  spec.loader.exec_module(module)
+  return module.get_config(preset)
+
+
+def main(argv):
+  del argv
+  with cli.one_line_errors():
+    cli.check_subset('variants', _VARIANTS.value, VARIANTS)
+    cli.check_subset('widths', _WIDTHS.value, WIDTHS)
+    if _REPEATS.value < 1:
+      raise ValueError(f'--repeats must be >= 1, got {_REPEATS.value}')
+  base = _CONFIG.value
+  device = device_info()
+  print(f"device: {device['name']}; load average {device['loadavg_1min_at_start']:.2f}")
+  peak = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
+  print(f'peak: {peak:.1f} GFLOP/s ({_PEAK_SIZE.value}^2 float32 matmul)')
+  entries = []
+
+  def add(entry):
+    entries.append(entry)
+    print(f"{entry['name']}: median {np.median(entry['latencies_ms']) * 1e3:.1f} ms, compile "
+          f"{entry['compile_s']:.1f} s, {entry['gflop']:.2f} GFLOP (XLA {entry['gflop_xla']:.2f})",
+          flush=True)
+    planning.write_partial(_OUT.value, entries, peak, device)  # A cut run keeps these.
+
+  for name in _VARIANTS.value:
+    if name == 'mppi':
+      add(run_mppi(_REPEATS.value, _WARMUP.value))
+      continue
+    if name == 'warm_start' and 'warm_start_steps' not in base.plan:
+      print('skipping warm_start: this config has no plan.warm_start_steps')
+      continue
+    for width in _WIDTHS.value:
+      config, resolved = variant_config(base, load_preset(WIDTHS[width]), VARIANTS[name])
+      add(run_ldmpc(name, width, config, resolved, _REPEATS.value, _WARMUP.value))
+  peak_end = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
+  print(f'peak at the end: {peak_end:.1f} GFLOP/s')
+  print(planning.markdown(planning.write_partial(_OUT.value, entries, max(peak, peak_end), device)))

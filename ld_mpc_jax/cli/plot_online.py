@@ -1,0 +1,188 @@
+"""Online learning curves against TD-MPC2's published per-seed curves, on the same axes.
+
+  python -m experiments.report curves --workdir=runs/online/door_seed0 \
+      --anchor=docs/anchors/tdmpc2_mw-door-open.csv --out=online_door_open.png
+
+Ours: held-out planner success of each run's periodic evaluations (`eval.csv`), with the Wilson
+95% band the run computed; the per-wave exploration diagnostics (`online.csv`: training-episode
+success, the largest per-step reward, which candidate kind won while acting) in a second panel.
+Theirs: success against simulator steps, one line per seed. Their step column counts decisions
+and their Meta-World wrapper repeats each action twice, so it is doubled: their 100k decisions are
+drawn at our 200k simulator steps (pass --max_steps=400000 to see their published points after 0).
+docs/anchors/README.md says how their protocol differs.
+"""
+
+import csv
+import os
+
+from absl import app, flags
+
+from ld_mpc_jax.cli import errors as cli
+
+FLAGS = flags.FLAGS
+
+
+def define_flags() -> None:
+  """The mode's flags (defined on use only: tests import this module beside other flags)."""
+  flags.DEFINE_multi_string('workdir', [], 'An online run directory (with eval.csv and '
+                            'online.csv); repeat the flag, or separate them with commas.')
+  flags.DEFINE_string('anchor', '', 'TD-MPC2 per-seed CSV (step,success,seed); empty: none.')
+  flags.DEFINE_string('out', 'online_curves.png', 'Output PNG.')
+  flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (simulator steps).')
+  flags.DEFINE_integer('late_from', 80_000, 'The exploration table averages the waves after '
+                       'this many environment steps.')
+
+
+def read_csv(path):
+  if not os.path.exists(path):
+    raise FileNotFoundError(f'{path} does not exist')
+  with open(path) as f:
+    return list(csv.DictReader(f))
+
+
+def _workdirs() -> list:
+  """The run directories of every --workdir (commas separate several in one flag)."""
+  return [w for item in FLAGS.workdir for w in item.split(',') if w]
+
+
+def main(argv):
+  del argv
+  with cli.one_line_errors():
+    if not _workdirs():
+      raise ValueError('name at least one run with --workdir')
+    for run in _workdirs():
+      for name in ('eval.csv', 'online.csv'):
+        read_csv(os.path.join(run, name))
+    if FLAGS.anchor:
+      read_csv(FLAGS.anchor)
+  fig = draw(_workdirs(), FLAGS.anchor, FLAGS.max_steps)
+  os.makedirs(os.path.dirname(os.path.abspath(FLAGS.out)), exist_ok=True)
+  fig.savefig(FLAGS.out, dpi=100)
+  print(f'wrote {FLAGS.out}')
+  print(curve_table(_workdirs()))
+  print()
+  print(exploration_table(_workdirs(), FLAGS.late_from))
+
+
+# TD-MPC2's Meta-World wrapper repeats each action twice and its step column counts decisions.
+TDMPC2_ACTION_REPEAT = 2
+
+
+def anchor_curves(path: str, max_steps: float) -> dict:
+  """TD-MPC2's published per-seed curves in this project's unit: {seed: [(simulator steps,
+  success)]}, sorted by step, the points beyond `max_steps` simulator steps left out. Their
+  `step` column counts decisions, so it is multiplied by `TDMPC2_ACTION_REPEAT`."""
+  rows = read_csv(path)
+  curves = {}
+  for seed in sorted({r['seed'] for r in rows}):
+    pts = sorted((int(r['step']) * TDMPC2_ACTION_REPEAT, float(r['success']))
+                 for r in rows if r['seed'] == seed)
+    curves[seed] = [p for p in pts if p[0] <= max_steps]
+  return curves
+
+
+def draw(runs, anchor: str, max_steps: float):
+  """The figure: held-out success per run against simulator steps (with TD-MPC2's curves from
+  `anchor` when not empty) on the left, the per-wave exploration diagnostics on the right."""
+  import matplotlib
+  matplotlib.use('Agg')
+  import matplotlib.pyplot as plt
+  fig, (ax, diag) = plt.subplots(1, 2, figsize=(12, 4))
+  for i, pts in enumerate((anchor_curves(anchor, max_steps) if anchor else {}).values()):
+    if pts:
+      ax.plot(*zip(*pts), 's--', color='gray', alpha=0.7,
+              label=None if i else 'TD-MPC2 (published, per seed)')
+  for i, run in enumerate(runs):
+    name, color = os.path.basename(os.path.normpath(run)), f'C{i}'
+    ev = read_csv(os.path.join(run, 'eval.csv'))
+    x = [int(float(r['step'])) for r in ev]
+    ax.plot(x, [float(r['success_rate']) for r in ev], 'o-', color=color,
+            label=f'{name}, held-out goals')
+    ax.fill_between(x, [float(r['ci_lo']) for r in ev], [float(r['ci_hi']) for r in ev],
+                    color=color, alpha=0.15)
+    waves = read_csv(os.path.join(run, 'online.csv'))
+    wx = [int(r['env_steps']) for r in waves]
+    diag.plot(wx, [float(r['episode_success']) for r in waves], '-', color=color,
+              label=f'{name}: training episodes solved')
+    if waves and 'won_refined' in waves[0]:
+      diag.plot(wx, [float(r['won_refined']) for r in waves], ':', color=color,
+                label=f'{name}: refined candidate won (acting)')
+  ax.set_xlabel('simulator steps'); ax.set_ylabel('success rate')
+  ax.set_xlim(0, max_steps); ax.set_ylim(-0.02, 1.02); ax.legend(fontsize=8)
+  diag.set_xlabel('simulator steps'); diag.set_ylabel('share')
+  diag.set_xlim(0, max_steps); diag.set_ylim(-0.02, 1.02); diag.legend(fontsize=7)
+  fig.tight_layout()
+  return fig
+
+
+def curve_table(runs) -> str:
+  """Markdown: held-out planner successes per run at each evaluation, and pooled over the runs
+  at the steps every run reached (Wilson 95% interval)."""
+  from ld_mpc_jax.ops import stats
+  per_run = {}
+  for run in runs:
+    for r in read_csv(os.path.join(run, 'eval.csv')):
+      n = int(r['episodes'])
+      k = round(float(r['success_rate']) * n)
+      per_run.setdefault(round(int(float(r['step'])), -3), {})[run] = (k, n)
+  names = [os.path.basename(os.path.normpath(r)) for r in runs]
+  lines = ['| environment steps | ' + ' | '.join(names) + ' | pooled | 95% CI (Wilson) |',
+           '| --- |' + ' --- |' * (len(runs) + 2)]
+  for step in sorted(per_run):
+    cells = [per_run[step].get(run) for run in runs]
+    shown = [f'{c[0]}/{c[1]}' if c else '-' for c in cells]
+    if all(cells):
+      k, n = sum(c[0] for c in cells), sum(c[1] for c in cells)
+      lo, hi = stats.wilson_interval(k, n)
+      pooled = [f'{k}/{n} = {k / n:.2f}', f'[{lo:.2f}, {hi:.2f}]']
+    else:
+      pooled = ['-', '-']
+    lines.append(f'| {step // 1000}k | ' + ' | '.join(shown + pooled) + ' |')
+  return '\n'.join(lines)
+
+
+CANDIDATE_KINDS = ('proposal', 'actor_prior', 'gaussian', 'refined')
+
+
+def exploration(run: str, late_from: int) -> dict:
+  """One run's exploration diagnostics from its `online.csv` (one row per wave of acting):
+  `first_solved` (the environment steps at the end of the first wave with a solved training
+  episode, None if none), `late_solved` (the share of training episodes solved in the waves
+  after `late_from` steps, weighted by each wave's episodes; None if none), `max_step_reward`
+  (the largest reward of one decision) and `late_won` (per candidate kind, the mean share of the
+  acting decisions it won in those waves; kinds the run did not log are left out)."""
+  waves = read_csv(os.path.join(run, 'online.csv'))
+  first = next((int(r['env_steps']) for r in waves if float(r['episode_success']) > 0), None)
+  solved = episodes = 0.0
+  previous, late = 0, []
+  for r in waves:
+    n, previous = int(r['episodes']) - previous, int(r['episodes'])
+    if int(r['env_steps']) > late_from:
+      solved, episodes = solved + float(r['episode_success']) * n, episodes + n
+      late.append(r)
+  won = {}
+  for kind in CANDIDATE_KINDS:
+    shares = [float(r[f'won_{kind}']) for r in late
+              if r.get(f'won_{kind}') not in (None, '', 'nan')]
+    if shares:
+      won[kind] = sum(shares) / len(shares)
+  return dict(first_solved=first, late_solved=solved / episodes if episodes else None,
+              max_step_reward=max((float(r['max_step_reward']) for r in waves), default=None),
+              late_won=won)
+
+
+def exploration_table(runs, late_from: int) -> str:
+  """Markdown: `exploration` of each run, one row per run."""
+  late = f'{late_from // 1000}k'
+  lines = [f'| run | first solved training episode | training episodes solved after {late} | '
+           f'largest reward of one decision | acting decisions won after {late} |',
+           '| --- | --- | --- | --- | --- |']
+  for run in runs:
+    e = exploration(run, late_from)
+    first = f'{e["first_solved"] / 1000:.1f}k' if e['first_solved'] is not None else 'none'
+    share = f'{e["late_solved"]:.0%}' if e['late_solved'] is not None else '-'
+    reward = f'{e["max_step_reward"]:.1f}' if e['max_step_reward'] is not None else '-'
+    won = ', '.join(f'{k} {v:.0%}' for k, v in e['late_won'].items()) or '-'
+    lines.append(f'| {os.path.basename(os.path.normpath(run))} | {first} | {share} | {reward} | '
+                 f'{won} |')
+  return '\n'.join(lines)

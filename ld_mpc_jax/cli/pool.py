@@ -1,0 +1,231 @@
+"""Pools evaluation JSONs (experiments.evaluate --out) from per-episode records.
+
+  python -m experiments.report runs/a/evaluation.json runs/b/evaluation.json ...
+  python -m experiments.report runs/online/ft_seed{0,1,2}/episodes.csv
+  python -m experiments.report run/seed0/episodes.csv.gz+bc/seed0.json.gz ...  # with BC
+  python -m experiments.report runs/seed0_first.json+runs/seed0_more.json runs/seed1.json
+  python -m experiments.report --noise_plot=noise.png runs/s{0,1,2}/evaluation.json  # sweeps
+  python -m experiments.report --check=results/readme_rows.json  # README numbers vs records
+
+A file is an `experiments.evaluate --out` JSON, an `experiments.evaluate selection --out` JSON or
+a run's own `episodes.csv` (training or online fine-tuning). Each file's records count once. A
+file is one `run`, named by its path; a file whose records name several runs (compare_selection
+over several workdirs) keeps them apart as PATH:RUN, so episodes of different checkpoints never
+pair up. Prints per goal split and policy the pooled successes with a Wilson
+interval and the rate of each file, then exact McNemar tests between policies on the same
+episodes. Multi-task evaluations (records with a `task`) first get the per-task table of
+`multitask_eval`, pooled over the files; single-task files given with them (to pool several
+settings into one test) join the pooled table, not the per-task one.
+
+PATH#TAG renames the file's policies POLICY#TAG: `seed0.json+filter_seed0.json#f` pairs the planner
+with itself evaluated under other settings (plan vs plan#f) on the same episodes.
+
+A+B (paths joined by '+') is one file made of both: evaluations of the same checkpoints by two
+commands (a policy added later on the same episodes), so that their policies pair. A policy's
+episode in both (the deterministic actor prior, say) counts once, and must have the same outcome
+in both.
+"""
+
+import csv
+import gzip
+import json
+import os
+import sys
+
+from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
+
+
+def named_records(results: list, names: list) -> list:
+  """The records of [evaluate JSON dicts], each file's `run` renamed by its name (NAME:RUN where
+  a file holds several runs), so that episodes of different files or checkpoints never pair."""
+  records = []
+  for result, name in zip(results, names):
+    several = len({str(r.get('run')) for r in result['records']}) > 1
+    for r in result['records']:
+      records.append({**r, 'run': f"{name}:{r['run']}" if several else name})
+  return records
+
+
+def pool(results: list, names: list) -> dict:
+  """[evaluate JSON dicts], [their names] -> evaluation_suite.summarize of all their records."""
+  return evaluation_suite.summarize(named_records(results, names))
+
+
+def read_json(path: str) -> dict:
+  """The JSON file at `path` (gzip-compressed if it ends in .gz); a file that cannot be read ends
+  the program with one line, code 2."""
+  try:
+    with (gzip.open(path, 'rt') if path.endswith('.gz') else open(path)) as f:
+      return json.load(f)
+  except (OSError, EOFError, json.JSONDecodeError) as err:
+    cli.fail(f'cannot read {path}: {err}')
+
+
+_INT_FIELDS = ('run', 'eval_seed', 'episode', 'reset_seed', 'success', 'first_success',
+               'length', 'env_steps')
+_FLOAT_FIELDS = ('return',)
+
+
+def _tagged(path: str):
+  """(the file's path, its tag): PATH#TAG names every policy of the file POLICY#TAG, so that two
+  evaluations of the same checkpoints with other settings pair as different policies."""
+  path, _, tag = path.partition('#')
+  return path, tag
+
+
+def _tag(records: list, tag: str) -> list:
+  return [dict(r, policy=f"{r['policy']}#{tag}") for r in records] if tag else records
+
+
+def read_records(path: str) -> list:
+  """The per-episode records of an evaluation JSON or of a run's episodes.csv (either may be
+  gzip-compressed, .gz); PATH#TAG tags its policies (`_tagged`)."""
+  path, tag = _tagged(path)
+  return _tag(_read_records(path), tag)
+
+
+def _read_records(path: str) -> list:
+  if not path.endswith(('.csv', '.csv.gz')):
+    records = read_json(path).get('records')
+    if records is None:
+      cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
+    return records
+  if not os.path.exists(path):
+    cli.fail(f'cannot read {path}: no such file')
+  if path.endswith('.gz'):
+    with gzip.open(path, 'rt', newline='') as f:
+      rows = list(csv.DictReader(f))
+  else:
+    rows = run_files.read_csv(path)
+  for r in rows:
+    r.update({k: int(r[k]) for k in _INT_FIELDS if r.get(k) not in (None, '')})
+    r.update({k: float(r[k]) for k in _FLOAT_FIELDS if r.get(k) not in (None, '')})
+  return rows
+
+
+def _key(r: dict) -> tuple:
+  return tuple(str(r.get(k)) for k in ('run', 'task', 'policy', 'split', 'eval_seed', 'episode'))
+
+
+def read_joined(arg: str) -> list:
+  """The records of one path, or of paths joined by '+' as one file: an episode of a policy in
+  several keeps the first, and differing outcomes end the program with one line."""
+  if '+' not in arg:
+    return read_records(arg)
+  records, seen = [], {}
+  for path in arg.split('+'):
+    for r in read_records(path):
+      k = _key(r)
+      if k in seen:
+        if int(seen[k]['success']) != int(r['success']):
+          cli.fail(f'{arg}: episode {r.get("episode")} of {r.get("policy")} is a success in '
+                   f'one file and not in another; these are not the same checkpoints')
+        continue
+      seen[k] = r
+      records.append(r)
+  return records
+
+
+def _noise_records(result: dict) -> list:
+  """A file's noise-sweep records; a sweep without std 0 gets the file's protocol records as
+  std 0 (the same held-out episodes without noise), as bc_baseline --noise_stds writes it."""
+  sweep = result.get('noise_sweep', {}).get('records', [])
+  if sweep and not any(float(r['obs_noise']) == 0 for r in sweep):
+    sweep = [dict(r, obs_noise=0.0) for r in result.get('records') or []
+             if r.get('split', 'held_out') == 'held_out'] + sweep
+  return sweep
+
+
+def check(manifest_path: str, readme_path: str = 'README.md') -> list:
+  """The README numbers of the manifest that disagree with their records (empty: all agree).
+  Paths in the manifest are relative to its repository (the manifest's folder's parent)."""
+  root = os.path.dirname(os.path.dirname(os.path.abspath(manifest_path)))
+  manifest = read_json(manifest_path)
+  with open(os.path.join(root, readme_path)) as f:
+    readme = f.read().splitlines()
+  failures = []
+  for row in manifest['rows']:
+    lines = [l for l in readme if row['line'] in l]
+    if len(lines) != 1:
+      failures.append(f"{row['line']!r}: {len(lines)} README lines show it, not 1")
+      continue
+    for num in row['numbers']:
+      files = ['+'.join(os.path.join(root, p) for p in f.split('+')) for f in num['files']]
+      got = _paired_cell(files, *num['pair']) if 'pair' in num else _count_cell(files, num['policy'])
+      if got != num['expect'] or num['expect'] not in lines[0]:
+        what = ' vs '.join(num['pair']) if 'pair' in num else num['policy']
+        failures.append(f"{row['line']!r}, {what}: README {num['expect']}, records {got}")
+  return failures
+
+
+def _count_cell(files: list, policy: str) -> str:
+  """'successes/episodes' of `policy` on held-out goals over `files`."""
+  mine = [r for f in files for r in read_joined(f)
+          if r['policy'] == policy and r.get('split', 'held_out') == 'held_out']
+  return f"{sum(int(r['success']) for r in mine)}/{len(mine)}"
+
+
+def _paired_cell(files: list, a: str, b: str) -> str:
+  """'A-only / B-only, p' of the exact McNemar test of policies a and b over `files` (each file's
+  episodes pair only within it), p to two significant digits (1.4e-9 for small ones)."""
+  paired = pool([{'records': read_joined(f)} for f in files], files)['held_out']['paired']
+  if f'{a} vs {b}' in paired:
+    t = paired[f'{a} vs {b}']
+    a_only, b_only = t['a_only'], t['b_only']
+  elif f'{b} vs {a}' in paired:
+    t = paired[f'{b} vs {a}']
+    a_only, b_only = t['b_only'], t['a_only']
+  else:
+    return f'no paired episodes of {a} and {b}'
+  p = t['p_value']
+  mantissa, exponent = f'{p:.1e}'.split('e')
+  text = f'{p:.2g}' if p >= 1e-4 else f'{mantissa}e{int(exponent)}'
+  return f'{a_only} / {b_only}, {text}'
+
+
+def define_flags() -> None:
+  """The mode's flags (defined on use only: tests import this module beside other flags)."""
+  from absl import flags  # pylint: disable=g-import-not-at-top
+  flags.DEFINE_multi_string('check', [], 'A manifest of README numbers (results/readme_rows.json): '
+                            'recompute each from its records; exit code 1 on any difference.')
+  flags.DEFINE_string('noise_plot', None, 'PNG of the pooled observation-noise sweep.')
+
+
+def main(argv: list) -> None:
+  from absl import flags  # pylint: disable=g-import-not-at-top
+  paths, manifests, plot_path = list(argv[1:]), flags.FLAGS.check, flags.FLAGS.noise_plot
+  if manifests:
+    failures = [f for m in manifests for f in check(m)]
+    print('\n'.join(failures) or f'every README number in {", ".join(manifests)} matches its records')
+    sys.exit(1 if failures else 0)
+  run(paths, plot_path)
+
+
+def run(paths: list, plot_path: str | None = None) -> None:
+  """Prints the pooled tables of record files `paths` (and the noise sweep's plot)."""
+  if not paths:
+    cli.fail('give one or more evaluation JSONs: python -m experiments.report A.json ...')
+  results = [{'records': read_joined(path)} for path in paths]
+  records = [r for res in results for r in res['records']]
+  multi = [r for r in records if r.get('task') is not None]
+  if multi:
+    tasks = list(dict.fromkeys(r['task'] for r in multi))
+    print(multitask_eval.markdown(multitask_eval.per_task(multi, tasks), tasks))
+    if len(multi) < len(records):  # Single-task files as well: pooled with them below only.
+      print(f'The per-task table has the multi-task files\' records only; the pooled table '
+            f'below has all {len(records)} records.\n')
+  print(evaluation_suite.markdown(pool(results, paths)), end='')
+  parts = [(name, *_tagged(part)) for name in paths for part in name.split('+')]
+  noisy = [{**r, 'run': name} for name, part, tag in parts if not part.endswith(('.csv', '.csv.gz'))
+           for r in _tag(_noise_records(read_json(part)), tag)]
+  if noisy:
+    from ld_mpc_jax.eval import noise_sweep  # pylint: disable=g-import-not-at-top
+    rows = noise_sweep.table(noisy)
+    print('\nObservation-noise sweep, pooled (held-out goals):\n\n' + noise_sweep.markdown(rows),
+          end='')
+    if plot_path:
+      print(f'wrote {noise_sweep.plot(rows, plot_path)}')
+  elif plot_path:
+    cli.fail('--noise_plot: none of the files has a noise sweep (experiments.evaluate '
+             '--noise_sweep)')

@@ -1,0 +1,165 @@
+"""Several training seeds of an offline run in one process (`train.num_seeds` = N > 1).
+
+Each seed is the run it would make alone: its own config (seed config.seed + i, saved as a run of
+one seed), run directory <workdir>/seed<seed>, data order and update keys; their TrainStates are
+stacked on a leading seed axis and the update is vmapped over it
+(`train_state.make_seeds_update`), one jitted call for all seeds. Checkpoints, logs, periodic and
+final evaluations and reports are each seed's own; the run adds pooled.json and pooled.md.
+"""
+
+import json
+import os
+import time
+import types
+from typing import Any, Dict, List
+
+import jax
+import ml_collections
+import numpy as np
+import tqdm
+
+from ld_mpc_jax import data
+from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.learn.train_state import (create_train_state, make_seeds_update, seed_slice,
+                                          stack_states)
+from ld_mpc_jax.runs import loop as runs
+from ld_mpc_jax.runs import online_report
+from ld_mpc_jax.runs.online_seats import seat_configs
+
+
+class _SeedRuns:
+  """What `runs.loop` evaluates with: each seed's periodic evaluation on its own parameters."""
+
+  def __init__(self, seed_runs: List[runs.Run]):
+    self.seed_runs = seed_runs
+
+  def periodic_eval(self, params, step: int) -> None:
+    for run, p in zip(self.seed_runs, params):
+      run.periodic_eval(p, step)
+
+
+class OfflineSeedsJob:
+  """Offline training of N seeds as one `runs.Job`: each advance is one vmapped update."""
+
+  def __init__(self, config: ml_collections.ConfigDict, workdir: str, dataset: data.Dataset):
+    self.config, t = config, config.train
+    pairs = seat_configs(config, workdir)
+    self.configs = [c for c, _ in pairs]
+    self.seed_runs = [runs.Run(c, w) for c, w in pairs]
+    self.runs = _SeedRuns(self.seed_runs)
+    states = self._restore()
+    if states is None:
+      states = [create_train_state(c, jax.random.key(c.seed), dataset.observations)
+                for c in self.configs]
+    self.progress = self.start = self.seed_runs[0].step if states and self._resumed else 0
+    self.prior_seconds = self.seed_runs[0].prior_seconds() if self.progress else 0.0
+    self.state, self.metrics = stack_states(states), None
+    self.update = make_seeds_update(self.configs[0], len(self.configs))
+    self.batch_size = t.batch_size
+    # Each seed's sampler as its run alone seeds it (`train.OfflineJob`), continued on resume.
+    self.buffers = [data.make_buffer(c, dataset, runs.window_length(c), seed=(
+        c.seed * 1_000_003 + 999_983 * jax.process_index())) for c in self.configs]
+    for buffer in self.buffers:
+      buffer.skip(self.progress, self.batch_size)
+    self.keys = jax.numpy.stack([jax.random.key(c.seed + 1) for c in self.configs])
+    self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
+    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in range(len(self.configs))])
+    self.seconds, self._last = 0.0, None  # Timed from the second logged interval.
+    self._timed_steps = 0
+    self.bar = tqdm.tqdm(total=t.num_steps, initial=self.progress, desc=f'train x{len(pairs)}',
+                         dynamic_ncols=True)
+
+  def _restore(self):
+    """Each seed's TrainState at the newest step that every seed has intact, or None."""
+    self._resumed = any(run.manager.all_steps() for run in self.seed_runs)
+    if not self._resumed:
+      return None
+    allowed = set.intersection(*(set(run.manager.all_steps()) for run in self.seed_runs))
+    while True:
+      reason = lambda step: (None if step in allowed
+                             else 'not checkpointed by every seed of this run')
+      states = [run.restore(reason) for run in self.seed_runs]
+      steps = {run.step for run in self.seed_runs}
+      if len(steps) == 1:
+        break
+      allowed = {s for s in allowed if s <= min(s for s in steps if s is not None)}
+    if any(s is None for s in states):
+      self._resumed = False
+      return None
+    return states
+
+  def advance(self) -> None:
+    batches = [buffer.sample(self.batch_size) for buffer in self.buffers]
+    stacked = {k: np.stack([b[k] for b in batches]) for k in batches[0]}
+    self.state, self.metrics = self.update(self.state, stacked,
+                                           self._fold(self.keys, self.progress))
+    self.progress += 1
+    self.bar.update(1)
+
+  def log(self, before: int) -> None:
+    """Each seed's metrics.csv and TensorBoard, as `train.OfflineJob.log` writes them."""
+    del before
+    done, t = self.progress, self.config.train
+    if done % t.log_every and done % t.checkpoint_every and done != t.num_steps:
+      return
+    now = time.perf_counter()
+    if self._last is not None:
+      self.seconds += now - self._last[0]
+      self._timed_steps += done - self._last[1]
+    self._last = (now, done)
+    rate = self._timed_steps / self.seconds if self.seconds else float('nan')
+    metrics = jax.device_get(self.metrics)
+    for i, run in enumerate(self.seed_runs):
+      run.check_loss(metrics['loss'][i], f'step {done} (seed {self.configs[i].seed})')
+      row = {'step': done, **{k: float(v[i]) for k, v in sorted(metrics.items())},
+             'steps_per_s': rate}
+      run_files.append_csv(os.path.join(run.workdir, run_files.METRICS_CSV), row)
+      run.log_scalars('train', {k: v for k, v in row.items() if k != 'step'}, done)
+    self.bar.set_postfix(loss=f"{float(np.mean(metrics['loss'])):.3f}", steps_s=f'{rate:.2f}')
+
+  def checkpoint(self) -> None:
+    for run, state in zip(self.seed_runs, self._unstack(self.state)):
+      run.save(state, self.progress, self.prior_seconds + self.seconds)
+
+  def eval_params(self):
+    return self._unstack(self.state.ema_params)
+
+  def seed_view(self, i: int) -> types.SimpleNamespace:
+    """Seed i as `train._report` reads a job."""
+    rate = self._timed_steps / self.seconds if self.seconds else float('nan')
+    timer = types.SimpleNamespace(seconds=self.seconds, steps_per_s=rate)
+    return types.SimpleNamespace(prior_seconds=self.prior_seconds, timer=timer,
+                                 state=seed_slice(self.state, i), progress=self.progress,
+                                 start=self.start)
+
+
+def train_seeds(config: ml_collections.ConfigDict, workdir: str, dataset: data.Dataset,
+                report_fn, summary_fn) -> Dict[str, Any]:
+  """Trains and evaluates every seed; writes each seed's report and the pooled one."""
+  job = OfflineSeedsJob(config, workdir, dataset)
+  t = config.train
+  runs.loop(job.runs, job, t.num_steps, t.checkpoint_every, t.eval_every)
+  job.bar.close()
+  reports, records = [], []
+  for i, run in enumerate(job.seed_runs):
+    run.manager.wait_until_finished()
+    params = seed_slice(job.state.ema_params, i)
+    final, baselines, summary, recs = run.final_evaluation(params, job.progress)
+    report = report_fn(job.configs[i], dataset, job.seed_view(i), final, baselines, summary,
+                       run.commit, recs)
+    reports.append(run.write_report(report, summary_fn(report), recs))
+    records.append(recs)
+  seeds = [c.seed for c in job.configs]
+  table = online_report.pool_seeds(seeds, records)
+  out = dict(task=config.task, steps=job.progress, seeds=seeds, policies=table,
+             split=records[0][0]['split'] if records and records[0] else None,
+             train_seconds=job.prior_seconds + job.seconds)
+  lines = [f"# {out['task']}: {len(seeds)} training seeds in one run, {out['steps']:,} update "
+           'steps each', '', f"{out['train_seconds']:.0f} s of training for all seeds together; "
+           f"final evaluation on {out['split']} goals, per seed and pooled (Wilson 95% "
+           'interval).', '', *online_report.pooled_md(table, seeds), '']
+  with open(os.path.join(workdir, online_report.POOLED_JSON), 'w') as f:
+    json.dump(out, f, indent=2)
+  with open(os.path.join(workdir, online_report.POOLED_MD), 'w') as f:
+    f.write('\n'.join(lines))
+  return dict(out, seeds=reports)

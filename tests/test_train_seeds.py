@@ -1,0 +1,69 @@
+"""Several training seeds of an offline run in one process (`train.num_seeds`, offline): each seed
+ends where it ends alone, and a run killed between two seeds' checkpoints resumes both from the
+step they share, to the same parameters."""
+
+import os
+import shutil
+
+import jax
+import numpy as np
+import pytest
+
+from ld_mpc_jax.configs import door_open
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.runs.train import train_and_evaluate
+
+
+def _config(seed, num_seeds):
+  config = door_open.get_config('smoke')
+  config.seed, config.train.num_seeds = seed, num_seeds
+  config.train.num_steps, config.train.checkpoint_every = 4, 2
+  config.eval.episodes = 0  # Train and checkpoint only.
+  return config
+
+
+def _params(workdir, seed):
+  return checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir),
+                                      _config(seed, 1)).params
+
+
+@pytest.fixture(scope='module')
+def runs(tmp_path_factory):
+  root = tmp_path_factory.mktemp('offline_seeds')
+  train_and_evaluate(_config(0, 2), str(root / 'both'))
+  train_and_evaluate(_config(1, 1), str(root / 'alone1'))
+  return root
+
+
+def _close(a_tree, b_tree):
+  for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(a_tree),
+                          jax.tree_util.tree_leaves(b_tree), strict=True):
+    # An attention key's bias has zero gradient: Adam turns its rounding noise into steps of up
+    # to the learning rate (tests/test_online_seeds.py).
+    atol = 1e-3 if "['key']['bias']" in jax.tree_util.keystr(path) else 1e-5
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=atol, err_msg=jax.tree_util.keystr(path))
+
+
+def test_a_seed_trained_beside_another_is_the_seed_trained_alone(runs):
+  assert {'seed0', 'seed1', 'pooled.json', 'pooled.md'} <= set(os.listdir(runs / 'both'))
+  saved = checkpointing.load_config(str(runs / 'both' / 'seed1'))
+  assert (saved.seed, saved.train.num_seeds) == (1, 1)  # As a run of seed 1 alone saves it.
+  _close(_params(str(runs / 'both' / 'seed1'), 1), _params(str(runs / 'alone1'), 1))
+  rows = [np.genfromtxt(os.path.join(d, 'metrics.csv'), delimiter=',', names=True)
+          for d in (runs / 'both' / 'seed1', runs / 'alone1')]
+  np.testing.assert_allclose(rows[0]['loss'], rows[1]['loss'], rtol=1e-4)
+  p0, p1 = _params(str(runs / 'both' / 'seed0'), 0), _params(str(runs / 'both' / 'seed1'), 1)
+  assert not np.allclose(jax.tree_util.tree_leaves(p0)[0], jax.tree_util.tree_leaves(p1)[0])
+
+
+def test_a_run_killed_between_two_seeds_checkpoints_resumes_from_the_step_they_share(
+    runs, tmp_path):
+  work = tmp_path / 'both'
+  shutil.copytree(runs / 'both', work)
+  shutil.rmtree(work / 'seed1' / 'checkpoints' / '4')  # Seed 0 saved step 4, seed 1 did not.
+  train_and_evaluate(_config(0, 2), str(work))
+  for seed in (0, 1):
+    assert checkpointing.checkpoint_manager(str(work / f'seed{seed}')).latest_step() == 4
+    a, b = _params(str(work / f'seed{seed}'), seed), _params(str(runs / 'both' / f'seed{seed}'), seed)
+    for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
+      np.testing.assert_array_equal(x, y)  # The same windows and keys from step 2 on.
