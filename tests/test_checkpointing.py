@@ -223,13 +223,19 @@ def _two_checkpoints(workdir):
   for step in (1, 2):
     manager.save(step, args=ocp.args.StandardSave(state.replace(step=step)))
   manager.wait_until_finished()
-  for root, _, names in os.walk(os.path.join(workdir, 'checkpoints', '2', 'default')):
-    for name in names:  # Every array data file (one alone may hold nothing restore reads).
+  _truncate(workdir, 2)
+  return config
+
+
+def _truncate(workdir, step):
+  """Truncates every array data file of checkpoint `step` to half (one alone may hold nothing
+  restore reads)."""
+  for root, _, names in os.walk(os.path.join(workdir, 'checkpoints', str(step), 'default')):
+    for name in names:
       if os.path.basename(root) == 'd':
         path = os.path.join(root, name)
         with open(path, 'r+b') as f:
           f.truncate(os.path.getsize(path) // 2)
-  return config
 
 
 def test_a_damaged_checkpoint_falls_back_to_the_newest_intact_one(tmp_path, capsys):
@@ -271,3 +277,26 @@ def test_a_step_without_what_the_run_needs_is_skipped(tmp_path):
   assert (step, skipped) == (1, [2])
   with pytest.raises(checkpointing.WorkdirError, match='no intact checkpoint .* steps 2, 1'):
     checkpointing.restore_intact(manager, config, lambda s: 'no buffer file')
+
+
+def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_path):
+  from ld_mpc_jax.eval import run_files
+  from ld_mpc_jax.runs import loop as runs
+  workdir = str(tmp_path)
+  config = _two_checkpoints(workdir)
+  _truncate(workdir, 1)
+  run_files.append_csv(str(tmp_path / runs.EVAL_CSV), {'step': 2, 'success_rate': 0.5})
+  folder = os.path.join(workdir, 'checkpoints')
+  for attempt in (lambda: checkpointing.load_for_evaluation(workdir),
+                  lambda: runs.Run(config, workdir).restore()):
+    with pytest.raises(checkpointing.WorkdirError) as err:
+      attempt()
+    line = str(err.value)
+    assert '\n' not in line and line.startswith(f'no intact checkpoint in {folder}: steps 2, 1')
+    assert f'move them aside (mv {folder} {folder}.damaged) and rerun' in line
+    assert line.endswith('or train into another --workdir')
+  assert checkpointing.checkpoint_manager(workdir).all_steps() == [1, 2]  # Left as they were.
+  os.rename(folder, folder + '.damaged')  # As the line says: the run starts over, its old log
+  run = runs.Run(config, workdir)  # rows gone (not repeated by the new run).
+  assert run.restore() is None and run.step is None
+  assert run_files.read_csv(str(tmp_path / runs.EVAL_CSV)) == []

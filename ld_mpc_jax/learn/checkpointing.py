@@ -194,9 +194,16 @@ def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.Config
           'earlier one')
     skipped.append(step)
   if skipped:
-    raise WorkdirError(f'no intact checkpoint in {manager.directory}: steps '
-                       f'{", ".join(map(str, skipped))} all failed (warnings above)')
+    raise WorkdirError(no_intact_message(str(manager.directory), skipped))
   return None, None, []
+
+
+def no_intact_message(directory: str, skipped: List[int]) -> str:
+  """The one line when every checkpoint step under `directory` failed: which, and what to do
+  (the damaged steps are left where they are: only the user decides to drop a run)."""
+  return (f'no intact checkpoint in {directory}: steps {", ".join(map(str, skipped))} all failed '
+          f'(warnings above). To start this run over, move them aside (mv {directory} '
+          f'{directory}.damaged) and rerun the training command; or train into another --workdir')
 
 
 def set_aside(workdir: str, manager: ocp.CheckpointManager, steps: List[int]) -> None:

@@ -113,7 +113,7 @@ class Run:
 
   def restore(self, usable=None):
     """The newest intact checkpoint's TrainState (its step: `self.step`), or None; the logs lose
-    rows written after it.
+    rows written after it (all of them without a checkpoint: a run started over).
 
     Newer steps that fail to restore, or that `usable(step)` gives a reason against, are skipped
     with a warning and moved to damaged_checkpoints/ (`checkpointing.restore_intact`).
@@ -125,8 +125,9 @@ class Run:
       # lowers to another program): a resumed run then compiles the update a fresh run compiled
       # (one entry in JAX's persistent cache, not two).
       state = jax.tree.map(_uncommitted, state)
-      for name, column in STEP_LOGS:
-        run_files.drop_rows_after(os.path.join(self.workdir, name), column, self.step)
+    last = -1 if self.step is None else self.step  # From scratch (checkpoints moved aside):
+    for name, column in STEP_LOGS:  # every row goes.
+      run_files.drop_rows_after(os.path.join(self.workdir, name), column, last)
     return state
 
   def prior_seconds(self) -> float:

@@ -133,6 +133,8 @@ class OnlineJob:
     buffer file, or not saved by every seed: a run killed between two seeds' saves) are skipped
     with a warning (`runs.Run.restore`)."""
     if not any(seat.run.manager.all_steps() for seat in self.seats):
+      for seat in self.seats:  # From scratch: rows an earlier attempt logged go.
+        seat.run.restore()
       return None
     allowed = set.intersection(*(set(seat.run.manager.all_steps()) for seat in self.seats))
 
