@@ -300,3 +300,65 @@ def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_pat
   run = runs.Run(config, workdir)  # rows gone (not repeated by the new run).
   assert run.restore() is None and run.step is None
   assert run_files.read_csv(str(tmp_path / runs.EVAL_CSV)) == []
+
+
+def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_last(
+    tmp_path, monkeypatch):
+  import errno
+  from ld_mpc_jax.runs import loop as runs
+  workdir = str(tmp_path)
+  config = door_open.get_config('smoke')
+  run = runs.Run(config, workdir)
+  state = create_train_state(config, jax.random.key(0))
+  run.save(state.replace(step=1), 1, 0.0)
+  folder = os.path.join(workdir, 'checkpoints')
+
+  def full_disk(step, args):  # Orbax writes into a temporary folder, then the disk fills.
+    os.makedirs(os.path.join(folder, f'{step}.orbax-checkpoint-tmp-7', 'default'))
+    raise OSError(errno.ENOSPC, 'No space left on device', os.path.join(folder, 'x'))
+  monkeypatch.setattr(run.manager, 'save', full_disk)
+  with pytest.raises(checkpointing.DiskFullError) as err:
+    with checkpointing.stop_when_disk_full(workdir):
+      run.save(state.replace(step=2), 2, 1.0)
+  assert isinstance(err.value, checkpointing.WorkdirError)  # The launcher: one line, exit 2.
+  assert str(err.value) == (
+      f'no space left on the device of {workdir} (writing {folder}/x): checkpoint step 1 and '
+      f'those before it are kept in {folder}; free some space and rerun the same command to '
+      'resume from it')
+  assert sorted(os.listdir(folder)) == ['1']  # No partial step 2 left to be picked up.
+  assert json.load(open(tmp_path / 'progress.json'))['step'] == 1
+  step, restored, skipped = checkpointing.restore_intact(
+      checkpointing.checkpoint_manager(workdir), config)
+  assert (step, skipped) == (1, [])
+  same = jax.tree.map(lambda a, b: np.array_equal(a, b), restored, state.replace(step=1))
+  assert all(jax.tree_util.tree_leaves(same))
+
+
+@pytest.mark.parametrize('error,full', [
+    (OSError(28, 'No space left on device'), True),
+    (ValueError('RESOURCE_EXHAUSTED: Failed writing: "/w/c/2.orbax-checkpoint-tmp/d/ab": Failed '
+                "to write 12 bytes to file 19: No space left on device [os_error_code='28']"),
+     True),
+    (PermissionError(13, 'Permission denied'), False), (ValueError('bad'), False)])
+def test_only_a_full_disk_becomes_the_one_line(tmp_path, error, full):
+  def fail():
+    with checkpointing.stop_when_disk_full(str(tmp_path)):
+      raise error
+  with pytest.raises(checkpointing.DiskFullError if full else type(error)) as got:
+    fail()
+  if full:
+    assert str(got.value).startswith(f'no space left on the device of {tmp_path}')
+    assert 'no checkpoint was written yet; free some space and rerun' in str(got.value)
+    assert ('writing /w/c/2.orbax-checkpoint-tmp/d/ab' in str(got.value)) == (
+        isinstance(error, ValueError))
+  else:
+    assert got.value is error
+
+
+def test_training_reports_a_full_disk_on_one_line(tmp_path, monkeypatch):
+  from ld_mpc_jax.runs import train
+  def fills(config, workdir, continue_with_changes):
+    raise OSError(28, 'No space left on device', os.path.join(workdir, 'eval.csv'))
+  monkeypatch.setattr(train, '_train_and_evaluate', fills)
+  with pytest.raises(checkpointing.DiskFullError, match=r'\(writing .*eval.csv\): no checkpoint'):
+    train.train_and_evaluate(door_open.get_config('smoke'), str(tmp_path))

@@ -1,11 +1,14 @@
 """Orbax checkpoints of the TrainState, with the config saved beside them."""
 
+import contextlib
+import errno
 import json
 import logging
 import os
+import re
 import shutil
 import sys
-from typing import Callable, List, Optional, Tuple
+from typing import Callable, Iterator, List, Optional, Tuple
 
 import jax
 import ml_collections
@@ -52,7 +55,92 @@ def save_config(config: ml_collections.ConfigDict, workdir: str) -> str:
 
 
 class WorkdirError(ValueError):
-  """A workdir this run must not write to (made with another config): one line, exit code 2."""
+  """A workdir this run must not or cannot write to (made with another config, all of its
+  checkpoints damaged, its disk full): one line, exit code 2."""
+
+
+class DiskFullError(WorkdirError):
+  """A write into the workdir failed for want of space; the checkpoints before it are kept."""
+
+
+_FULL = ('No space left on device', 'Disk quota exceeded')
+
+
+def disk_full(err: BaseException) -> bool:
+  """Whether `err` is a write that failed for want of space: an OSError (ENOSPC, EDQUOT), or
+  tensorstore's error (orbax raises it as a ValueError naming the OS error)."""
+  if isinstance(err, DiskFullError):
+    return False  # Reported already.
+  if isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT):
+    return True
+  return any(text in str(err) for text in _FULL)
+
+
+def complete_steps(workdir: str) -> List[int]:
+  """The checkpoint steps under <workdir>/checkpoints whose write finished (read only)."""
+  folder = os.path.join(workdir, 'checkpoints')
+  return sorted(int(n) for n in os.listdir(folder) if n.isdigit()) if os.path.isdir(folder) else []
+
+
+@contextlib.contextmanager
+def stop_when_disk_full(workdir: str) -> Iterator[None]:
+  """Turns a write that failed for want of space inside the block into one line
+  (DiskFullError) naming the full disk and the checkpoint a rerun resumes from.
+
+  The log records orbax's writer threads and asyncio emit about the same failed write (dozens
+  of tracebacks, some at exit) are dropped, from here on: the one line says it.
+  """
+  _quiet_disk_full_logs()
+  _quiet_abandoned_reads()  # A failed write's abandoned tensorstore callbacks, as a restore's.
+  try:
+    yield
+  except Exception as err:  # pylint: disable=broad-except (orbax: ValueError; Python: OSError)
+    if not disk_full(err):
+      raise
+    steps = complete_steps(workdir)
+    kept = (f'checkpoint step {steps[-1]} and those before it are kept in '
+            f'{os.path.join(workdir, "checkpoints")}; free some space and rerun the same command '
+            'to resume from it' if steps else 'no checkpoint was written yet; free some space '
+            'and rerun the same command')
+    where = _failed_write(err)
+    raise DiskFullError(f'no space left on the device of {workdir}'
+                        f'{f" (writing {where})" if where else ""}: {kept}') from None
+
+
+def _failed_write(err: BaseException) -> Optional[str]:
+  """The file whose write failed, as `err` names it (OSError's filename, tensorstore's text)."""
+  if isinstance(err, OSError) and err.filename:
+    return str(err.filename)
+  found = re.search(r'Failed writing: "([^"]+)"', str(err))
+  return found.group(1) if found else None
+
+
+def _about_full_disk(record: logging.LogRecord) -> bool:
+  error = record.exc_info[1] if record.exc_info else None
+  try:
+    text = record.getMessage()
+  except Exception:  # pylint: disable=broad-except (a record with bad arguments: keep it)
+    text = ''
+  return (error is not None and disk_full(error)) or any(t in text for t in _FULL)
+
+
+def _quiet_disk_full_logs() -> None:
+  """Drops log records about a full disk from orbax (absl's logger) and asyncio; once."""
+  for name in ('absl', 'asyncio'):
+    logger = logging.getLogger(name)
+    if not any(getattr(f, 'quiet_disk_full', False) for f in logger.filters):
+      keep = lambda record: not _about_full_disk(record)
+      keep.quiet_disk_full = True
+      logger.addFilter(keep)
+
+
+def remove_partial(manager: ocp.CheckpointManager, step: int) -> None:
+  """Removes what a failed write of `step` left (orbax's temporary folders), giving its space
+  back; the finished steps stay."""
+  folder = str(manager.directory)
+  for name in os.listdir(folder) if os.path.isdir(folder) else []:
+    if name.startswith(f'{step}.orbax-checkpoint-tmp'):
+      shutil.rmtree(os.path.join(folder, name), ignore_errors=True)
 
 
 def _flat(config: ml_collections.ConfigDict) -> dict:
@@ -155,7 +243,8 @@ def _one_line(err: BaseException, limit: int = 300) -> str:
 def _quiet_abandoned_reads() -> None:
   """Drops the noise a failed orbax restore leaves: its other tensorstore reads finish after
   asyncio's loop closed (hundreds of 'Event loop is closed' tracebacks, and 'exception was never
-  retrieved' log lines of asyncio). Installed once, only after a restore failed."""
+  retrieved' log lines of asyncio). Installed once, after a restore failed or as a run starts
+  (`stop_when_disk_full`: a failed write leaves the same)."""
   if getattr(sys.unraisablehook, 'quiet_abandoned_reads', False):
     return
   previous = sys.unraisablehook

@@ -87,7 +87,12 @@ def save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
   if not bool(_all_finite(state.params)):  # One host sync per checkpoint.
     raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
                              f'good checkpoint is step {manager.latest_step()}.')
-  manager.save(done, args=ocp.args.StandardSave(state))  # All processes: orbax coordinates.
+  try:
+    manager.save(done, args=ocp.args.StandardSave(state))  # All processes: orbax coordinates.
+  except Exception as err:  # pylint: disable=broad-except
+    if checkpointing.disk_full(err):  # No partial step left behind; the error goes on.
+      checkpointing.remove_partial(manager, done)
+    raise
   if not run_files.primary():
     return
   path = os.path.join(workdir, PROGRESS_FILE)

@@ -40,7 +40,16 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   as config.<n>.json.
 
   With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.runs.online.train_online`).
+
+  A write that fails for want of space stops the run on one line (`checkpointing.DiskFullError`,
+  a WorkdirError) naming the checkpoint the same command resumes from once space is freed.
   """
+  with checkpointing.stop_when_disk_full(workdir):
+    return _train_and_evaluate(config, workdir, continue_with_changes)
+
+
+def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
+                        continue_with_changes: bool) -> Dict[str, Any]:
   if online_enabled(config):
     from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
     return online.train_online(config, workdir, continue_with_changes)
