@@ -322,7 +322,7 @@ def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_las
       run.save(state.replace(step=2), 2, 1.0)
   assert isinstance(err.value, checkpointing.WorkdirError)  # The launcher: one line, exit 2.
   assert str(err.value) == (
-      f'no space left on the device of {workdir} (writing {folder}/x): checkpoint step 1 and '
+      f'no space left on the device of {workdir} (writing checkpoints/x): checkpoint step 1 and '
       f'those before it are kept in {folder}; free some space and rerun the same command to '
       'resume from it')
   assert sorted(os.listdir(folder)) == ['1']  # No partial step 2 left to be picked up.
@@ -360,5 +360,5 @@ def test_training_reports_a_full_disk_on_one_line(tmp_path, monkeypatch):
   def fills(config, workdir, continue_with_changes):
     raise OSError(28, 'No space left on device', os.path.join(workdir, 'eval.csv'))
   monkeypatch.setattr(train, '_train_and_evaluate', fills)
-  with pytest.raises(checkpointing.DiskFullError, match=r'\(writing .*eval.csv\): no checkpoint'):
+  with pytest.raises(checkpointing.DiskFullError, match=r'\(writing eval.csv\): no checkpoint'):
     train.train_and_evaluate(door_open.get_config('smoke'), str(tmp_path))

@@ -103,6 +103,8 @@ def stop_when_disk_full(workdir: str) -> Iterator[None]:
             'to resume from it' if steps else 'no checkpoint was written yet; free some space '
             'and rerun the same command')
     where = _failed_write(err)
+    if where and os.path.abspath(where).startswith(os.path.abspath(workdir) + os.sep):
+      where = os.path.relpath(where, workdir)
     raise DiskFullError(f'no space left on the device of {workdir}'
                         f'{f" (writing {where})" if where else ""}: {kept}') from None
 

@@ -65,8 +65,10 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
     state = create_train_state(config, jax.random.key(config.seed), dataset.observations)
   job = OfflineJob(config, run, dataset, state)
   t = config.train
-  runs.loop(run, job, t.num_steps, t.checkpoint_every, t.eval_every)
-  job.bar.close()
+  try:
+    runs.loop(run, job, t.num_steps, t.checkpoint_every, t.eval_every)
+  finally:
+    job.bar.close()  # Its line ends: an error line (a full disk) starts a line of its own.
   run.manager.wait_until_finished()
   state = job.state
   final, baselines, summary, records = run.final_evaluation(
