@@ -22,6 +22,8 @@ parameters or stops on one line with an intact earlier checkpoint.
   reference's final workdir size, so that it fills up mid-run; the run must stop on one line
   naming the full disk, its newest checkpoint with the uninterrupted run's bits; then the tmpfs
   grows (space freed) and the same command runs again, judged as a resume.
+  `--disk_filled` per kind: the tmpfs is roomy, and another file fills it from a random moment
+  on (0-64 KiB left), so that any write can fail; removing that file frees the space.
 - Each rerun: exit code, a Python traceback in stderr or not, the warnings naming skipped steps,
   the step it resumed from, and the final TrainState (parameters, EMA parameters, optimizer
   state, step) against the reference's, leaf by leaf, exactly.
@@ -441,60 +443,6 @@ def disk_kib(path: str) -> int:
                             check=True).stdout.split()[0])
 
 
-def mount_disk(path: str, kib: int, remount: bool = False) -> None:
-  """A tmpfs of `kib` KiB at `path` (or the one there resized); needs root. RuntimeError saying
-  why when mount refuses (no fallback: a loop device needs mount as well)."""
-  os.makedirs(path, exist_ok=True)
-  cmd = (['mount', '-o', f'remount,size={kib}k', path] if remount else
-         ['mount', '-t', 'tmpfs', '-o', f'size={kib}k', 'tmpfs', path])
-  got = subprocess.run(cmd, capture_output=True, text=True)
-  if got.returncode:
-    raise RuntimeError(f"{' '.join(cmd)} failed ({got.stderr.strip()}): the disk-full probe "
-                       'needs root; run it with --disk_full=0 otherwise')
-
-
-def first_stop(first: Dict[str, Any], workdir: str) -> Dict[str, Any]:
-  """The run on the small disk: stopped on one line naming the full disk (and where), or not."""
-  line = first['errors'][0] if len(first['errors']) == 1 else ''
-  named = line.startswith('error: no space left on the device of')
-  found = re.search(r'\(writing (\S+)\)', line)
-  where = found.group(1) if found else '?'  # Relative to the workdir (the library's line).
-  where = (os.path.relpath(where, workdir) if os.path.isabs(where) else where).split(os.sep)[:2]
-  ok = first['rc'] != 0 and named and not first['traceback']
-  outcome = ('finished (the disk did not fill)' if first['rc'] == 0 else
-             f"stopped (exit {first['rc']}, "
-             f"{'one line naming the full disk' if ok else 'NOT one line'}, writing "
-             f"{'/'.join(where)})")
-  return dict(first_rc=first['rc'], first_traceback=first['traceback'],
-              first_errors=first['errors'], first_stop_ok=ok, first_outcome=outcome)
-
-
-def disk_full_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Random):
-  """A run of ref's kind into a workdir on a tmpfs of 20-95% of the uninterrupted run's final
-  workdir size (it fills up mid-run); then the tmpfs grows (space freed) and the same command
-  runs again, judged as a resume."""
-  kind = ref['kind']
-  name = f'{kind}_disk_full_{index}'
-  mount = os.path.join(runner.scratch, name)
-  subprocess.run(['umount', mount], capture_output=True, check=False)
-  kib = int(rng.uniform(0.2, 0.95) * ref['kib'])
-  mount_disk(mount, kib)
-  try:
-    workdir = os.path.join(mount, 'workdir')
-    cmd = commands(kind, workdir, runner.scratch)
-    first = first_stop(runner.run(cmd, name), workdir)
-    before, kept = complete_steps(workdir), restored(workdir, ref)
-    mount_disk(mount, 4 * ref['kib'], remount=True)
-    rerun = runner.run(cmd, name + '_rerun')
-    row = dict(kind=kind, fault=f'disk full ({kib} KiB tmpfs)', disk_kib=kib, **first,
-               point=f'checkpoints at the stop: {before or "none"}', steps_before_rerun=before,
-               **kept, **judge(workdir, before, rerun, ref))
-  finally:
-    subprocess.run(['umount', mount], capture_output=True, check=False)
-  row['ok'] = verdict(row)
-  return row
-
-
 # ---------------------------------------------------------------------------------- records
 
 
@@ -532,8 +480,12 @@ def markdown(rows: List[Dict[str, Any]]) -> str:
 
 
 def group_of(row: Dict[str, Any]) -> str:
-  """'kill', 'disk full' or 'damage'."""
-  return 'kill' if 'SIGKILL' in row['fault'] else 'disk full' if 'disk_kib' in row else 'damage'
+  """'kill', 'disk full' (a small disk), 'disk filled' (by another file) or 'damage'."""
+  if 'SIGKILL' in row['fault']:
+    return 'kill'
+  if 'disk_kib' in row:
+    return 'disk filled' if 'fill_s' in row else 'disk full'
+  return 'damage'
 
 
 def summary(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
@@ -551,6 +503,9 @@ def summary(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
                                             for r in group),
         resumed_from={str(s): sum(r['resumed_from'] == s and r['rc'] == 0 for r in group)
                       for s in sorted({r['resumed_from'] for r in group})})
+    if key[1].startswith('disk'):  # The run on the full disk, before the rerun.
+      out[' '.join(key)].update(first_stopped_one_line=sum(r['first_stop_ok'] for r in group),
+                                first_finished=sum(r['first_rc'] == 0 for r in group))
   ends = {}
   for r in rows:
     if r['final_hash']:
@@ -561,7 +516,10 @@ def summary(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
 
 def summary_line(rows: List[Dict[str, Any]]) -> str:
   s = summary(rows)
-  parts = [f"{k}: {v['ok']}/{v['trials']} ok, {v['identical']} identical final states, "
+  parts = [f"{k}: {v['ok']}/{v['trials']} ok, " + (
+      f"{v['first_stopped_one_line']} stopped on one line naming the full disk and "
+      f"{v['first_finished']} finished before the disk filled; after freeing space: "
+      if 'first_finished' in v else '') + f"{v['identical']} identical final states, "
            f"{v['stopped_one_line']} stopped on one line, {v['tracebacks']} tracebacks, "
            f"{v['checkpoint_not_as_uninterrupted']} restored a checkpoint unlike the "
            "uninterrupted run's"
@@ -587,6 +545,8 @@ def parse(argv: Optional[List[str]] = None) -> argparse.Namespace:
   p.add_argument('--damages', type=int, default=10, help='damaged checkpoints, kinds alternating')
   p.add_argument('--disk_full', type=int, default=3, help='runs per kind on a small tmpfs that '
                  'fills up (needs root to mount it)')
+  p.add_argument('--disk_filled', type=int, default=0, help='runs per kind on a tmpfs that '
+                 'another file fills from a random moment on (needs root)')
   p.add_argument('--kinds', default='offline,online')
   p.add_argument('--seed', type=int, default=0)
   p.add_argument('--out', default='results/faults/faults.json')
@@ -599,6 +559,7 @@ def parse(argv: Optional[List[str]] = None) -> argparse.Namespace:
 
 
 def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
+  from benchmarks import fault_disk  # pylint: disable=g-import-not-at-top (it imports this one)
   args = parse(argv)
   if args.retable:
     with open(args.out) as f:
@@ -620,6 +581,7 @@ def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
   plan = [('kill', k, i) for k in kinds for i in range(args.kills)]
   plan += [('damage', kinds[i % len(kinds)], i) for i in range(args.damages)]
   plan += [('disk', k, i) for k in kinds for i in range(args.disk_full)]
+  plan += [('filled', k, i) for k in kinds for i in range(args.disk_filled)]
   rows = []
   for what, kind, i in plan:
     if time.time() - start > 60 * args.max_minutes:
@@ -628,7 +590,9 @@ def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
     if what == 'kill':
       trial = kill_trial(runner, refs[kind], i, rng)
     elif what == 'disk':
-      trial = disk_full_trial(runner, refs[kind], i, rng)
+      trial = fault_disk.disk_full_trial(runner, refs[kind], i, rng)
+    elif what == 'filled':
+      trial = fault_disk.disk_filled_trial(runner, refs[kind], i, rng)
     else:  # Per kind: completed, completed, killed, killed, ...
       trial = damage_trial(runner, refs[kind], i, rng, completed=(i // len(kinds)) % 2 == 0)
     rows.append(dict(trial=len(rows) + 1, **trial))

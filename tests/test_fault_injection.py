@@ -8,6 +8,7 @@ import random
 
 import numpy as np
 
+from benchmarks import fault_disk
 from benchmarks import fault_injection as fi
 
 
@@ -119,10 +120,10 @@ def test_an_error_line_after_a_progress_bar_is_read_as_one():
           'command to resume from it\n')
   got = fi.read_stderr(text)
   assert got['errors'] == [text[text.index('error:'):].strip()] and not got['traceback']
-  first = fi.first_stop(dict(got, rc=2), '/w')
+  first = fault_disk.first_stop(dict(got, rc=2), '/w')
   assert first['first_stop_ok'] and first['first_outcome'] == (
       'stopped (exit 2, one line naming the full disk, writing checkpoints/6.orbax-checkpoint-tmp)')
-  glued = fi.first_stop(dict(rc=2, traceback=True, errors=got['errors']), '/w')
+  glued = fault_disk.first_stop(dict(rc=2, traceback=True, errors=got['errors']), '/w')
   assert not glued['first_stop_ok'] and 'NOT one line' in glued['first_outcome']
 
 
@@ -142,3 +143,15 @@ def test_a_disk_full_trial_needs_the_one_line_stop_and_the_resume():
   assert ('writing checkpoints/80.orbax-checkpoint-tmp); after freeing space: resumed from 40, '
           'its checkpoint as uninterrupted | yes | no |') in line
   assert fi.summary([dict(row, ok=fi.verdict(row))])['online disk full']['ok'] == 1
+
+
+def test_top_up_leaves_the_margin_free(tmp_path, monkeypatch):
+  free = {'kib': 10}
+  monkeypatch.setattr(fault_disk.os, 'statvfs', lambda path: type(
+      'S', (), dict(f_bavail=free['kib'], f_frsize=1024))())
+  ballast = str(tmp_path / 'ballast')
+  fault_disk.top_up(ballast, 4)
+  assert os.path.getsize(ballast) == 6 * 1024
+  free['kib'] = 3  # Below the margin already: nothing more.
+  fault_disk.top_up(ballast, 4)
+  assert os.path.getsize(ballast) == 6 * 1024
