@@ -275,8 +275,13 @@ def test_a_step_without_what_the_run_needs_is_skipped(tmp_path):
   step, _, skipped = checkpointing.restore_intact(
       manager, config, lambda s: 'no buffer_2.npz' if s == 2 else None)
   assert (step, skipped) == (1, [2])
-  with pytest.raises(checkpointing.WorkdirError, match='no intact checkpoint .* steps 2, 1'):
+  with pytest.raises(checkpointing.WorkdirError, match='no intact checkpoint .* steps 2, 1 all'):
     checkpointing.restore_intact(manager, config, lambda s: 'no buffer file')
+  alone = checkpointing.checkpoint_manager(os.path.join(workdir, 'one'))
+  alone.save(2, args=ocp.args.StandardSave(state))
+  alone.wait_until_finished()
+  with pytest.raises(checkpointing.WorkdirError, match=r'no intact checkpoint .*: step 2 failed '):
+    checkpointing.restore_intact(alone, config, lambda s: 'no buffer file')
 
 
 def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_path):
@@ -293,7 +298,7 @@ def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_pat
       attempt()
     line = str(err.value)
     assert '\n' not in line and line.startswith(f'no intact checkpoint in {folder}: steps 2, 1')
-    assert f'move them aside (mv {folder} {folder}.damaged) and rerun' in line
+    assert f'move that folder aside (mv {folder} {folder}.damaged) and rerun' in line
     assert line.endswith('or train into another --workdir')
   assert checkpointing.checkpoint_manager(workdir).all_steps() == [1, 2]  # Left as they were.
   os.rename(folder, folder + '.damaged')  # As the line says: the run starts over, its old log

@@ -292,9 +292,11 @@ def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.Config
 def no_intact_message(directory: str, skipped: List[int]) -> str:
   """The one line when every checkpoint step under `directory` failed: which, and what to do
   (the damaged steps are left where they are: only the user decides to drop a run)."""
-  return (f'no intact checkpoint in {directory}: steps {", ".join(map(str, skipped))} all failed '
-          f'(warnings above). To start this run over, move them aside (mv {directory} '
-          f'{directory}.damaged) and rerun the training command; or train into another --workdir')
+  steps = (f'step {skipped[0]} failed' if len(skipped) == 1 else
+           f'steps {", ".join(map(str, skipped))} all failed')
+  return (f'no intact checkpoint in {directory}: {steps} (warnings above). To start this run '
+          f'over, move that folder aside (mv {directory} {directory}.damaged) and rerun the '
+          'training command; or train into another --workdir')
 
 
 def set_aside(workdir: str, manager: ocp.CheckpointManager, steps: List[int]) -> None:
