@@ -36,9 +36,9 @@ def mount_disk(path: str, kib: int, remount: bool = False) -> None:
 def first_stop(first: Dict[str, Any], workdir: str) -> Dict[str, Any]:
   """The run on the small disk: stopped on one line naming the full disk (and where), or not."""
   line = first['errors'][0] if len(first['errors']) == 1 else ''
-  named = line.startswith('error: no space left on the device of')
+  named = line.startswith('error: no space left on the device')
   found = re.search(r'\(writing (\S+)\)', line)
-  where = found.group(1) if found else '?'  # Relative to the workdir (the library's line).
+  where = found.group(1) if found else 'a file it does not name'  # Relative to the workdir.
   where = (os.path.relpath(where, workdir) if os.path.isabs(where) else where).split(os.sep)[:2]
   ok = first['rc'] != 0 and named and not first['traceback']
   outcome = ('finished (the disk did not fill)' if first['rc'] == 0 else

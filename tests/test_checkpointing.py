@@ -5,6 +5,7 @@ onto this process's device whatever device wrote them."""
 import json
 import os
 import sys
+import threading
 
 import jax
 import numpy as np
@@ -310,6 +311,8 @@ def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_pat
 def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_last(
     tmp_path, monkeypatch):
   import errno
+  monkeypatch.setattr(sys, 'unraisablehook', sys.unraisablehook)  # As they were, after it.
+  monkeypatch.setattr(threading, 'excepthook', threading.excepthook)
   from ld_mpc_jax.runs import loop as runs
   workdir = str(tmp_path)
   config = door_open.get_config('smoke')
@@ -345,14 +348,17 @@ def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_las
                 "to write 12 bytes to file 19: No space left on device [os_error_code='28']"),
      True),
     (PermissionError(13, 'Permission denied'), False), (ValueError('bad'), False)])
-def test_only_a_full_disk_becomes_the_one_line(tmp_path, error, full):
+def test_only_a_full_disk_becomes_the_one_line(tmp_path, monkeypatch, error, full):
+  monkeypatch.setattr(sys, 'unraisablehook', sys.unraisablehook)  # As they were, after it.
+  monkeypatch.setattr(threading, 'excepthook', threading.excepthook)
   def fail():
     with checkpointing.stop_when_disk_full(str(tmp_path)):
       raise error
   with pytest.raises(checkpointing.DiskFullError if full else type(error)) as got:
     fail()
   if full:
-    assert str(got.value).startswith(f'no space left on the device of {tmp_path}')
+    assert str(got.value).startswith('no space left on the device' + (
+        ' (writing /w/c/2' if isinstance(error, ValueError) else f' of {tmp_path}:'))
     assert 'no checkpoint was written yet; free some space and rerun' in str(got.value)
     assert ('writing /w/c/2.orbax-checkpoint-tmp/d/ab' in str(got.value)) == (
         isinstance(error, ValueError))
@@ -362,8 +368,45 @@ def test_only_a_full_disk_becomes_the_one_line(tmp_path, error, full):
 
 def test_training_reports_a_full_disk_on_one_line(tmp_path, monkeypatch):
   from ld_mpc_jax.runs import train
+  monkeypatch.setattr(sys, 'unraisablehook', sys.unraisablehook)  # As they were, after it.
+  monkeypatch.setattr(threading, 'excepthook', threading.excepthook)
   def fills(config, workdir, continue_with_changes):
     raise OSError(28, 'No space left on device', os.path.join(workdir, 'eval.csv'))
   monkeypatch.setattr(train, '_train_and_evaluate', fills)
   with pytest.raises(checkpointing.DiskFullError, match=r'\(writing eval.csv\): no checkpoint'):
     train.train_and_evaluate(door_open.get_config('smoke'), str(tmp_path))
+
+
+def test_a_full_disk_names_every_seeds_checkpoint_and_a_file_elsewhere(tmp_path):
+  for seed, steps in ((0, (40, 80)), (1, (40,))):  # Seed 1 stopped before its step 80.
+    for step in steps:
+      os.makedirs(tmp_path / f'seed{seed}' / 'checkpoints' / str(step))
+  line = checkpointing.disk_full_message(str(tmp_path), '/data/x.npz')
+  assert line == ('no space left on the device (writing /data/x.npz): checkpoint step 40 and '
+                  f'those before it are kept in {tmp_path}/seed*/checkpoints; free some space '
+                  'and rerun the same command to resume from it')
+  assert checkpointing.disk_full_message(str(tmp_path / 'new'), None) == (
+      f'no space left on the device of {tmp_path}/new: no checkpoint was written yet; free some '
+      'space and rerun the same command')
+
+
+def test_after_a_full_disk_its_exit_noise_is_dropped(tmp_path, monkeypatch):
+  seen = []
+  monkeypatch.setattr(sys, 'unraisablehook', lambda u: seen.append(u.exc_value))
+  monkeypatch.setattr(threading, 'excepthook', lambda a: seen.append(a.exc_value))
+  with pytest.raises(checkpointing.DiskFullError):
+    with checkpointing.stop_when_disk_full(str(tmp_path)):
+      raise OSError(28, 'No space left on device')
+  unraisable = lambda error: type('U', (), dict(exc_type=type(error), exc_value=error,
+                                                exc_traceback=None, object=None))()
+  sys.unraisablehook(unraisable(OSError(28, 'No space left on device')))  # tensorboardX's
+  thread = threading.Thread(target=lambda: (_ for _ in ()).throw(OSError('handle is closed')))
+  thread.start()  # atexit flush, then its writer thread: dropped.
+  thread.join()
+  assert seen == []
+  other = KeyError('x')
+  sys.unraisablehook(unraisable(other))  # Anything else is still reported.
+  thread = threading.Thread(target=lambda: (_ for _ in ()).throw(other))
+  thread.start()
+  thread.join()
+  assert seen == [other, other]

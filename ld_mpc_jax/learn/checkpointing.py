@@ -2,12 +2,14 @@
 
 import contextlib
 import errno
+import glob
 import json
 import logging
 import os
 import re
 import shutil
 import sys
+import threading
 from typing import Callable, Iterator, List, Optional, Tuple
 
 import jax
@@ -97,16 +99,42 @@ def stop_when_disk_full(workdir: str) -> Iterator[None]:
   except Exception as err:  # pylint: disable=broad-except (orbax: ValueError; Python: OSError)
     if not disk_full(err):
       raise
-    steps = complete_steps(workdir)
-    kept = (f'checkpoint step {steps[-1]} and those before it are kept in '
-            f'{os.path.join(workdir, "checkpoints")}; free some space and rerun the same command '
-            'to resume from it' if steps else 'no checkpoint was written yet; free some space '
-            'and rerun the same command')
-    where = _failed_write(err)
-    if where and os.path.abspath(where).startswith(os.path.abspath(workdir) + os.sep):
-      where = os.path.relpath(where, workdir)
-    raise DiskFullError(f'no space left on the device of {workdir}'
-                        f'{f" (writing {where})" if where else ""}: {kept}') from None
+    _quiet_after_disk_full()
+    raise DiskFullError(disk_full_message(workdir, _failed_write(err))) from None
+
+
+def disk_full_message(workdir: str, where: Optional[str]) -> str:
+  """The one line of a full disk: the file whose write failed (relative to `workdir` when in it),
+  and the checkpoint the same command resumes from (every seed's, for <workdir>/seed<n>/)."""
+  folders = ([workdir] if os.path.isdir(os.path.join(workdir, 'checkpoints')) else
+             sorted(glob.glob(os.path.join(workdir, 'seed*'))))
+  common = set.intersection(*[set(complete_steps(f)) for f in folders]) if folders else set()
+  shown = os.path.join(workdir if folders == [workdir] else os.path.join(workdir, 'seed*'),
+                       'checkpoints')
+  kept = (f'checkpoint step {max(common)} and those before it are kept in {shown}; free some '
+          'space and rerun the same command to resume from it' if common else
+          'no checkpoint was written yet; free some space and rerun the same command')
+  inside = where and os.path.abspath(where).startswith(os.path.abspath(workdir) + os.sep)
+  disk = (f'the device of {workdir} (writing {os.path.relpath(where, workdir)})' if inside else
+          f'the device (writing {where})' if where else f'the device of {workdir}')
+  return f'no space left on {disk}: {kept}'
+
+
+def _quiet_after_disk_full() -> None:
+  """After the one line, what the full disk still breaks at exit says nothing more:
+  tensorboardX's atexit flush (an unraisable disk-full OSError), then its writer thread (an
+  OSError: the queue that failed flush left open is closed under it). Installed once."""
+  if getattr(sys.unraisablehook, 'quiet_disk_full', False):
+    return
+  previous, previous_thread = sys.unraisablehook, threading.excepthook
+  def hook(unraisable):
+    if not disk_full(unraisable.exc_value):
+      previous(unraisable)
+  def thread_hook(args):
+    if not issubclass(args.exc_type, OSError):
+      previous_thread(args)
+  hook.quiet_disk_full = True
+  sys.unraisablehook, threading.excepthook = hook, thread_hook
 
 
 def _failed_write(err: BaseException) -> Optional[str]:
