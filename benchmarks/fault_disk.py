@@ -30,7 +30,7 @@ def mount_disk(path: str, kib: int, remount: bool = False) -> None:
   got = subprocess.run(cmd, capture_output=True, text=True)
   if got.returncode:
     raise RuntimeError(f"{' '.join(cmd)} failed ({got.stderr.strip()}): the disk-full probe "
-                       'needs root; run it with --disk_full=0 otherwise')
+                       'needs root; without it, pass --disk_full=0 --disk_filled=0')
 
 
 def first_stop(first: Dict[str, Any], workdir: str) -> Dict[str, Any]:
