@@ -2,7 +2,8 @@
 random checkpoint files, and check that every run either resumes to the uninterrupted run's final
 parameters or stops on one line with an intact earlier checkpoint.
 
-  python -m benchmarks.fault_injection --kills=20 --damages=10 --out=results/faults/faults.json
+  python -m benchmarks.fault_injection --kills=20 --damages=10 --disk_full=3 \
+      --out=results/faults/faults.json
 
 - References: two uninterrupted runs of each kind, the second keeping every checkpoint: whether
   they end on the same bits, and every step's state, against which the checkpoint a resume
@@ -17,6 +18,12 @@ parameters or stops on one line with an intact earlier checkpoint.
   reference's, and a killed one): one file under <workdir>/checkpoints/<step>/ (the newest step
   60% of the time, else another at random) is deleted or truncated to a random length; then
   `experiments.evaluate` (1 planner episode) and the training command run on the workdir.
+- Disk full (`--disk_full` per kind; needs root): the run's workdir on a tmpfs of 20-95% of the
+  reference's final workdir size, so that it fills up mid-run; the run must stop on one line
+  naming the full disk, its newest checkpoint with the uninterrupted run's bits; then the tmpfs
+  grows (space freed) and the same command runs again, judged as a resume.
+  `--disk_filled` per kind: the tmpfs is roomy, and another file fills it from a random moment
+  on (0-64 KiB left), so that any write can fail; removing that file frees the space.
 - Each rerun: exit code, a Python traceback in stderr or not, the warnings naming skipped steps,
   the step it resumed from, and the final TrainState (parameters, EMA parameters, optimizer
   state, step) against the reference's, leaf by leaf, exactly.
@@ -45,6 +52,8 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TMP_SUFFIX = '.orbax-checkpoint-tmp'
 TRACEBACK = 'Traceback (most recent call last)'
 _SKIPPED = re.compile(r'checkpoint step (\d+) in \S+ skipped, (.*?); trying an earlier one')
+# A progress bar left on the line an error line then continues (tqdm ends it only when closed).
+_LEADING_BAR = re.compile(r'^(?:[\w ]+:\s+\d+%\|[^|]*\|\s*\d+/\d+\s*\[[^\]]*\]\s*)+')
 _BAR = re.compile(r'(train|online):\s+\d+%\|[^|\r\n]*\|\s*(\d+)/(\d+)')
 OFFLINE_STEPS = 12  # Training steps of the offline smoke run; a checkpoint every 2.
 
@@ -144,7 +153,8 @@ def damage(workdir: str, rng: random.Random) -> Dict[str, Any]:
 
 def read_stderr(text: str) -> Dict[str, Any]:
   """From a run's stderr: a traceback or not, the steps skipped (with why), its error lines."""
-  lines = [l.strip() for l in re.split(r'[\r\n]', text) if l.strip()]
+  lines = [_LEADING_BAR.sub('', l).strip() for l in re.split(r'[\r\n]', text)]
+  lines = [l for l in lines if l]
   return dict(traceback=TRACEBACK in text,
               skipped=[int(s) for s, _ in _SKIPPED.findall(text)],
               skip_reasons=[r[:160] for _, r in _SKIPPED.findall(text)],
@@ -296,6 +306,8 @@ def verdict(row: Dict[str, Any]) -> bool:
   that step, and an evaluation of a damaged workdir loads or stops on one line too."""
   if row.get('restored_as_reference') is False or row.get('eval_ok') is False:
     return False
+  if 'disk_kib' in row and not (row['first_rc'] == 0 or row['first_stop_ok']):
+    return False
   if row['rc'] == 0:
     return not row['traceback'] and bool(row['identical'])
   return bool(row['one_line']) and (row['intact_step'] is not None
@@ -355,6 +367,7 @@ def reference(runner: Runner, kind: str) -> Dict[str, Any]:
     raise RuntimeError(f'the second uninterrupted {kind} run failed: see '
                        f'{runner.log(kind + "_reference_all_steps")}')
   out = dict(kind=kind, workdir=workdir, seconds=got['seconds'], step=step, state=state,
+             kib=disk_kib(workdir),
              steps=complete_steps(workdir), hash=state_hash(state), duration=second['seconds'],
              step_hashes=step_hashes(again),
              repeat=dict(seconds=second['seconds'], **compare_trees(final_state(again)[1], state)))
@@ -421,6 +434,15 @@ def damage_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Ra
   return row
 
 
+# ------------------------------------------------------------------------ a disk that fills up
+
+
+def disk_kib(path: str) -> int:
+  """KiB that `path` takes on its disk (du)."""
+  return int(subprocess.run(['du', '-sk', path], capture_output=True, text=True,
+                            check=True).stdout.split()[0])
+
+
 # ---------------------------------------------------------------------------------- records
 
 
@@ -445,29 +467,45 @@ def markdown(rows: List[Dict[str, Any]]) -> str:
       outcome += f" (skipped step {', '.join(map(str, row['skipped']))})"
     if row['rc'] != 0 and only_checkpoint_damaged(row):
       outcome += ', the damaged step being its only checkpoint'
+    if 'disk_kib' in row:
+      outcome = f"{row['first_outcome']}; after freeing space: {outcome}"
     if 'eval_rc' in row:
       outcome += (f"; evaluate: checkpoint {row['eval_checkpoint']}" if row['eval_rc'] == 0 else
                   f"; evaluate: exit {row['eval_rc']}")
-    traceback = 'yes' if row['traceback'] or row.get('eval_traceback') else 'no'
+    traceback = ('yes' if row['traceback'] or row.get('eval_traceback')
+                 or row.get('first_traceback') else 'no')
     lines.append(f"| {row['trial']} | {row['kind']} | {row['fault']} | {row['point']} | "
                  f"{outcome} | {_cell(row)} | {traceback} |")
   return '\n'.join(lines) + '\n'
 
 
+def group_of(row: Dict[str, Any]) -> str:
+  """'kill', 'disk full' (a small disk), 'disk filled' (by another file) or 'damage'."""
+  if 'SIGKILL' in row['fault']:
+    return 'kill'
+  if 'disk_kib' in row:
+    return 'disk filled' if 'fill_s' in row else 'disk full'
+  return 'damage'
+
+
 def summary(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
   """Counts per kind of trial, and whether runs resumed from the same step ended alike."""
   out = {}
-  for key in sorted({(r['kind'], 'kill' if 'SIGKILL' in r['fault'] else 'damage') for r in rows}):
-    group = [r for r in rows if (r['kind'], 'kill' if 'SIGKILL' in r['fault'] else 'damage') == key]
+  for key in sorted({(r['kind'], group_of(r)) for r in rows}):
+    group = [r for r in rows if (r['kind'], group_of(r)) == key]
     out[' '.join(key)] = dict(
         trials=len(group), ok=sum(r['ok'] for r in group),
         identical=sum(bool(r['identical']) for r in group),
         stopped_one_line=sum(r['rc'] != 0 and bool(r.get('one_line')) for r in group),
-        tracebacks=sum(bool(r['traceback'] or r.get('eval_traceback')) for r in group),
+        tracebacks=sum(bool(r['traceback'] or r.get('eval_traceback') or r.get('first_traceback'))
+                       for r in group),
         checkpoint_not_as_uninterrupted=sum(r.get('restored_as_reference') is False
                                             for r in group),
         resumed_from={str(s): sum(r['resumed_from'] == s and r['rc'] == 0 for r in group)
                       for s in sorted({r['resumed_from'] for r in group})})
+    if key[1].startswith('disk'):  # The run on the full disk, before the rerun.
+      out[' '.join(key)].update(first_stopped_one_line=sum(r['first_stop_ok'] for r in group),
+                                first_finished=sum(r['first_rc'] == 0 for r in group))
   ends = {}
   for r in rows:
     if r['final_hash']:
@@ -478,7 +516,10 @@ def summary(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
 
 def summary_line(rows: List[Dict[str, Any]]) -> str:
   s = summary(rows)
-  parts = [f"{k}: {v['ok']}/{v['trials']} ok, {v['identical']} identical final states, "
+  parts = [f"{k}: {v['ok']}/{v['trials']} ok, " + (
+      f"{v['first_stopped_one_line']} stopped on one line naming the full disk and "
+      f"{v['first_finished']} finished before the disk filled; after freeing space: "
+      if 'first_finished' in v else '') + f"{v['identical']} identical final states, "
            f"{v['stopped_one_line']} stopped on one line, {v['tracebacks']} tracebacks, "
            f"{v['checkpoint_not_as_uninterrupted']} restored a checkpoint unlike the "
            "uninterrupted run's"
@@ -502,6 +543,10 @@ def parse(argv: Optional[List[str]] = None) -> argparse.Namespace:
   p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
   p.add_argument('--kills', type=int, default=20, help='SIGKILLs per kind of run')
   p.add_argument('--damages', type=int, default=10, help='damaged checkpoints, kinds alternating')
+  p.add_argument('--disk_full', type=int, default=3, help='runs per kind on a small tmpfs that '
+                 'fills up (needs root to mount it)')
+  p.add_argument('--disk_filled', type=int, default=0, help='runs per kind on a tmpfs that '
+                 'another file fills from a random moment on (needs root)')
   p.add_argument('--kinds', default='offline,online')
   p.add_argument('--seed', type=int, default=0)
   p.add_argument('--out', default='results/faults/faults.json')
@@ -514,6 +559,7 @@ def parse(argv: Optional[List[str]] = None) -> argparse.Namespace:
 
 
 def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
+  from benchmarks import fault_disk  # pylint: disable=g-import-not-at-top (it imports this one)
   args = parse(argv)
   if args.retable:
     with open(args.out) as f:
@@ -534,6 +580,8 @@ def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
                             for k, r in refs.items()})
   plan = [('kill', k, i) for k in kinds for i in range(args.kills)]
   plan += [('damage', kinds[i % len(kinds)], i) for i in range(args.damages)]
+  plan += [('disk', k, i) for k in kinds for i in range(args.disk_full)]
+  plan += [('filled', k, i) for k in kinds for i in range(args.disk_filled)]
   rows = []
   for what, kind, i in plan:
     if time.time() - start > 60 * args.max_minutes:
@@ -541,6 +589,10 @@ def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
       break
     if what == 'kill':
       trial = kill_trial(runner, refs[kind], i, rng)
+    elif what == 'disk':
+      trial = fault_disk.disk_full_trial(runner, refs[kind], i, rng)
+    elif what == 'filled':
+      trial = fault_disk.disk_filled_trial(runner, refs[kind], i, rng)
     else:  # Per kind: completed, completed, killed, killed, ...
       trial = damage_trial(runner, refs[kind], i, rng, completed=(i // len(kinds)) % 2 == 0)
     rows.append(dict(trial=len(rows) + 1, **trial))

@@ -5,6 +5,7 @@ onto this process's device whatever device wrote them."""
 import json
 import os
 import sys
+import threading
 
 import jax
 import numpy as np
@@ -223,13 +224,19 @@ def _two_checkpoints(workdir):
   for step in (1, 2):
     manager.save(step, args=ocp.args.StandardSave(state.replace(step=step)))
   manager.wait_until_finished()
-  for root, _, names in os.walk(os.path.join(workdir, 'checkpoints', '2', 'default')):
-    for name in names:  # Every array data file (one alone may hold nothing restore reads).
+  _truncate(workdir, 2)
+  return config
+
+
+def _truncate(workdir, step):
+  """Truncates every array data file of checkpoint `step` to half (one alone may hold nothing
+  restore reads)."""
+  for root, _, names in os.walk(os.path.join(workdir, 'checkpoints', str(step), 'default')):
+    for name in names:
       if os.path.basename(root) == 'd':
         path = os.path.join(root, name)
         with open(path, 'r+b') as f:
           f.truncate(os.path.getsize(path) // 2)
-  return config
 
 
 def test_a_damaged_checkpoint_falls_back_to_the_newest_intact_one(tmp_path, capsys):
@@ -269,5 +276,137 @@ def test_a_step_without_what_the_run_needs_is_skipped(tmp_path):
   step, _, skipped = checkpointing.restore_intact(
       manager, config, lambda s: 'no buffer_2.npz' if s == 2 else None)
   assert (step, skipped) == (1, [2])
-  with pytest.raises(checkpointing.WorkdirError, match='no intact checkpoint .* steps 2, 1'):
+  with pytest.raises(checkpointing.WorkdirError, match='no intact checkpoint .* steps 2, 1 all'):
     checkpointing.restore_intact(manager, config, lambda s: 'no buffer file')
+  alone = checkpointing.checkpoint_manager(os.path.join(workdir, 'one'))
+  alone.save(2, args=ocp.args.StandardSave(state))
+  alone.wait_until_finished()
+  with pytest.raises(checkpointing.WorkdirError, match=r'no intact checkpoint .*: step 2 failed '):
+    checkpointing.restore_intact(alone, config, lambda s: 'no buffer file')
+
+
+def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_path):
+  from ld_mpc_jax.eval import run_files
+  from ld_mpc_jax.runs import loop as runs
+  workdir = str(tmp_path)
+  config = _two_checkpoints(workdir)
+  _truncate(workdir, 1)
+  run_files.append_csv(str(tmp_path / runs.EVAL_CSV), {'step': 2, 'success_rate': 0.5})
+  folder = os.path.join(workdir, 'checkpoints')
+  for attempt in (lambda: checkpointing.load_for_evaluation(workdir),
+                  lambda: runs.Run(config, workdir).restore()):
+    with pytest.raises(checkpointing.WorkdirError) as err:
+      attempt()
+    line = str(err.value)
+    assert '\n' not in line and line.startswith(f'no intact checkpoint in {folder}: steps 2, 1')
+    assert f'move that folder aside (mv {folder} {folder}.damaged) and rerun' in line
+    assert line.endswith('or train into another --workdir')
+  assert checkpointing.checkpoint_manager(workdir).all_steps() == [1, 2]  # Left as they were.
+  os.rename(folder, folder + '.damaged')  # As the line says: the run starts over, its old log
+  run = runs.Run(config, workdir)  # rows gone (not repeated by the new run).
+  assert run.restore() is None and run.step is None
+  assert run_files.read_csv(str(tmp_path / runs.EVAL_CSV)) == []
+
+
+def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_last(
+    tmp_path, monkeypatch):
+  import errno
+  monkeypatch.setattr(sys, 'unraisablehook', sys.unraisablehook)  # As they were, after it.
+  monkeypatch.setattr(threading, 'excepthook', threading.excepthook)
+  from ld_mpc_jax.runs import loop as runs
+  workdir = str(tmp_path)
+  config = door_open.get_config('smoke')
+  run = runs.Run(config, workdir)
+  state = create_train_state(config, jax.random.key(0))
+  run.save(state.replace(step=1), 1, 0.0)
+  folder = os.path.join(workdir, 'checkpoints')
+
+  def full_disk(step, args):  # Orbax writes into a temporary folder, then the disk fills.
+    os.makedirs(os.path.join(folder, f'{step}.orbax-checkpoint-tmp-7', 'default'))
+    raise OSError(errno.ENOSPC, 'No space left on device', os.path.join(folder, 'x'))
+  monkeypatch.setattr(run.manager, 'save', full_disk)
+  with pytest.raises(checkpointing.DiskFullError) as err:
+    with checkpointing.stop_when_disk_full(workdir):
+      run.save(state.replace(step=2), 2, 1.0)
+  assert isinstance(err.value, checkpointing.WorkdirError)  # The launcher: one line, exit 2.
+  assert str(err.value) == (
+      f'no space left on the device of {workdir} (writing checkpoints/x): checkpoint step 1 and '
+      f'those before it are kept in {folder}; free some space and rerun the same command to '
+      'resume from it')
+  assert sorted(os.listdir(folder)) == ['1']  # No partial step 2 left to be picked up.
+  assert json.load(open(tmp_path / 'progress.json'))['step'] == 1
+  step, restored, skipped = checkpointing.restore_intact(
+      checkpointing.checkpoint_manager(workdir), config)
+  assert (step, skipped) == (1, [])
+  same = jax.tree.map(lambda a, b: np.array_equal(a, b), restored, state.replace(step=1))
+  assert all(jax.tree_util.tree_leaves(same))
+
+
+@pytest.mark.parametrize('error,full', [
+    (OSError(28, 'No space left on device'), True),
+    (ValueError('RESOURCE_EXHAUSTED: Failed writing: "/w/c/2.orbax-checkpoint-tmp/d/ab": Failed '
+                "to write 12 bytes to file 19: No space left on device [os_error_code='28']"),
+     True),
+    (PermissionError(13, 'Permission denied'), False), (ValueError('bad'), False)])
+def test_only_a_full_disk_becomes_the_one_line(tmp_path, monkeypatch, error, full):
+  monkeypatch.setattr(sys, 'unraisablehook', sys.unraisablehook)  # As they were, after it.
+  monkeypatch.setattr(threading, 'excepthook', threading.excepthook)
+  def fail():
+    with checkpointing.stop_when_disk_full(str(tmp_path)):
+      raise error
+  with pytest.raises(checkpointing.DiskFullError if full else type(error)) as got:
+    fail()
+  if full:
+    assert str(got.value).startswith('no space left on the device' + (
+        ' (writing /w/c/2' if isinstance(error, ValueError) else f' of {tmp_path}:'))
+    assert 'no checkpoint was written yet; free some space and rerun' in str(got.value)
+    assert ('writing /w/c/2.orbax-checkpoint-tmp/d/ab' in str(got.value)) == (
+        isinstance(error, ValueError))
+  else:
+    assert got.value is error
+
+
+def test_training_reports_a_full_disk_on_one_line(tmp_path, monkeypatch):
+  from ld_mpc_jax.runs import train
+  monkeypatch.setattr(sys, 'unraisablehook', sys.unraisablehook)  # As they were, after it.
+  monkeypatch.setattr(threading, 'excepthook', threading.excepthook)
+  def fills(config, workdir, continue_with_changes):
+    raise OSError(28, 'No space left on device', os.path.join(workdir, 'eval.csv'))
+  monkeypatch.setattr(train, '_train_and_evaluate', fills)
+  with pytest.raises(checkpointing.DiskFullError, match=r'\(writing eval.csv\): no checkpoint'):
+    train.train_and_evaluate(door_open.get_config('smoke'), str(tmp_path))
+
+
+def test_a_full_disk_names_every_seeds_checkpoint_and_a_file_elsewhere(tmp_path):
+  for seed, steps in ((0, (40, 80)), (1, (40,))):  # Seed 1 stopped before its step 80.
+    for step in steps:
+      os.makedirs(tmp_path / f'seed{seed}' / 'checkpoints' / str(step))
+  line = checkpointing.disk_full_message(str(tmp_path), '/data/x.npz')
+  assert line == ('no space left on the device (writing /data/x.npz): checkpoint step 40 and '
+                  f'those before it are kept in {tmp_path}/seed*/checkpoints; free some space '
+                  'and rerun the same command to resume from it')
+  assert checkpointing.disk_full_message(str(tmp_path / 'new'), None) == (
+      f'no space left on the device of {tmp_path}/new: no checkpoint was written yet; free some '
+      'space and rerun the same command')
+
+
+def test_after_a_full_disk_its_exit_noise_is_dropped(tmp_path, monkeypatch):
+  seen = []
+  monkeypatch.setattr(sys, 'unraisablehook', lambda u: seen.append(u.exc_value))
+  monkeypatch.setattr(threading, 'excepthook', lambda a: seen.append(a.exc_value))
+  with pytest.raises(checkpointing.DiskFullError):
+    with checkpointing.stop_when_disk_full(str(tmp_path)):
+      raise OSError(28, 'No space left on device')
+  unraisable = lambda error: type('U', (), dict(exc_type=type(error), exc_value=error,
+                                                exc_traceback=None, object=None))()
+  sys.unraisablehook(unraisable(OSError(28, 'No space left on device')))  # tensorboardX's
+  thread = threading.Thread(target=lambda: (_ for _ in ()).throw(OSError('handle is closed')))
+  thread.start()  # atexit flush, then its writer thread: dropped.
+  thread.join()
+  assert seen == []
+  other = KeyError('x')
+  sys.unraisablehook(unraisable(other))  # Anything else is still reported.
+  thread = threading.Thread(target=lambda: (_ for _ in ()).throw(other))
+  thread.start()
+  thread.join()
+  assert seen == [other, other]

@@ -8,6 +8,7 @@ import random
 
 import numpy as np
 
+from benchmarks import fault_disk
 from benchmarks import fault_injection as fi
 
 
@@ -110,3 +111,47 @@ def test_table_and_summary_count_every_outcome():
                                   resumed_from={'0': 1})
   assert s['online damage']['stopped_one_line'] == 1 and s['online damage']['tracebacks'] == 1
   assert s['distinct_final_states_per_resume_step'] == {'online from 0': 1}
+
+
+def test_an_error_line_after_a_progress_bar_is_read_as_one():
+  text = ('train:  50%|#####     | 6/12 [00:12<00:12,  2.09s/it, loss=170.500]error: no space left '
+          'on the device of /w (writing checkpoints/6.orbax-checkpoint-tmp/x): checkpoint step 4 '
+          'and those before it are kept in /w/checkpoints; free some space and rerun the same '
+          'command to resume from it\n')
+  got = fi.read_stderr(text)
+  assert got['errors'] == [text[text.index('error:'):].strip()] and not got['traceback']
+  first = fault_disk.first_stop(dict(got, rc=2), '/w')
+  assert first['first_stop_ok'] and first['first_outcome'] == (
+      'stopped (exit 2, one line naming the full disk, writing checkpoints/6.orbax-checkpoint-tmp)')
+  glued = fault_disk.first_stop(dict(rc=2, traceback=True, errors=got['errors']), '/w')
+  assert not glued['first_stop_ok'] and 'NOT one line' in glued['first_outcome']
+
+
+def test_a_disk_full_trial_needs_the_one_line_stop_and_the_resume():
+  row = dict(kind='online', fault='disk full (900 KiB tmpfs)', disk_kib=900, first_rc=2,
+             first_stop_ok=True, first_traceback=False, restored_as_reference=True, rc=0,
+             traceback=False, identical=True, max_abs_diff=0.0, skipped=[], resumed_from=40,
+             final_hash='a', first_outcome='stopped (exit 2, one line naming the full disk, '
+             'writing checkpoints/80.orbax-checkpoint-tmp)', trial=1, point='checkpoints at '
+             'the stop: [40]', outcome='resumed from 40', restored_step=40)
+  assert fi.group_of(row) == 'disk full' and fi.verdict(row)
+  assert not fi.verdict(dict(row, first_stop_ok=False))  # A traceback or no line: not ok.
+  assert not fi.verdict(dict(row, identical=False))  # Resumed elsewhere: not ok.
+  assert fi.verdict(dict(row, first_rc=0, first_stop_ok=False))  # The disk did not fill.
+  line = fi.markdown([row]).splitlines()[2]
+  assert line.startswith('| 1 | online | disk full (900 KiB tmpfs) | checkpoints at the stop')
+  assert ('writing checkpoints/80.orbax-checkpoint-tmp); after freeing space: resumed from 40, '
+          'its checkpoint as uninterrupted | yes | no |') in line
+  assert fi.summary([dict(row, ok=fi.verdict(row))])['online disk full']['ok'] == 1
+
+
+def test_top_up_leaves_the_margin_free(tmp_path, monkeypatch):
+  free = {'kib': 10}
+  monkeypatch.setattr(fault_disk.os, 'statvfs', lambda path: type(
+      'S', (), dict(f_bavail=free['kib'], f_frsize=1024))())
+  ballast = str(tmp_path / 'ballast')
+  fault_disk.top_up(ballast, 4)
+  assert os.path.getsize(ballast) == 6 * 1024
+  free['kib'] = 3  # Below the margin already: nothing more.
+  fault_disk.top_up(ballast, 4)
+  assert os.path.getsize(ballast) == 6 * 1024

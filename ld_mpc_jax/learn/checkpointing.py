@@ -1,11 +1,16 @@
 """Orbax checkpoints of the TrainState, with the config saved beside them."""
 
+import contextlib
+import errno
+import glob
 import json
 import logging
 import os
+import re
 import shutil
 import sys
-from typing import Callable, List, Optional, Tuple
+import threading
+from typing import Callable, Iterator, List, Optional, Tuple
 
 import jax
 import ml_collections
@@ -52,7 +57,120 @@ def save_config(config: ml_collections.ConfigDict, workdir: str) -> str:
 
 
 class WorkdirError(ValueError):
-  """A workdir this run must not write to (made with another config): one line, exit code 2."""
+  """A workdir this run must not or cannot write to (made with another config, all of its
+  checkpoints damaged, its disk full): one line, exit code 2."""
+
+
+class DiskFullError(WorkdirError):
+  """A write into the workdir failed for want of space; the checkpoints before it are kept."""
+
+
+_FULL = ('No space left on device', 'Disk quota exceeded')
+
+
+def disk_full(err: BaseException) -> bool:
+  """Whether `err` is a write that failed for want of space: an OSError (ENOSPC, EDQUOT), or
+  tensorstore's error (orbax raises it as a ValueError naming the OS error)."""
+  if isinstance(err, DiskFullError):
+    return False  # Reported already.
+  if isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT):
+    return True
+  return any(text in str(err) for text in _FULL)
+
+
+def complete_steps(workdir: str) -> List[int]:
+  """The checkpoint steps under <workdir>/checkpoints whose write finished (read only)."""
+  folder = os.path.join(workdir, 'checkpoints')
+  return sorted(int(n) for n in os.listdir(folder) if n.isdigit()) if os.path.isdir(folder) else []
+
+
+@contextlib.contextmanager
+def stop_when_disk_full(workdir: str) -> Iterator[None]:
+  """Turns a write that failed for want of space inside the block into one line
+  (DiskFullError) naming the full disk and the checkpoint a rerun resumes from.
+
+  The log records orbax's writer threads and asyncio emit about the same failed write (dozens
+  of tracebacks, some at exit) are dropped, from here on: the one line says it.
+  """
+  _quiet_disk_full_logs()
+  _quiet_abandoned_reads()  # A failed write's abandoned tensorstore callbacks, as a restore's.
+  try:
+    yield
+  except Exception as err:  # pylint: disable=broad-except (orbax: ValueError; Python: OSError)
+    if not disk_full(err):
+      raise
+    _quiet_after_disk_full()
+    raise DiskFullError(disk_full_message(workdir, _failed_write(err))) from None
+
+
+def disk_full_message(workdir: str, where: Optional[str]) -> str:
+  """The one line of a full disk: the file whose write failed (relative to `workdir` when in it),
+  and the checkpoint the same command resumes from (every seed's, for <workdir>/seed<n>/)."""
+  folders = ([workdir] if os.path.isdir(os.path.join(workdir, 'checkpoints')) else
+             sorted(glob.glob(os.path.join(workdir, 'seed*'))))
+  common = set.intersection(*[set(complete_steps(f)) for f in folders]) if folders else set()
+  shown = os.path.join(workdir if folders == [workdir] else os.path.join(workdir, 'seed*'),
+                       'checkpoints')
+  kept = (f'checkpoint step {max(common)} and those before it are kept in {shown}; free some '
+          'space and rerun the same command to resume from it' if common else
+          'no checkpoint was written yet; free some space and rerun the same command')
+  inside = where and os.path.abspath(where).startswith(os.path.abspath(workdir) + os.sep)
+  disk = (f'the device of {workdir} (writing {os.path.relpath(where, workdir)})' if inside else
+          f'the device (writing {where})' if where else f'the device of {workdir}')
+  return f'no space left on {disk}: {kept}'
+
+
+def _quiet_after_disk_full() -> None:
+  """After the one line, what the full disk still breaks at exit says nothing more:
+  tensorboardX's atexit flush (an unraisable disk-full OSError), then its writer thread (an
+  OSError: the queue that failed flush left open is closed under it). Installed once."""
+  if getattr(sys.unraisablehook, 'quiet_disk_full', False):
+    return
+  previous, previous_thread = sys.unraisablehook, threading.excepthook
+  def hook(unraisable):
+    if not disk_full(unraisable.exc_value):
+      previous(unraisable)
+  def thread_hook(args):
+    if not issubclass(args.exc_type, OSError):
+      previous_thread(args)
+  hook.quiet_disk_full = True
+  sys.unraisablehook, threading.excepthook = hook, thread_hook
+
+
+def _failed_write(err: BaseException) -> Optional[str]:
+  """The file whose write failed, as `err` names it (OSError's filename, tensorstore's text)."""
+  if isinstance(err, OSError) and err.filename:
+    return str(err.filename)
+  found = re.search(r'Failed writing: "([^"]+)"', str(err))
+  return found.group(1) if found else None
+
+
+def _about_full_disk(record: logging.LogRecord) -> bool:
+  error = record.exc_info[1] if record.exc_info else None
+  try:
+    text = record.getMessage()
+  except Exception:  # pylint: disable=broad-except (a record with bad arguments: keep it)
+    text = ''
+  return (error is not None and disk_full(error)) or any(t in text for t in _FULL)
+
+
+def _quiet_disk_full_logs() -> None:
+  """Drops log records about a full disk from orbax (absl's logger) and asyncio; once."""
+  for name in ('absl', 'asyncio'):
+    logger = logging.getLogger(name)
+    if not any(getattr(f, 'quiet_disk_full', False) for f in logger.filters):
+      keep = lambda record: not _about_full_disk(record)
+      keep.quiet_disk_full = True
+      logger.addFilter(keep)
+
+
+def remove_partial(manager: ocp.CheckpointManager, step: int) -> None:
+  """Removes what a failed write of `step` left (orbax's temporary folders), giving its space
+  back; the finished steps stay."""
+  folder = str(manager.directory)
+  for name in os.listdir(folder) if os.path.isdir(folder) else []:
+    if name.startswith(f'{step}.orbax-checkpoint-tmp'):
+      shutil.rmtree(os.path.join(folder, name), ignore_errors=True)
 
 
 def _flat(config: ml_collections.ConfigDict) -> dict:
@@ -155,7 +273,8 @@ def _one_line(err: BaseException, limit: int = 300) -> str:
 def _quiet_abandoned_reads() -> None:
   """Drops the noise a failed orbax restore leaves: its other tensorstore reads finish after
   asyncio's loop closed (hundreds of 'Event loop is closed' tracebacks, and 'exception was never
-  retrieved' log lines of asyncio). Installed once, only after a restore failed."""
+  retrieved' log lines of asyncio). Installed once, after a restore failed or as a run starts
+  (`stop_when_disk_full`: a failed write leaves the same)."""
   if getattr(sys.unraisablehook, 'quiet_abandoned_reads', False):
     return
   previous = sys.unraisablehook
@@ -194,9 +313,18 @@ def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.Config
           'earlier one')
     skipped.append(step)
   if skipped:
-    raise WorkdirError(f'no intact checkpoint in {manager.directory}: steps '
-                       f'{", ".join(map(str, skipped))} all failed (warnings above)')
+    raise WorkdirError(no_intact_message(str(manager.directory), skipped))
   return None, None, []
+
+
+def no_intact_message(directory: str, skipped: List[int]) -> str:
+  """The one line when every checkpoint step under `directory` failed: which, and what to do
+  (the damaged steps are left where they are: only the user decides to drop a run)."""
+  steps = (f'step {skipped[0]} failed' if len(skipped) == 1 else
+           f'steps {", ".join(map(str, skipped))} all failed')
+  return (f'no intact checkpoint in {directory}: {steps} (warnings above). To start this run '
+          f'over, move that folder aside (mv {directory} {directory}.damaged) and rerun the '
+          'training command; or train into another --workdir')
 
 
 def set_aside(workdir: str, manager: ocp.CheckpointManager, steps: List[int]) -> None:

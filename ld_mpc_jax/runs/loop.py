@@ -87,7 +87,12 @@ def save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
   if not bool(_all_finite(state.params)):  # One host sync per checkpoint.
     raise FloatingPointError(f'non-finite parameters at step {done}; not saved. The last '
                              f'good checkpoint is step {manager.latest_step()}.')
-  manager.save(done, args=ocp.args.StandardSave(state))  # All processes: orbax coordinates.
+  try:
+    manager.save(done, args=ocp.args.StandardSave(state))  # All processes: orbax coordinates.
+  except Exception as err:  # pylint: disable=broad-except
+    if checkpointing.disk_full(err):  # No partial step left behind; the error goes on.
+      checkpointing.remove_partial(manager, done)
+    raise
   if not run_files.primary():
     return
   path = os.path.join(workdir, PROGRESS_FILE)
@@ -113,7 +118,7 @@ class Run:
 
   def restore(self, usable=None):
     """The newest intact checkpoint's TrainState (its step: `self.step`), or None; the logs lose
-    rows written after it.
+    rows written after it (all of them without a checkpoint: a run started over).
 
     Newer steps that fail to restore, or that `usable(step)` gives a reason against, are skipped
     with a warning and moved to damaged_checkpoints/ (`checkpointing.restore_intact`).
@@ -125,8 +130,9 @@ class Run:
       # lowers to another program): a resumed run then compiles the update a fresh run compiled
       # (one entry in JAX's persistent cache, not two).
       state = jax.tree.map(_uncommitted, state)
-      for name, column in STEP_LOGS:
-        run_files.drop_rows_after(os.path.join(self.workdir, name), column, self.step)
+    last = -1 if self.step is None else self.step  # From scratch (checkpoints moved aside):
+    for name, column in STEP_LOGS:  # every row goes.
+      run_files.drop_rows_after(os.path.join(self.workdir, name), column, last)
     return state
 
   def prior_seconds(self) -> float:

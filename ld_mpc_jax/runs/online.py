@@ -133,6 +133,8 @@ class OnlineJob:
     buffer file, or not saved by every seed: a run killed between two seeds' saves) are skipped
     with a warning (`runs.Run.restore`)."""
     if not any(seat.run.manager.all_steps() for seat in self.seats):
+      for seat in self.seats:  # From scratch: rows an earlier attempt logged go.
+        seat.run.restore()
       return None
     allowed = set.intersection(*(set(seat.run.manager.all_steps()) for seat in self.seats))
 
@@ -322,8 +324,10 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
   o, c = config.online, job.counters
   if source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.
     job.runs.periodic_eval(job.eval_params(), 0)
-  runs.loop(job.runs, job, o.env_steps, o.checkpoint_every, o.eval_every)
-  job.bar.close()
+  try:
+    runs.loop(job.runs, job, o.env_steps, o.checkpoint_every, o.eval_every)
+  finally:
+    job.bar.close()  # Its line ends: an error line (a full disk) starts a line of its own.
   reports, records = [], []
   for seat in job.seats:
     final, _, summary, recs = seat.run.final_evaluation(seat.ema_params(job), c['env_steps'])

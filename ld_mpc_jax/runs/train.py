@@ -43,7 +43,16 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   With `config.online.enabled`, runs the online mode instead (`ld_mpc_jax.runs.online.train_online`);
   with `train.num_seeds` = N > 1, N seeds in one process (`ld_mpc_jax.runs.train_seeds`), each in
   <workdir>/seed<seed>, and the returned report is the pooled one.
+
+  A write that fails for want of space stops the run on one line (`checkpointing.DiskFullError`,
+  a WorkdirError) naming the checkpoint the same command resumes from once space is freed.
   """
+  with checkpointing.stop_when_disk_full(workdir):
+    return _train_and_evaluate(config, workdir, continue_with_changes)
+
+
+def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
+                        continue_with_changes: bool) -> Dict[str, Any]:
   if online_enabled(config):
     from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
     return online.train_online(config, workdir, continue_with_changes)
@@ -63,8 +72,10 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
     state = create_train_state(config, jax.random.key(config.seed), dataset.observations)
   job = OfflineJob(config, run, dataset, state)
   t = config.train
-  runs.loop(run, job, t.num_steps, t.checkpoint_every, t.eval_every)
-  job.bar.close()
+  try:
+    runs.loop(run, job, t.num_steps, t.checkpoint_every, t.eval_every)
+  finally:
+    job.bar.close()  # Its line ends: an error line (a full disk) starts a line of its own.
   run.manager.wait_until_finished()
   state = job.state
   final, baselines, summary, records = run.final_evaluation(
