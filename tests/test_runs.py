@@ -85,9 +85,10 @@ def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, mon
   for name in (run_files.ONLINE_CSV, run_files.LOSSES_CSV):
     assert [r['env_steps'] for r in run_files.read_csv(os.path.join(workdir, name))] == [
         '40', '80']
-  # No checkpoint: a fresh run, whose logs are left alone.
+  # No checkpoint (none saved yet, or all damaged and moved aside): the run starts over, and the
+  # rows of the attempt before it go, so that they are not written twice.
   monkeypatch.setattr(checkpointing, 'restore_intact',
                       lambda manager, config, usable: (None, None, []))
   run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=120))
   assert run.restore() is None
-  assert len(run_files.read_csv(os.path.join(workdir, run_files.ONLINE_CSV))) == 3
+  assert run_files.read_csv(os.path.join(workdir, run_files.ONLINE_CSV)) == []
