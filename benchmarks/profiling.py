@@ -11,7 +11,7 @@ are left out), so they do not add up exactly to the wall time (loop and dispatch
 in neither, and XLA:CPU runs independent ops on several threads at once); both are reported,
 with the number of op events, how many are shorter than 20 us, and how long each thread was
 busy running ops. The event names are XLA:CPU's (thunk runtime); on other
-backends the table may come out mostly 'other'. CLI: experiments/profile_plan.py.
+backends the table may come out mostly 'other'. CLI: experiments.diagnose profile.
 """
 
 import collections

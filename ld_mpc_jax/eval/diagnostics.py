@@ -1,4 +1,4 @@
-"""Diagnostics of the planner's objective (experiments/diagnose_objective.py, docs/objective.md).
+"""Diagnostics of the planner's objective (experiments.diagnose, docs/objective.md).
 
   held_out_windows      windows (o_t, a_{t:t+H}) and Monte Carlo returns of held-out dataset
                         episodes: the config's task and preset, data seed + 1000;
