@@ -57,3 +57,17 @@ def test_parse_variant():
   for bad in ('noname', ':plan.x=1', 'a:plan.x'):
     with pytest.raises(ValueError):
       overrides.parse_variant(bad)
+
+
+def test_named_variants_apply_to_a_config():
+  from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.configs.variants import VARIANTS  # pylint: disable=g-import-not-at-top
+  assert overrides.parse_variant('safe') == ('safe', {'plan.safe_selection': 'True'})
+  config = door_open.get_config('smoke')
+  for name in VARIANTS:  # Every named variant names real fields with values that parse.
+    overrides.with_overrides(config, overrides.parse_variant(name)[1])
+  full = overrides.with_overrides(config, overrides.parse_variant('safe_full')[1])
+  assert (full.plan.safe_selection, full.plan.confirm_draws, full.plan.safe_margin_scaling) == (
+      True, 8, 'expected_max')
+  with pytest.raises(ValueError, match='named variant'):
+    overrides.parse_variant('nosuch')

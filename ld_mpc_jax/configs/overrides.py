@@ -81,10 +81,15 @@ _ITEM_START = re.compile(r',\s*(?=[A-Za-z_][\w.]*\s*=)')
 
 
 def parse_variant(text: str):
-  """'safe1:plan.safe_selection=True,plan.safe_margin=1.0' -> ('safe1', {field: value}).
+  """'safe1:plan.safe_selection=True,plan.safe_margin=1.0' -> ('safe1', {field: value}); a bare
+  name is one of the named variants (ld_mpc_jax/configs/variants.py), e.g. 'safe'.
 
   Tuple values keep their commas: 'k:plan.first_round=proposal,gaussian' sets one field."""
+  from ld_mpc_jax.configs.variants import VARIANTS  # pylint: disable=g-import-not-at-top
   name, sep, rest = text.partition(':')
+  if not sep and name in VARIANTS:
+    return name, dict(VARIANTS[name])
   if not sep or not name:
-    raise ValueError(f'--variant must be NAME:field=value,..., got {text!r}')
+    raise ValueError(f'--variant must be a named variant {sorted(VARIANTS)} or '
+                     f'NAME:field=value,..., got {text!r}')
   return name, parse_items(item.strip() for item in _ITEM_START.split(rest) if item.strip())
