@@ -10,7 +10,7 @@ reliability table, printed and written to --out (JSON, .md beside it). Several -
 import json
 import os
 
-from absl import flags
+from absl import flags, logging
 import numpy as np
 
 from ld_mpc_jax.cli import errors as cli
@@ -25,6 +25,7 @@ flags.mark_flags_as_required(['workdir'])
 
 def main(argv):
   del argv
+  logging.set_verbosity(logging.WARNING)  # Keep orbax's per-restore INFO lines out.
   from ld_mpc_jax.eval import reward_calibration as rc  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
   predicted, success = [], []
