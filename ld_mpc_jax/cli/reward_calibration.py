@@ -35,7 +35,7 @@ def main(argv):
     for episode in rc.record_episodes(config, params, _MODE.value, _EPISODES.value, _SEED.value):
       predicted.append(rc.predicted_rewards(config, params, episode))
       success.append(episode['success'])
-    print(f'{workdir}: step {step}, {_EPISODES.value} held-out episodes', flush=True)
+    print(f'{workdir}: update step {step}, {_EPISODES.value} held-out episodes', flush=True)
   summary = rc.calibration(np.concatenate(predicted), np.concatenate(success))
   table = rc.markdown(summary)
   print(table)
