@@ -250,6 +250,21 @@ def crossed(before: int, after: int, every: int) -> bool:
   return after // every > before // every
 
 
+def seed_configs(config: ml_collections.ConfigDict, workdir: str):
+  """[(config, workdir)] of each training seed of a run (online or offline): the run itself with one seed; with
+  `train.num_seeds` = N > 1, seeds config.seed + i in <workdir>/seed<seed>, each config as a
+  separate run of that seed would save it (num_seeds = 1)."""
+  n = config.train.num_seeds
+  if n == 1:
+    return [(config, workdir)]
+  out = []
+  for i in range(n):
+    c = ml_collections.ConfigDict(config.to_dict())
+    c.seed, c.train.num_seeds = config.seed + i, 1
+    out.append((c, os.path.join(workdir, f'seed{c.seed}')))
+  return out
+
+
 def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:
   """Advances `job` until its progress reaches `total`.
 

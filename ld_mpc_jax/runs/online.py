@@ -52,7 +52,7 @@ from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, 
 
 from ld_mpc_jax.data.demos import demo_share, sparse_dataset
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
-from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy, seat_configs
+from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy
 
 
 
@@ -98,7 +98,7 @@ class OnlineJob:
   def __init__(self, config, workdir: str, source, offline: Optional[data.Dataset]):
     self.config, self.source, o = config, source, config.online
     self.seats = [Seat(c, w, offline, i)
-                  for i, (c, w) in enumerate(seat_configs(config, workdir))]
+                  for i, (c, w) in enumerate(runs.seed_configs(config, workdir))]
     self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
                          pretrain_updates=0)
     states = self._restore()
@@ -299,7 +299,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
   losses.csv (the wave's last update's losses),
   eval.csv (held-out success every `online.eval_every` environment steps), tb/, online.png,
   episodes.csv, report.json and report.md, like the offline job. With `train.num_seeds` = N > 1
-  each seed writes these in <workdir>/seed<seed> (`seat_configs`), and the run adds pooled.json
+  each seed writes these in <workdir>/seed<seed> (`loop.seed_configs`), and the run adds pooled.json
   and pooled.md (online_report.write_pooled); the returned report is then the pooled one, with
   each seed's report under 'seeds' A workdir of another config is
   refused before anything is written to it, unless `continue_with_changes` (`train_and_evaluate`).
@@ -309,7 +309,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
   source = check_init_from(config)
   if source is not None:  # Fine-tuning trains on the offline run's data too.
     config.data.update(source.data.to_dict())
-  for seat_config, seat_workdir in seat_configs(config, workdir):  # As they will be saved.
+  for seat_config, seat_workdir in runs.seed_configs(config, workdir):  # As they will be saved.
     checkpointing.check_workdir(seat_config, seat_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   offline = data.load_for_config(config) if source is not None else None

@@ -6,7 +6,6 @@ import os
 from typing import Optional
 
 import jax
-import ml_collections
 import numpy as np
 
 from ld_mpc_jax import data, envs
@@ -21,21 +20,6 @@ from ld_mpc_jax.model.exploration import acting_exploration, ar1_noise, executed
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.model.search import CANDIDATES
-
-
-def seat_configs(config: ml_collections.ConfigDict, workdir: str):
-  """[(config, workdir)] of each training seed of a run: the run itself with one seed; with
-  `train.num_seeds` = N > 1, seeds config.seed + i in <workdir>/seed<seed>, each config as a
-  separate run of that seed would save it (num_seeds = 1)."""
-  n = config.train.num_seeds
-  if n == 1:
-    return [(config, workdir)]
-  out = []
-  for i in range(n):
-    c = ml_collections.ConfigDict(config.to_dict())
-    c.seed, c.train.num_seeds = config.seed + i, 1
-    out.append((c, os.path.join(workdir, f'seed{c.seed}')))
-  return out
 
 
 class Seat:

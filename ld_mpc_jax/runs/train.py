@@ -22,7 +22,6 @@ from ld_mpc_jax.model import tasks
 from ld_mpc_jax.model.config_checks import online_enabled, validate_config
 from ld_mpc_jax.model.models import count_params
 from ld_mpc_jax.learn.train_state import create_train_state, make_update
-from ld_mpc_jax.runs.online_seats import seat_configs
 
 
 
@@ -58,7 +57,7 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
     return online.train_online(config, workdir, continue_with_changes)
   validate_config(config)
   tasks.check_tasks(config)
-  for seed_config, seed_workdir in seat_configs(config, workdir):  # Each seed's, as saved.
+  for seed_config, seed_workdir in runs.seed_configs(config, workdir):  # Each seed's, as saved.
     checkpointing.check_workdir(seed_config, seed_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.

@@ -24,7 +24,6 @@ from ld_mpc_jax.learn.train_state import (create_train_state, make_seeds_update,
                                           stack_states)
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
-from ld_mpc_jax.runs.online_seats import seat_configs
 
 
 class _SeedRuns:
@@ -43,7 +42,7 @@ class OfflineSeedsJob:
 
   def __init__(self, config: ml_collections.ConfigDict, workdir: str, dataset: data.Dataset):
     self.config, t = config, config.train
-    pairs = seat_configs(config, workdir)
+    pairs = runs.seed_configs(config, workdir)
     self.configs = [c for c, _ in pairs]
     self.seed_runs = [runs.Run(c, w) for c, w in pairs]
     self.runs = _SeedRuns(self.seed_runs)
