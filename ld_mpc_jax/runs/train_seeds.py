@@ -47,10 +47,10 @@ class OfflineSeedsJob:
     self.seed_runs = [runs.Run(c, w) for c, w in pairs]
     self.runs = _SeedRuns(self.seed_runs)
     states = self._restore()
+    self.progress = self.start = 0 if states is None else self.seed_runs[0].step
     if states is None:
       states = [create_train_state(c, jax.random.key(c.seed), dataset.observations)
                 for c in self.configs]
-    self.progress = self.start = self.seed_runs[0].step if states and self._resumed else 0
     self.prior_seconds = self.seed_runs[0].prior_seconds() if self.progress else 0.0
     self.state, self.metrics = stack_states(states), None
     self.update = make_seeds_update(self.configs[0], len(self.configs))
@@ -70,8 +70,7 @@ class OfflineSeedsJob:
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, or None."""
-    self._resumed = any(run.manager.all_steps() for run in self.seed_runs)
-    if not self._resumed:
+    if not any(run.manager.all_steps() for run in self.seed_runs):
       return None
     allowed = set.intersection(*(set(run.manager.all_steps()) for run in self.seed_runs))
     while True:
@@ -82,10 +81,7 @@ class OfflineSeedsJob:
       if len(steps) == 1:
         break
       allowed = {s for s in allowed if s <= min(s for s in steps if s is not None)}
-    if any(s is None for s in states):
-      self._resumed = False
-      return None
-    return states
+    return None if any(s is None for s in states) else states
 
   def advance(self) -> None:
     batches = [buffer.sample(self.batch_size) for buffer in self.buffers]
