@@ -45,24 +45,28 @@ def _run(c: ml_collections.ConfigDict, overlap: bool, skip: int):
 
 
 def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env_steps: int,
-                    skip: int = 1, overlaps: Sequence[bool] = (True,)) -> List[Dict[str, float]]:
+                    skip: int = 1, overlaps: Sequence[bool] = (True,),
+                    seed_devices: Sequence[int] = (1,)) -> List[Dict[str, float]]:
   """One entry per N in `seeds` (and per setting of `overlaps`, updates dispatched ahead of the
-  steps or not): wall seconds of the whole run (compilation included), the median environment
-  steps per second of one seed over its acting waves after `skip`, the updates per second that
+  steps or not, and per number of devices the seeds are spread over, `train.seed_devices`,
+  skipped where it exceeds N unless N is 1): wall seconds of the whole run (compilation
+  included), the median environment steps per second of one seed over its acting waves after `skip`, the updates per second that
   implies (`online.update_ratio` x that, per seed), and both summed over the N seeds."""
   out = []
-  for n in seeds:
-    for overlap in overlaps:
-      c = ml_collections.ConfigDict(config.to_dict())
-      c.train.num_seeds, c.online.env_steps = n, env_steps
-      c.online.eval_every = c.online.checkpoint_every = env_steps
-      c.eval.episodes = 0
-      wall, rates = _run(c, overlap, skip)
-      rate = statistics.median(rates) if rates else float('nan')
-      out.append(dict(num_seeds=n, overlap=overlap, wall_s=wall, waves_timed=len(rates),
-                      env_steps_per_s_per_seed=rate,
-                      updates_per_s_per_seed=rate * c.online.update_ratio,
-                      env_steps_per_s_all_seeds=rate * n))
+  settings = [(n, overlap, d) for n in seeds for overlap in overlaps for d in seed_devices
+              if d <= n or d == min(seed_devices)]
+  for n, overlap, devices in settings:
+    c = ml_collections.ConfigDict(config.to_dict())
+    c.train.num_seeds, c.online.env_steps = n, env_steps
+    c.train.seed_devices = min(devices, n)
+    c.online.eval_every = c.online.checkpoint_every = env_steps
+    c.eval.episodes = 0
+    wall, rates = _run(c, overlap, skip)
+    rate = statistics.median(rates) if rates else float('nan')
+    out.append(dict(num_seeds=n, overlap=overlap, seed_devices=c.train.seed_devices,
+                    wall_s=wall, waves_timed=len(rates), env_steps_per_s_per_seed=rate,
+                    updates_per_s_per_seed=rate * c.online.update_ratio,
+                    env_steps_per_s_all_seeds=rate * n))
   base = out[0]['env_steps_per_s_per_seed']
   for e in out:  # Time of N seeds' steps against one seed's, from the steady rates.
     e['time_ratio_vs_first'] = base / e['env_steps_per_s_per_seed']
@@ -72,10 +76,12 @@ def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env
 def markdown(entries: List[Dict[str, float]], spec: str, env_steps: int, device: str) -> str:
   lines = [f'Online training, {spec}, {env_steps:,} environment steps per seed (simulator steps), '
            f'on {device}; median over acting waves after the first.', '',
-           '| seeds in one run | updates dispatched ahead of the steps | env steps/s per seed | '
-           'updates/s per seed | env steps/s, all seeds | time of the run per env step vs the '
-           'first row | wall s (with compile) |', '| --- | --- | --- | --- | --- | --- | --- |']
-  lines += [f"| {e['num_seeds']} | {'yes' if e.get('overlap', True) else 'no'} | "
+           '| seeds in one run | devices they are spread over | updates dispatched ahead of the '
+           'steps | env steps/s per seed | updates/s per seed | env steps/s, all seeds | time of '
+           'the run per env step vs the first row | wall s (with compile) |',
+           '| --- | --- | --- | --- | --- | --- | --- | --- |']
+  lines += [f"| {e['num_seeds']} | {e.get('seed_devices', 1)} | "
+            f"{'yes' if e.get('overlap', True) else 'no'} | "
             f"{e['env_steps_per_s_per_seed']:.1f} | "
             f"{e['updates_per_s_per_seed']:.1f} | {e['env_steps_per_s_all_seeds']:.1f} | "
             f"{e['time_ratio_vs_first']:.2f} | {e['wall_s']:.0f} |" for e in entries]

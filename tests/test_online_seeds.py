@@ -1,6 +1,7 @@
 """Several training seeds in one online run (`train.num_seeds`): each seed's run is the one it
 makes alone (parameters to float tolerance, the same episodes), and the seeds differ."""
 
+import json
 import os
 
 import jax
@@ -100,3 +101,40 @@ def test_the_next_decision_takes_action_repeat_steps_until_the_limit():
       break
   assert taken == [(2, 2), (2, 2), (1, 1)]
   assert env.next_substeps() == 0
+
+
+# Two seeds on two (virtual CPU) devices, one program per device (`train.seed_devices`).
+_TWO_DEVICES = r'''
+import json, sys
+import jax
+jax.config.update('jax_num_cpu_devices', 2)
+sys.path.insert(0, 'tests')
+from test_online_seeds import _config
+from ld_mpc_jax.runs import online
+config = _config(0, 2)
+config.train.seed_devices = 2
+online.train_online(config, sys.argv[1])
+print(json.dumps(dict(devices=len(jax.local_devices()))))
+'''
+
+
+def test_seeds_on_two_devices_are_the_seeds_on_one(runs, tmp_path):
+  """Seeds 0 and 1 on two devices (a group each, dispatched side by side) end where seed 1
+  trained alone and seed 0 trained beside seed 1 on one device end."""
+  import subprocess, sys  # pylint: disable=g-import-not-at-top,multiple-imports
+  repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+  env = dict(os.environ, JAX_PLATFORMS='cpu', PYTHONPATH=repo)
+  done = subprocess.run([sys.executable, '-c', _TWO_DEVICES, str(tmp_path / 'two')], cwd=repo,
+                        env=env, capture_output=True, text=True, timeout=600)
+  assert done.returncode == 0, done.stderr[-3000:]
+  assert json.loads(done.stdout.strip().splitlines()[-1]) == dict(devices=2)
+  for seed, other in ((0, runs / 'both' / 'seed0'), (1, runs / 'alone1')):
+    ours = _params(str(tmp_path / 'two' / f'seed{seed}'), _config(seed, 1))
+    theirs = _params(str(other), _config(seed, 1))
+    for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(ours),
+                            jax.tree_util.tree_leaves(theirs), strict=True):
+      atol = 1e-3 if "['key']['bias']" in jax.tree_util.keystr(path) else 1e-5
+      np.testing.assert_allclose(a, b, rtol=1e-4, atol=atol, err_msg=jax.tree_util.keystr(path))
+    for a, b in zip(_episodes(str(tmp_path / 'two' / f'seed{seed}')), _episodes(str(other)),
+                    strict=True):
+      np.testing.assert_allclose(a['action'], b['action'], atol=1e-5)

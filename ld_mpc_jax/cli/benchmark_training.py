@@ -6,6 +6,8 @@
   python -m experiments.benchmark_training --data_parallel       # batch split over all devices
   python -m experiments.benchmark_training --online_seeds=1,3,5 \
       --configs=door_open_online.py:cpu --online_env_steps=4000  # seeds in one online run
+  python -m experiments.benchmark_training --online_seeds=1,3 --online_seed_devices=1,2 \
+      --configs=door_open_online.py:cpu    # and spread over 2 devices (train.seed_devices)
 
 Each --configs entry is a config file with an optional :preset, as for experiments.train.
 Parameters are random and batches synthetic. Writes a JSON list, one entry per config (name,
@@ -38,6 +40,10 @@ _ONLINE_OVERLAP = flags.DEFINE_enum('online_overlap', 'on', ['on', 'off', 'both'
                                     'Online updates dispatched ahead of the environment steps '
                                     "that call for them ('on', as runs train), after ('off'), or "
                                     "both, one after the other (the gain, in the same process).")
+_ONLINE_DEVICES = flags.DEFINE_list('online_seed_devices', ['1'], 'With --online_seeds: each '
+                                     'N also with its seeds spread over each of these numbers '
+                                     'of devices (train.seed_devices; on a CPU, virtual '
+                                     'devices made before JAX starts).')
 _ONLINE_STEPS = flags.DEFINE_integer('online_env_steps', 4000, 'Environment steps (simulator '
                                      'steps) of each timed online run, seed waves included.')
 
@@ -59,6 +65,10 @@ OVERRIDES = []  # 'field=value' items of --config.field=value, for every config.
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the output.
+  devices = max(int(d) for d in _ONLINE_DEVICES.value)
+  if _ONLINE_SEEDS.value and devices > 1:  # Before JAX starts: the CPU as that many devices.
+    import jax
+    jax.config.update('jax_num_cpu_devices', devices)
   from ld_mpc_jax.configs.overrides import parse_items, with_overrides
   import benchmarks as bench
   from benchmarks import hardware, training
@@ -76,7 +86,8 @@ def main(argv):
     spec = _CONFIGS.value[0]
     overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
     entries = online_seeds.benchmark_seeds(configs[spec], [int(n) for n in _ONLINE_SEEDS.value],
-                                           _ONLINE_STEPS.value, overlaps=overlaps)
+                                           _ONLINE_STEPS.value, overlaps=overlaps,
+                                           seed_devices=[int(d) for d in _ONLINE_DEVICES.value])
     table = online_seeds.markdown(entries, spec, _ONLINE_STEPS.value, device['name'])
     print(table)
     bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)

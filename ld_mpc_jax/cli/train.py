@@ -39,6 +39,9 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
   import jax
+  devices = _CONFIG.value.train.get('seed_devices', 1)
+  if isinstance(devices, int) and devices > 1:  # Before JAX starts: the CPU as that many devices.
+    jax.config.update('jax_num_cpu_devices', devices)
   if _DISTRIBUTED.value:  # Before anything touches a device.
     jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
@@ -51,6 +54,9 @@ def main(argv):
     validate_config(_CONFIG.value)
     check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
     sources.check_source(_CONFIG.value)
+    if isinstance(devices, int) and devices > len(jax.local_devices()):  # E.g. one GPU.
+      raise ValueError(f'config.train.seed_devices={devices} but this process has '
+                       f'{len(jax.local_devices())} device(s)')
     if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
       from ld_mpc_jax.runs.online import check_init_from
       check_init_from(_CONFIG.value)

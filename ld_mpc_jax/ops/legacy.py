@@ -48,7 +48,7 @@ FIELDS = {
                  confirm_draws=1, confirm_margin=-1.0, fallback_drop=0.0, fallback_floor=0.0,
                  first_round=('proposal', 'gaussian'), latent_filter=0.0),
     'data': dict(source='metaworld', path='', max_episode_steps=500),
-    'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0),
+    'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
 CONFIG_VERSION = 2

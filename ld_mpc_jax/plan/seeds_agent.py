@@ -3,13 +3,14 @@ a policy mode of ld_mpc_jax.plan.agent vmapped over a leading seed axis of the p
 agent on its own environments with its own key schedule."""
 
 import json
-from typing import Callable, Sequence
+from typing import Callable, Optional, Sequence
 
 import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
+from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.plan.agent import NO_PLAN_INFO, episode_keys, float32_tree, make_act_fn, uses_prev
 
 _SEEDS_ACTS = {}  # One jitted function per setting, compiled once per process.
@@ -29,13 +30,19 @@ def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Cal
 
 
 class SeedsAgentPolicy:
-  """S agents (stacked parameters [S, ...]) acting on N environments each in lockstep: one
-  jitted call per environment and decision for all S agents (`make_seeds_act`); each agent's
-  episodes keep the key schedule of `agent.BatchAgentPolicy` with its own seed, so an agent acts as
-  it would alone (to float tolerance: the vmapped plan may round differently)."""
+  """S agents acting on N environments each in lockstep: for each environment and decision, one
+  jitted call per device for the agents on it (`make_seeds_act` on a group's stacked
+  parameters, `ops.seed_groups`; all calls of a decision are dispatched before any is waited
+  for, so the devices plan at the same time); each agent's episodes keep the key schedule of
+  `agent.BatchAgentPolicy` with its own seed, so an agent acts as it would alone (to float
+  tolerance: the vmapped plan may round differently)."""
 
-  def __init__(self, config: ml_collections.ConfigDict, params, mode: str, seeds: Sequence[int]):
-    self.params, self.seeds = params, list(seeds)
+  def __init__(self, config: ml_collections.ConfigDict, params, mode: str, seeds: Sequence[int],
+               groups: Optional[SeedGroups] = None):
+    """params: the agents' parameters stacked [S, ...], or one stack per group of `groups`."""
+    self.seeds = list(seeds)
+    self.groups = groups or SeedGroups(len(self.seeds))
+    self.set_params(params)
     self.warm = uses_prev(config, mode)
     self.action_dim = config.action_dim
     spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
@@ -48,27 +55,32 @@ class SeedsAgentPolicy:
     self.last_info = None  # [S, N, 6] float32 of the last decision.
 
   def set_params(self, params) -> None:
-    self.params = params
+    self.params = list(params) if isinstance(params, (list, tuple)) else self.groups.split(params)
 
   def start(self, episodes) -> None:
     """episodes[s]: agent s's episodes of the wave (goals.Episode, one per environment)."""
-    self.keys = jnp.stack([episode_keys(seed, [ep.reset_seed for ep in eps])
-                           for seed, eps in zip(self.seeds, episodes)])  # [S, N]
+    keys = jnp.stack([episode_keys(seed, [ep.reset_seed for ep in eps])
+                      for seed, eps in zip(self.seeds, episodes)])  # [S, N]
+    self.keys = self.groups.split(keys)
     self.prev = None
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
     """obs [S, N, obs_dim], active [N] -> actions [S, N, A] (zeros where inactive)."""
     s, n = obs.shape[:2]
     if self.prev is None:
-      self.prev = [None] * n
+      self.prev = [[None] * n for _ in self.groups.bounds]
     actions = np.zeros((s, n, self.action_dim), np.float32)
     infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (s, n, 1))
+    pending = []  # Every call of this decision dispatched first, then read.
     for i in np.flatnonzero(active):
-      action, carry, info = self.act(self.params, jnp.asarray(obs[:, i], jnp.float32),
-                                     self.keys[:, i], t, self.prev[i], self.action_noise,
-                                     self.intrinsic)
-      if self.warm:
-        self.prev[i] = carry
-      actions[:, i], infos[:, i] = np.asarray(action), np.asarray(info)
+      for g, (a, b) in enumerate(self.groups.bounds):
+        action, carry, info = self.act(self.params[g], obs[a:b, i].astype(np.float32),
+                                       self.keys[g][:, i], t, self.prev[g][i],
+                                       self.action_noise, self.intrinsic)
+        if self.warm:
+          self.prev[g][i] = carry
+        pending.append((a, b, i, action, info))
+    for a, b, i, action, info in pending:
+      actions[a:b, i], infos[a:b, i] = np.asarray(action), np.asarray(info)
     self.last_info = infos
     return actions

@@ -49,6 +49,7 @@ from ld_mpc_jax.model.exploration import (acting_config, acting_intrinsic, execu
                                           plan_start)
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, seed_slice, stack_states
+from ld_mpc_jax.ops.seed_groups import SeedGroups
 
 from ld_mpc_jax.data.demos import demo_share, sparse_dataset
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
@@ -89,9 +90,10 @@ class OnlineJob:
   """An online run as a `runs.Job`: each advance is one wave of episodes and its updates.
 
   Holds the TrainState of every training seed stacked on a leading seed axis (one seed:
-  [1, ...]; `train.num_seeds`), one `Seat` per seed (run directory, buffer, environments), and
+  [1, ...]; `train.num_seeds`), in one stack per device (`states`; `train.seed_devices`
+  groups, `ops.seed_groups`), one `Seat` per seed (run directory, buffer, environments), and
   the counters (environment steps: the job's progress), which the seeds share: they act in
-  lockstep, each on its own episodes, and the update is vmapped over them
+  lockstep, each on its own episodes, and the update is vmapped over each group's seeds
   (`train_state.make_seeds_update`), so each seed's run is the one it would make alone.
   """
 
@@ -109,20 +111,23 @@ class OnlineJob:
       states = [create_train_state(seat.config, jax.random.key(seat.config.seed))
                 for seat in self.seats]
       self.counters['normalized'] = not config.model.normalize_obs
-    self.state = stack_states(states)
-    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in range(len(self.seats))])
+    self.groups = SeedGroups(len(self.seats), config.train.seed_devices)
+    self.states = self.groups.split(stack_states(states))  # One stack per device.
+    # Each seed's tree from a group's stack (one jitted slicing per group size and device).
+    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in
+                                          range(jax.tree_util.tree_leaves(tree)[0].shape[0])])
     self._views = None
     # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
     # pretrained on them, plus the executed-action noise), learn from the start.
     self.learn_start = 0 if source is not None or o.demos else o.seed_steps
     self.plan_start = plan_start(config, self.learn_start)  # The intrinsic term's schedule.
     self.per_call = o.updates_per_call
-    self.update = make_seeds_update(config, len(self.seats), self.per_call)
-    self.keys = jnp.stack([seat.update_key for seat in self.seats])
+    self.update = {n: make_seeds_update(config, n, self.per_call) for n in set(self.groups.sizes)}
+    self.keys = self.groups.split(jnp.stack([seat.update_key for seat in self.seats]))
     # Each seed's update key at an update count: one jitted call, not one per seed.
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.act_config = acting_config(config)
-    self.metrics, self.last, self.noise_std, self.intrinsic = {}, None, 0.0, None
+    self.metrics, self.last, self.noise_std, self.intrinsic = [], None, 0.0, None
     self.runs = SeatRuns(self.seats)
     self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
                          unit='env step', dynamic_ncols=True)
@@ -167,8 +172,20 @@ class OnlineJob:
   def views(self):
     """Each seed's EMA parameters (one jitted slicing per change of the state)."""
     if self._views is None:
-      self._views = self._unstack(self.state.ema_params)
+      self._views = self._per_seed([g.ema_params for g in self.states])
     return self._views
+
+  def _per_seed(self, group_trees):
+    """The groups' stacked trees -> one tree per seed, in seed order."""
+    return [tree for group in group_trees for tree in self._unstack(group)]
+
+  def group_ema_params(self):
+    """Each device's stacked EMA parameters (the acting policy's, `WavePolicy`)."""
+    return [g.ema_params for g in self.states]
+
+  def seed_metrics(self) -> Dict[str, np.ndarray]:
+    """The last update's metrics, [num_seeds] numpy per name ({} before the first update)."""
+    return self.groups.join_host(self.metrics) if self.metrics else {}
 
   def catch_up(self, ahead: int = 0) -> None:
     """Updates until floor(update_ratio x (environment steps + `ahead`)) have been made.
@@ -186,12 +203,13 @@ class OnlineJob:
     c, o = self.counters, self.config.online
     if not c.get('normalized', True):  # Counters; fine-tuning starts normalized (no key).
       params = stack_states([set_obs_normalization(
-          seed_slice(self.state.params, s.index),
-          np.concatenate([ep['obs'] for ep in s.buffer.episodes + s.buffer.demos]),
+          p, np.concatenate([ep['obs'] for ep in s.buffer.episodes + s.buffer.demos]),
           self.config.model.obs_mask_constant)
-                             for s in self.seats])
-      self.state = self.state.replace(  # Copies: the update donates both trees.
-          params=params, ema_params=jax.tree_util.tree_map(jnp.copy, params))
+                             for s, p in zip(self.seats, self._per_seed(
+                                 [g.params for g in self.states]))])
+      self.states = [state.replace(  # Copies: the update donates both trees.
+          params=p, ema_params=jax.tree_util.tree_map(jnp.copy, p))
+                     for state, p in zip(self.states, self.groups.split(params))]
       c['normalized'], self._views = True, None
     if self.config.online.demos and c['pretrain_updates'] < o.demo_pretrain_updates:
       self._updates(o.demo_pretrain_updates, 'pretrain_updates', share=1.0)
@@ -208,7 +226,10 @@ class OnlineJob:
       windows = {k: np.stack([w[k].reshape(shape + w[k].shape[1:]) for w in per_seat])
                  for k in per_seat[0]}
       step = c['updates'] + c['pretrain_updates']  # One key per update made.
-      self.state, self.metrics = self.update(self.state, windows, self._fold(self.keys, step))
+      # One call per device, dispatched without waiting: the devices update at the same time.
+      out = [self.update[n](state, part, self._fold(keys, step)) for n, state, part, keys in
+             zip(self.groups.sizes, self.states, self.groups.split_host(windows), self.keys)]
+      self.states, self.metrics = [o[0] for o in out], [o[1] for o in out]
       c[counter] += n
       self._views = None
 
@@ -268,7 +289,7 @@ class OnlineJob:
     """Each seed's buffer file, then its orbax step (environment steps); older buffer files
     go."""
     step = self.counters['env_steps']
-    states = self._unstack(self.state)
+    states = self._per_seed(self.states)
     for seat, state in zip(self.seats, states):
       workdir, manager = seat.run.workdir, seat.run.manager
       seat.buffer.save(buffer_path(workdir, step), self.counters)

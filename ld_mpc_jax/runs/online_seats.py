@@ -46,7 +46,7 @@ class Seat:
 
   def log(self, job, before: int, mode: str, seconds: float) -> None:
     """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
-    metrics = {k: float(v[self.index]) for k, v in sorted(jax.device_get(job.metrics).items())}
+    metrics = {k: float(v[self.index]) for k, v in sorted(job.seed_metrics().items())}
     step, episodes, c = job.counters['env_steps'], self.episodes, job.counters
     if metrics:
       self.run.check_loss(metrics['loss'], f'environment step {step}')
@@ -100,7 +100,8 @@ class SeatRuns:
 class WavePolicy:
   """The policy acting for every seed's episodes of a wave (EMA parameters, exploration
   noise): one seed acts as a single run does (`BatchAgentPolicy`, `online.plan_chunk`); several
-  act in one call per environment, vmapped over the seeds (`SeedsAgentPolicy`)."""
+  act in one call per environment and device, vmapped over the device's seeds
+  (`SeedsAgentPolicy`)."""
 
   def __init__(self, job, mode: str, waves):
     o, self.job = job.config.online, job
@@ -113,8 +114,8 @@ class WavePolicy:
                                     mesh=mesh)
       self.inner.start(waves[0].episodes)
     else:
-      self.inner = SeedsAgentPolicy(job.act_config, job.state.ema_params, mode,
-                                    [seat.config.seed for seat in job.seats])
+      self.inner = SeedsAgentPolicy(job.act_config, job.group_ema_params(), mode,
+                                    [seat.config.seed for seat in job.seats], job.groups)
       self.inner.start([w.episodes for w in waves])
     # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
     self.inner.action_noise = 0.0 if o.exec_noise_corr > 0 else job.noise_std
@@ -130,7 +131,7 @@ class WavePolicy:
 
   def refresh(self) -> None:
     """The job's current EMA parameters (after its updates)."""
-    self.inner.set_params(self.job.views()[0] if self.single else self.job.state.ema_params)
+    self.inner.set_params(self.job.views()[0] if self.single else self.job.group_ema_params())
 
 
 class SeatWave:
