@@ -31,3 +31,11 @@ def test_split_and_join_give_back_the_seeds_in_order():
 def test_more_devices_than_the_process_has_is_one_line():
   with pytest.raises(ValueError, match='seed_devices=9 but this process has'):
     SeedGroups(9, 9)
+
+
+def test_zero_means_one_device_per_seed_as_many_as_there_are():
+  from ld_mpc_jax.ops.seed_groups import cpu_devices_wanted  # pylint: disable=g-import-not-at-top
+  assert cpu_devices_wanted(3, 0) == 3 and cpu_devices_wanted(3, 2) == 2
+  assert cpu_devices_wanted(1, 0) == 1  # One seed: JAX's default device count.
+  groups = SeedGroups(3, 0, devices=jax.local_devices()[:1])
+  assert groups.bounds == [(0, 3)]  # One device here: every seed on it.

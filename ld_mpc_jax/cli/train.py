@@ -39,9 +39,12 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
   import jax
-  devices = _CONFIG.value.train.get('seed_devices', 1)
-  if isinstance(devices, int) and devices > 1:  # Before JAX starts: the CPU as that many devices.
-    jax.config.update('jax_num_cpu_devices', devices)
+  from ld_mpc_jax.ops.seed_groups import cpu_devices_wanted
+  t = _CONFIG.value.train
+  devices = t.get('seed_devices', 1)
+  if isinstance(devices, int) and cpu_devices_wanted(t.num_seeds, devices) > 1:  # Before JAX
+    # starts: the CPU as one device per group of seeds (train.seed_devices).
+    jax.config.update('jax_num_cpu_devices', cpu_devices_wanted(t.num_seeds, devices))
   if _DISTRIBUTED.value:  # Before anything touches a device.
     jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
@@ -54,7 +57,7 @@ def main(argv):
     validate_config(_CONFIG.value)
     check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
     sources.check_source(_CONFIG.value)
-    if isinstance(devices, int) and devices > len(jax.local_devices()):  # E.g. one GPU.
+    if isinstance(devices, int) and min(devices, t.num_seeds) > len(jax.local_devices()):
       raise ValueError(f'config.train.seed_devices={devices} but this process has '
                        f'{len(jax.local_devices())} device(s)')
     if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.

@@ -269,11 +269,12 @@ def get_config() -> ml_collections.ConfigDict:
   # seed has its own data order, buffer and environments and writes <workdir>/seed<seed> as a
   # run of that seed alone would (online runs; ld_mpc_jax.runs.online).
   t.num_seeds = 1
-  # Devices the seeds are spread over, in contiguous groups, one program per device dispatched
-  # without waiting (ld_mpc_jax.ops.seed_groups; online runs). On a CPU the train command splits
-  # it into that many virtual devices (jax_num_cpu_devices), which compute in parallel: on the
-  # 2-core machine 2 (docs/sparse.md). 1: every seed on one device.
-  t.seed_devices = 1
+  # Devices the seeds are spread over (online runs), in contiguous groups, one program per
+  # device dispatched without waiting (ld_mpc_jax.ops.seed_groups). 0: one device per seed, as
+  # many as there are (on a CPU the train command makes one virtual device per seed,
+  # jax_num_cpu_devices: 3 seeds ran 1.33x faster than on one device on the 2-core machine,
+  # results/benchmarks/online_devices_cpu.md). 1: every seed on one device.
+  t.seed_devices = 0
   # Std of Gaussian noise on the training observations the models condition on (0: none);
   # the latent consistency, dynamics-consistency and value targets come from the clean
   # observations (issue 71). Evaluation adds noise only with eval.obs_noise.

@@ -70,8 +70,9 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   if not isinstance(t.num_seeds, int) or isinstance(t.num_seeds, bool) or t.num_seeds < 1:
     raise ValueError(f'config.train.num_seeds must be an integer >= 1, got {t.num_seeds!r}')
   devices = t.get('seed_devices', 1)
-  if not isinstance(devices, int) or isinstance(devices, bool) or devices < 1:
-    raise ValueError(f'config.train.seed_devices must be an integer >= 1, got {devices!r}')
+  if not isinstance(devices, int) or isinstance(devices, bool) or devices < 0:
+    raise ValueError(f'config.train.seed_devices must be an integer >= 0 (0: one device per '
+                     f'seed), got {devices!r}')
   if t.num_seeds > 1 and (t.data_parallel or config.eval.data_parallel):
     raise ValueError('config.train.num_seeds > 1 runs on one device: set '
                      'config.train.data_parallel and config.eval.data_parallel off')

@@ -29,14 +29,22 @@ def group_bounds(num_seeds: int, num_groups: int) -> List[Tuple[int, int]]:
   return bounds
 
 
+def cpu_devices_wanted(num_seeds: int, seed_devices: int) -> int:
+  """The virtual CPU devices a run asks for before JAX starts (`jax_num_cpu_devices`; 1: leave
+  JAX's default): `seed_devices`, or with 0 one per seed."""
+  return num_seeds if seed_devices == 0 else seed_devices
+
+
 class SeedGroups:
   """`num_seeds` seeds over the first `num_devices` local devices (fewer when there are fewer
-  seeds). Trees with a leading seed axis are held as one tree per group (`split`), programs run
+  seeds; 0: one per seed, as many as this process has). Trees with a leading seed axis are held as one tree per group (`split`), programs run
   per group (`map`), and `join` gathers a list per seed."""
 
   def __init__(self, num_seeds: int, num_devices: int = 1,
                devices: Optional[Sequence[jax.Device]] = None):
     devices = list(jax.local_devices() if devices is None else devices)
+    if num_devices == 0:
+      num_devices = min(num_seeds, len(devices))
     if min(num_devices, num_seeds) > len(devices):
       raise ValueError(f'config.train.seed_devices={num_devices} but this process has '
                        f'{len(devices)} device(s); on a CPU the train command makes that many '

@@ -11,7 +11,8 @@ import ml_collections
 import numpy as np
 
 from ld_mpc_jax.ops.seed_groups import SeedGroups
-from ld_mpc_jax.plan.agent import NO_PLAN_INFO, episode_keys, float32_tree, make_act_fn, uses_prev
+from ld_mpc_jax.plan.agent import (NO_PLAN_INFO, episode_keys, float32, float32_tree, make_act_fn,
+                                   uses_prev)
 
 _SEEDS_ACTS = {}  # One jitted function per setting, compiled once per process.
 
@@ -26,7 +27,7 @@ def make_seeds_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Cal
       params, obs, jax.random.fold_in(key, t), prev, noise, intrinsic)
   jitted = jax.jit(jax.vmap(one, in_axes=(0, 0, 0, None, 0, None, None)))
   return lambda params, obs, keys, t, prev, noise=0.0, intrinsic=None: jitted(
-      params, obs, keys, t, prev, jnp.asarray(noise, jnp.float32), float32_tree(intrinsic))
+      params, obs, keys, t, prev, float32(noise), float32_tree(intrinsic))
 
 
 class SeedsAgentPolicy:
@@ -61,7 +62,9 @@ class SeedsAgentPolicy:
     """episodes[s]: agent s's episodes of the wave (goals.Episode, one per environment)."""
     keys = jnp.stack([episode_keys(seed, [ep.reset_seed for ep in eps])
                       for seed, eps in zip(self.seeds, episodes)])  # [S, N]
-    self.keys = self.groups.split(keys)
+    # Each group's keys per environment, sliced once here: slicing in the loop would be an
+    # eager operation that waits behind the updates dispatched to the device.
+    self.keys = [[k[:, i] for i in range(k.shape[1])] for k in self.groups.split(keys)]
     self.prev = None
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
@@ -75,7 +78,7 @@ class SeedsAgentPolicy:
     for i in np.flatnonzero(active):
       for g, (a, b) in enumerate(self.groups.bounds):
         action, carry, info = self.act(self.params[g], obs[a:b, i].astype(np.float32),
-                                       self.keys[g][:, i], t, self.prev[g][i],
+                                       self.keys[g][i], t, self.prev[g][i],
                                        self.action_noise, self.intrinsic)
         if self.warm:
           self.prev[g][i] = carry
