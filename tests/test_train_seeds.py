@@ -67,3 +67,30 @@ def test_a_run_killed_between_two_seeds_checkpoints_resumes_from_the_step_they_s
     a, b = _params(str(work / f'seed{seed}'), seed), _params(str(runs / 'both' / f'seed{seed}'), seed)
     for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
       np.testing.assert_array_equal(x, y)  # The same windows and keys from step 2 on.
+
+
+_TWO_DEVICES = r'''
+import sys
+import jax
+jax.config.update('jax_num_cpu_devices', 2)
+sys.path.insert(0, 'tests')
+from test_train_seeds import _config
+from ld_mpc_jax.runs.train import train_and_evaluate
+config = _config(0, 2)
+config.train.seed_devices = 2
+train_and_evaluate(config, sys.argv[1])
+assert len(jax.local_devices()) == 2
+'''
+
+
+def test_seeds_on_two_devices_end_where_they_end_on_one(runs, tmp_path):
+  """Seeds 0 and 1 on two devices (one program each, `train.seed_devices`) end where seed 0
+  beside seed 1 on one device and seed 1 alone end."""
+  import subprocess, sys  # pylint: disable=g-import-not-at-top,multiple-imports
+  repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+  done = subprocess.run([sys.executable, '-c', _TWO_DEVICES, str(tmp_path / 'two')], cwd=repo,
+                        env=dict(os.environ, JAX_PLATFORMS='cpu', PYTHONPATH=repo),
+                        capture_output=True, text=True, timeout=600)
+  assert done.returncode == 0, done.stderr[-3000:]
+  _close(_params(str(tmp_path / 'two' / 'seed0'), 0), _params(str(runs / 'both' / 'seed0'), 0))
+  _close(_params(str(tmp_path / 'two' / 'seed1'), 1), _params(str(runs / 'alone1'), 1))

@@ -269,7 +269,7 @@ def get_config() -> ml_collections.ConfigDict:
   # seed has its own data order, buffer and environments and writes <workdir>/seed<seed> as a
   # run of that seed alone would (online runs; ld_mpc_jax.runs.online).
   t.num_seeds = 1
-  # Devices the seeds are spread over (online runs), in contiguous groups, one program per
+  # Devices the seeds are spread over (online and offline), in contiguous groups, one program per
   # device dispatched without waiting (ld_mpc_jax.ops.seed_groups). 0: one device per seed, as
   # many as there are (on a CPU the train command makes one virtual device per seed,
   # jax_num_cpu_devices: 3 seeds ran 1.33x faster than on one device on the 2-core machine,

@@ -2,8 +2,9 @@
 
 Each seed is the run it would make alone: its own config (seed config.seed + i, saved as a run of
 one seed), run directory <workdir>/seed<seed>, data order and update keys; their TrainStates are
-stacked on a leading seed axis and the update is vmapped over it
-(`train_state.make_seeds_update`), one jitted call for all seeds. Checkpoints, logs, periodic and
+stacked on a leading seed axis, one stack per device (`train.seed_devices`, `ops.seed_groups`), and
+the update is vmapped over each device's seeds (`train_state.make_seeds_update`), one jitted call
+per device, dispatched without waiting. Checkpoints, logs, periodic and
 final evaluations and reports are each seed's own; the run adds pooled.json and pooled.md.
 """
 
@@ -22,6 +23,7 @@ from ld_mpc_jax import data
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.learn.train_state import (create_train_state, make_seeds_update, seed_slice,
                                           stack_states)
+from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
 
@@ -52,17 +54,21 @@ class OfflineSeedsJob:
       states = [create_train_state(c, jax.random.key(c.seed), dataset.observations)
                 for c in self.configs]
     self.prior_seconds = self.seed_runs[0].prior_seconds() if self.progress else 0.0
-    self.state, self.metrics = stack_states(states), None
-    self.update = make_seeds_update(self.configs[0], len(self.configs))
+    self.groups = SeedGroups(len(self.configs), t.seed_devices)
+    self.states, self.metrics = self.groups.split(stack_states(states)), None
+    self.update = {n: make_seeds_update(self.configs[0], n) for n in set(self.groups.sizes)}
     self.batch_size = t.batch_size
     # Each seed's sampler as its run alone seeds it (`train.OfflineJob`), continued on resume.
     self.buffers = [data.make_buffer(c, dataset, runs.window_length(c), seed=(
         c.seed * 1_000_003 + 999_983 * jax.process_index())) for c in self.configs]
     for buffer in self.buffers:
       buffer.skip(self.progress, self.batch_size)
-    self.keys = jax.numpy.stack([jax.random.key(c.seed + 1) for c in self.configs])
+    self.keys = self.groups.split(
+        jax.numpy.stack([jax.random.key(c.seed + 1) for c in self.configs]))
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
-    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in range(len(self.configs))])
+    # Each seed's tree from a group's stack (one jitted slicing per group size and device).
+    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in
+                                          range(jax.tree_util.tree_leaves(tree)[0].shape[0])])
     self.seconds, self._last = 0.0, None  # Timed from the second logged interval.
     self._timed_steps = 0
     self.bar = tqdm.tqdm(total=t.num_steps, initial=self.progress, desc=f'train x{len(pairs)}',
@@ -86,8 +92,9 @@ class OfflineSeedsJob:
   def advance(self) -> None:
     batches = [buffer.sample(self.batch_size) for buffer in self.buffers]
     stacked = {k: np.stack([b[k] for b in batches]) for k in batches[0]}
-    self.state, self.metrics = self.update(self.state, stacked,
-                                           self._fold(self.keys, self.progress))
+    out = [self.update[n](state, part, self._fold(keys, self.progress)) for n, state, part, keys
+           in zip(self.groups.sizes, self.states, self.groups.split_host(stacked), self.keys)]
+    self.states, self.metrics = [o[0] for o in out], [o[1] for o in out]
     self.progress += 1
     self.bar.update(1)
 
@@ -103,7 +110,7 @@ class OfflineSeedsJob:
       self._timed_steps += done - self._last[1]
     self._last = (now, done)
     rate = self._timed_steps / self.seconds if self.seconds else float('nan')
-    metrics = jax.device_get(self.metrics)
+    metrics = self.groups.join_host(self.metrics)
     for i, run in enumerate(self.seed_runs):
       run.check_loss(metrics['loss'][i], f'step {done} (seed {self.configs[i].seed})')
       row = {'step': done, **{k: float(v[i]) for k, v in sorted(metrics.items())},
@@ -113,18 +120,22 @@ class OfflineSeedsJob:
     self.bar.set_postfix(loss=f"{float(np.mean(metrics['loss'])):.3f}", steps_s=f'{rate:.2f}')
 
   def checkpoint(self) -> None:
-    for run, state in zip(self.seed_runs, self._unstack(self.state)):
+    for run, state in zip(self.seed_runs, self._per_seed(self.states)):
       run.save(state, self.progress, self.prior_seconds + self.seconds)
 
+  def _per_seed(self, group_trees):
+    """The groups' stacked trees -> one tree per seed, in seed order."""
+    return [tree for group in group_trees for tree in self._unstack(group)]
+
   def eval_params(self):
-    return self._unstack(self.state.ema_params)
+    return self._per_seed([g.ema_params for g in self.states])
 
   def seed_view(self, i: int) -> types.SimpleNamespace:
     """Seed i as `train._report` reads a job."""
     rate = self._timed_steps / self.seconds if self.seconds else float('nan')
     timer = types.SimpleNamespace(seconds=self.seconds, steps_per_s=rate)
     return types.SimpleNamespace(prior_seconds=self.prior_seconds, timer=timer,
-                                 state=seed_slice(self.state, i), progress=self.progress,
+                                 state=self._per_seed(self.states)[i], progress=self.progress,
                                  start=self.start)
 
 
@@ -138,7 +149,7 @@ def train_seeds(config: ml_collections.ConfigDict, workdir: str, dataset: data.D
   reports, records = [], []
   for i, run in enumerate(job.seed_runs):
     run.manager.wait_until_finished()
-    params = seed_slice(job.state.ema_params, i)
+    params = job.eval_params()[i]
     final, baselines, summary, recs = run.final_evaluation(params, job.progress)
     report = report_fn(job.configs[i], dataset, job.seed_view(i), final, baselines, summary,
                        run.commit, recs)
