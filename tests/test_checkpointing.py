@@ -188,6 +188,11 @@ def test_a_workdir_of_another_config_is_refused_naming_the_fields(tmp_path):
   assert f'seed (0 -> 7), train.learning_rate ({saved.train.learning_rate} -> 0.01)' in message
   checkpointing.check_workdir(other, workdir, continue_with_changes=True)  # No checkpoint.
   assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]  # Checks write nothing.
+  # Where the seeds compute is no change: a run continues on other devices as it is.
+  placed = with_overrides(door_open.get_config('smoke'), {'train.seed_devices': 3})
+  assert saved.train.seed_devices != 3
+  checkpointing.check_workdir(placed, workdir)
+  assert checkpointing.config_changes(saved, placed) == []
 
 
 def test_continuing_with_other_networks_is_refused_even_with_the_flag(tmp_path):

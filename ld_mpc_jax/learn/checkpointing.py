@@ -186,11 +186,19 @@ def _flat(config: ml_collections.ConfigDict) -> dict:
   return out
 
 
+# Where a run computes, not what: a run continues under another value without
+# --continue_with_changes (the seeds over devices give the same parameters to float tolerance).
+PLACEMENT_FIELDS = ('train.seed_devices',)
+
+
 def config_changes(saved: ml_collections.ConfigDict,
                    config: ml_collections.ConfigDict) -> List[str]:
-  """'field (old -> new)' for every field whose value differs, sorted by name; a field only one
-  side has shows as absent. `saved` is compared as loaded (`migrate_config`)."""
+  """'field (old -> new)' for every field whose value differs, sorted by name, but the
+  `PLACEMENT_FIELDS`; a field only one side has shows as absent. `saved` is compared as loaded
+  (`migrate_config`)."""
   old, new = _flat(saved), _flat(config)
+  for k in PLACEMENT_FIELDS:
+    old.pop(k, None), new.pop(k, None)
   show = lambda flat, k: json.dumps(flat[k]) if k in flat else 'absent'
   return [f'{k} ({show(old, k)} -> {show(new, k)})' for k in sorted(set(old) | set(new))
           if k not in old or k not in new or old[k] != new[k]]
