@@ -69,3 +69,18 @@ def test_tdmpc2_steps_are_doubled_to_simulator_steps(tmp_path):
   # At the default 100k simulator steps TD-MPC2 has only its point at 0.
   fig = plot_online.draw([run], str(anchor), max_steps=100_000)
   assert [list(l.get_xdata()) for l in fig.axes[0].lines if l.get_color() == 'gray'] == [[0]] * 2
+
+
+def test_committed_records_named_by_a_prefix_read_like_their_run(tmp_path):
+  import gzip, shutil  # pylint: disable=g-import-not-at-top,multiple-imports
+  run = _run(tmp_path, 'a', [0.0, 0.25, 0.0, 0.5], [0.0] * 4)
+  (tmp_path / 'records').mkdir()
+  for name in ('eval.csv', 'online.csv'):  # As results/ keeps them: seed0_eval.csv.gz, ...
+    with open(f'{run}/{name}', 'rb') as src, gzip.open(tmp_path / 'records' / f'seed0_{name}.gz',
+                                                       'wb') as dst:
+      shutil.copyfileobj(src, dst)
+  prefix = str(tmp_path / 'records' / 'seed0_')
+  assert plot_online.run_name(prefix) == 'records seed0'
+  ours, theirs = (plot_online.curve_table([r]).splitlines()[2:] for r in (prefix, run))
+  assert ours == theirs and '| 3k | 25/50 |' in ours[1]
+  assert plot_online.exploration(prefix, 1600) == plot_online.exploration(run, 1600)

@@ -13,6 +13,7 @@ docs/anchors/README.md says how their protocol differs.
 """
 
 import csv
+import gzip
 import os
 
 from absl import app, flags
@@ -25,7 +26,8 @@ FLAGS = flags.FLAGS
 def define_flags() -> None:
   """The mode's flags (defined on use only: tests import this module beside other flags)."""
   flags.DEFINE_multi_string('workdir', [], 'An online run directory (with eval.csv and '
-                            'online.csv); repeat the flag, or separate them with commas.')
+                            'online.csv), or the prefix of committed records (.../seed0_ for '
+                            'seed0_eval.csv[.gz]); repeat the flag, or separate with commas.')
   flags.DEFINE_string('anchor', '', 'TD-MPC2 per-seed CSV (step,success,seed); empty: none.')
   flags.DEFINE_string('out', 'online_curves.png', 'Output PNG.')
   flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (simulator steps).')
@@ -34,10 +36,26 @@ def define_flags() -> None:
 
 
 def read_csv(path):
+  """Rows of a CSV file, or of its gzipped copy `path`.gz (committed records)."""
+  if not os.path.exists(path) and os.path.exists(path + '.gz'):
+    path += '.gz'
   if not os.path.exists(path):
     raise FileNotFoundError(f'{path} does not exist')
-  with open(path) as f:
+  with (gzip.open(path, 'rt') if path.endswith('.gz') else open(path)) as f:
     return list(csv.DictReader(f))
+
+
+def run_file(run: str, name: str) -> str:
+  """`name` of a run: <run>/<name> for a run directory, else <run><name> for committed records
+  named by a prefix (results/.../seed0_ -> seed0_eval.csv[.gz])."""
+  return os.path.join(run, name) if os.path.isdir(run) else run + name
+
+
+def run_name(run: str) -> str:
+  """A run's label: its directory's name, or a records prefix's folder and seed."""
+  if os.path.isdir(run):
+    return os.path.basename(os.path.normpath(run))
+  return f'{os.path.basename(os.path.dirname(run))} {os.path.basename(run).rstrip("_")}'
 
 
 def _workdirs() -> list:
@@ -52,7 +70,7 @@ def main(argv):
       raise ValueError('name at least one run with --workdir')
     for run in _workdirs():
       for name in ('eval.csv', 'online.csv'):
-        read_csv(os.path.join(run, name))
+        read_csv(run_file(run, name))
     if FLAGS.anchor:
       read_csv(FLAGS.anchor)
   fig = draw(_workdirs(), FLAGS.anchor, FLAGS.max_steps)
@@ -93,14 +111,14 @@ def draw(runs, anchor: str, max_steps: float):
       ax.plot(*zip(*pts), 's--', color='gray', alpha=0.7,
               label=None if i else 'TD-MPC2 (published, per seed)')
   for i, run in enumerate(runs):
-    name, color = os.path.basename(os.path.normpath(run)), f'C{i}'
-    ev = read_csv(os.path.join(run, 'eval.csv'))
+    name, color = run_name(run), f'C{i}'
+    ev = read_csv(run_file(run, 'eval.csv'))
     x = [int(float(r['step'])) for r in ev]
     ax.plot(x, [float(r['success_rate']) for r in ev], 'o-', color=color,
             label=f'{name}, held-out goals')
     ax.fill_between(x, [float(r['ci_lo']) for r in ev], [float(r['ci_hi']) for r in ev],
                     color=color, alpha=0.15)
-    waves = read_csv(os.path.join(run, 'online.csv'))
+    waves = read_csv(run_file(run, 'online.csv'))
     wx = [int(r['env_steps']) for r in waves]
     diag.plot(wx, [float(r['episode_success']) for r in waves], '-', color=color,
               label=f'{name}: training episodes solved')
@@ -121,11 +139,11 @@ def curve_table(runs) -> str:
   from ld_mpc_jax.ops import stats
   per_run = {}
   for run in runs:
-    for r in read_csv(os.path.join(run, 'eval.csv')):
+    for r in read_csv(run_file(run, 'eval.csv')):
       n = int(r['episodes'])
       k = round(float(r['success_rate']) * n)
       per_run.setdefault(round(int(float(r['step'])), -3), {})[run] = (k, n)
-  names = [os.path.basename(os.path.normpath(r)) for r in runs]
+  names = [run_name(r) for r in runs]
   lines = ['| environment steps | ' + ' | '.join(names) + ' | pooled | 95% CI (Wilson) |',
            '| --- |' + ' --- |' * (len(runs) + 2)]
   for step in sorted(per_run):
@@ -151,7 +169,7 @@ def exploration(run: str, late_from: int) -> dict:
   after `late_from` steps, weighted by each wave's episodes; None if none), `max_step_reward`
   (the largest reward of one decision) and `late_won` (per candidate kind, the mean share of the
   acting decisions it won in those waves; kinds the run did not log are left out)."""
-  waves = read_csv(os.path.join(run, 'online.csv'))
+  waves = read_csv(run_file(run, 'online.csv'))
   first = next((int(r['env_steps']) for r in waves if float(r['episode_success']) > 0), None)
   solved = episodes = 0.0
   previous, late = 0, []
@@ -183,6 +201,6 @@ def exploration_table(runs, late_from: int) -> str:
     share = f'{e["late_solved"]:.0%}' if e['late_solved'] is not None else '-'
     reward = f'{e["max_step_reward"]:.1f}' if e['max_step_reward'] is not None else '-'
     won = ', '.join(f'{k} {v:.0%}' for k, v in e['late_won'].items()) or '-'
-    lines.append(f'| {os.path.basename(os.path.normpath(run))} | {first} | {share} | {reward} | '
+    lines.append(f'| {run_name(run)} | {first} | {share} | {reward} | '
                  f'{won} |')
   return '\n'.join(lines)
