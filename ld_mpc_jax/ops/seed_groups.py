@@ -35,6 +35,13 @@ def cpu_devices_wanted(num_seeds: int, seed_devices: int) -> int:
   return num_seeds if seed_devices == 0 else seed_devices
 
 
+@jax.jit
+def _unstack(tree: Any) -> List[Any]:
+  """A tree with a leading seed axis -> one tree per seed."""
+  n = jax.tree_util.tree_leaves(tree)[0].shape[0]
+  return [jax.tree_util.tree_map(lambda x, i=i: x[i], tree) for i in range(n)]
+
+
 class SeedGroups:
   """`num_seeds` seeds over the first `num_devices` local devices (fewer when there are fewer
   seeds; 0: one per seed, as many as this process has). Trees with a leading seed axis are held as one tree per group (`split`), programs run
@@ -76,6 +83,11 @@ class SeedGroups:
     """fn(*args of group g) for every group, dispatched one after another without waiting
     (JAX's asynchronous dispatch), so that the devices compute at the same time."""
     return [fn(*args) for args in zip(*group_args)]
+
+  def per_seed(self, trees: Sequence[Any]) -> List[Any]:
+    """The groups' stacked trees -> one tree per seed, in seed order (one jitted slicing per
+    group size and device)."""
+    return [tree for group in trees for tree in _unstack(group)]
 
   def join_host(self, trees: Sequence[Any]) -> Any:
     """The groups' trees -> one host tree [num_seeds, ...] (numpy; waits for the devices)."""

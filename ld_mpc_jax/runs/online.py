@@ -48,7 +48,7 @@ from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.exploration import (acting_config, acting_intrinsic, executed_noise,
                                           plan_start)
 from ld_mpc_jax.model.models import set_obs_normalization
-from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, seed_slice, stack_states
+from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
 from ld_mpc_jax.ops.seed_groups import SeedGroups
 
 from ld_mpc_jax.data.demos import demo_share, sparse_dataset
@@ -113,9 +113,6 @@ class OnlineJob:
       self.counters['normalized'] = not config.model.normalize_obs
     self.groups = SeedGroups(len(self.seats), config.train.seed_devices)
     self.states = self.groups.split(stack_states(states))  # One stack per device.
-    # Each seed's tree from a group's stack (one jitted slicing per group size and device).
-    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in
-                                          range(jax.tree_util.tree_leaves(tree)[0].shape[0])])
     self._views = None
     # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
     # pretrained on them, plus the executed-action noise), learn from the start.
@@ -172,12 +169,8 @@ class OnlineJob:
   def views(self):
     """Each seed's EMA parameters (one jitted slicing per change of the state)."""
     if self._views is None:
-      self._views = self._per_seed([g.ema_params for g in self.states])
+      self._views = self.groups.per_seed([g.ema_params for g in self.states])
     return self._views
-
-  def _per_seed(self, group_trees):
-    """The groups' stacked trees -> one tree per seed, in seed order."""
-    return [tree for group in group_trees for tree in self._unstack(group)]
 
   def group_ema_params(self):
     """Each device's stacked EMA parameters (the acting policy's, `WavePolicy`)."""
@@ -205,7 +198,7 @@ class OnlineJob:
       params = stack_states([set_obs_normalization(
           p, np.concatenate([ep['obs'] for ep in s.buffer.episodes + s.buffer.demos]),
           self.config.model.obs_mask_constant)
-                             for s, p in zip(self.seats, self._per_seed(
+                             for s, p in zip(self.seats, self.groups.per_seed(
                                  [g.params for g in self.states]))])
       self.states = [state.replace(  # Copies: the update donates both trees.
           params=p, ema_params=jax.tree_util.tree_map(jnp.copy, p))
@@ -289,7 +282,7 @@ class OnlineJob:
     """Each seed's buffer file, then its orbax step (environment steps); older buffer files
     go."""
     step = self.counters['env_steps']
-    states = self._per_seed(self.states)
+    states = self.groups.per_seed(self.states)
     for seat, state in zip(self.seats, states):
       workdir, manager = seat.run.workdir, seat.run.manager
       seat.buffer.save(buffer_path(workdir, step), self.counters)

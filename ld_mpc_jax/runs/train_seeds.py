@@ -21,8 +21,7 @@ import tqdm
 
 from ld_mpc_jax import data
 from ld_mpc_jax.eval import run_files
-from ld_mpc_jax.learn.train_state import (create_train_state, make_seeds_update, seed_slice,
-                                          stack_states)
+from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
 from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
@@ -66,9 +65,6 @@ class OfflineSeedsJob:
     self.keys = self.groups.split(
         jax.numpy.stack([jax.random.key(c.seed + 1) for c in self.configs]))
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
-    # Each seed's tree from a group's stack (one jitted slicing per group size and device).
-    self._unstack = jax.jit(lambda tree: [seed_slice(tree, i) for i in
-                                          range(jax.tree_util.tree_leaves(tree)[0].shape[0])])
     self.seconds, self._last = 0.0, None  # Timed from the second logged interval.
     self._timed_steps = 0
     self.bar = tqdm.tqdm(total=t.num_steps, initial=self.progress, desc=f'train x{len(pairs)}',
@@ -120,22 +116,18 @@ class OfflineSeedsJob:
     self.bar.set_postfix(loss=f"{float(np.mean(metrics['loss'])):.3f}", steps_s=f'{rate:.2f}')
 
   def checkpoint(self) -> None:
-    for run, state in zip(self.seed_runs, self._per_seed(self.states)):
+    for run, state in zip(self.seed_runs, self.groups.per_seed(self.states)):
       run.save(state, self.progress, self.prior_seconds + self.seconds)
 
-  def _per_seed(self, group_trees):
-    """The groups' stacked trees -> one tree per seed, in seed order."""
-    return [tree for group in group_trees for tree in self._unstack(group)]
-
   def eval_params(self):
-    return self._per_seed([g.ema_params for g in self.states])
+    return self.groups.per_seed([g.ema_params for g in self.states])
 
   def seed_view(self, i: int) -> types.SimpleNamespace:
     """Seed i as `train._report` reads a job."""
     rate = self._timed_steps / self.seconds if self.seconds else float('nan')
     timer = types.SimpleNamespace(seconds=self.seconds, steps_per_s=rate)
     return types.SimpleNamespace(prior_seconds=self.prior_seconds, timer=timer,
-                                 state=self._per_seed(self.states)[i], progress=self.progress,
+                                 state=self.groups.per_seed(self.states)[i], progress=self.progress,
                                  start=self.start)
 
 
