@@ -39,7 +39,7 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
   import jax
-  from ld_mpc_jax.ops.seed_groups import cpu_devices_wanted
+  from ld_mpc_jax.ops.seed_groups import SeedGroups, cpu_devices_wanted
   t = _CONFIG.value.train
   devices = t.get('seed_devices', 1)
   if isinstance(devices, int) and cpu_devices_wanted(t.num_seeds, devices) > 1:  # Before JAX
@@ -57,9 +57,7 @@ def main(argv):
     validate_config(_CONFIG.value)
     check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
     sources.check_source(_CONFIG.value)
-    if isinstance(devices, int) and min(devices, t.num_seeds) > len(jax.local_devices()):
-      raise ValueError(f'config.train.seed_devices={devices} but this process has '
-                       f'{len(jax.local_devices())} device(s)')
+    SeedGroups(t.num_seeds, devices)  # Enough devices for train.seed_devices (e.g. one GPU).
     if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
       from ld_mpc_jax.runs.online import check_init_from
       check_init_from(_CONFIG.value)

@@ -10,7 +10,7 @@ never communicate, so nothing is lost by keeping them apart. With one device the
 group and every call is the one-device program of before.
 """
 
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import jax
 import numpy as np
@@ -44,8 +44,8 @@ def _unstack(tree: Any) -> List[Any]:
 
 class SeedGroups:
   """`num_seeds` seeds over the first `num_devices` local devices (fewer when there are fewer
-  seeds; 0: one per seed, as many as this process has). Trees with a leading seed axis are held as one tree per group (`split`), programs run
-  per group (`map`), and `join` gathers a list per seed."""
+  seeds; 0: one per seed, as many as this process has). Trees with a leading seed axis are held
+  as one tree per group (`split`, `split_host`); `per_seed` and `join_host` gather them back."""
 
   def __init__(self, num_seeds: int, num_devices: int = 1,
                devices: Optional[Sequence[jax.Device]] = None):
@@ -56,7 +56,6 @@ class SeedGroups:
       raise ValueError(f'config.train.seed_devices={num_devices} but this process has '
                        f'{len(devices)} device(s); on a CPU the train command makes that many '
                        f'(jax_num_cpu_devices) before JAX starts')
-    self.num_seeds = num_seeds
     self.bounds = group_bounds(num_seeds, num_devices)
     self.devices = devices[:len(self.bounds)]
 
@@ -78,11 +77,6 @@ class SeedGroups:
   def split_host(self, tree: Dict[str, np.ndarray]) -> List[Dict[str, np.ndarray]]:
     """Host arrays [num_seeds, ...] -> each group's slices (numpy views; no copy)."""
     return [{k: v[a:b] for k, v in tree.items()} for a, b in self.bounds]
-
-  def map(self, fn: Callable, *group_args: Sequence[Any]) -> List[Any]:
-    """fn(*args of group g) for every group, dispatched one after another without waiting
-    (JAX's asynchronous dispatch), so that the devices compute at the same time."""
-    return [fn(*args) for args in zip(*group_args)]
 
   def per_seed(self, trees: Sequence[Any]) -> List[Any]:
     """The groups' stacked trees -> one tree per seed, in seed order (one jitted slicing per
