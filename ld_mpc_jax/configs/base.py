@@ -33,6 +33,7 @@ def get_config() -> ml_collections.ConfigDict:
   m.dynamics_blocks = 5
   m.objective_blocks = 10
   m.actor_hidden = (256, 256)  # TD-MPC2's policy MLP width.
+  m.novelty_members = 5  # Next-latent MLPs of the exploration value (loss.w_novelty); P2E: 10.
   # Model kinds (ld_mpc_jax.model.models): the project's model is a whole-sequence diffusion proposal
   # with autoregressive latent diffusion dynamics; the others exist for the ablations.
   m.proposal_type = 'diffusion_seq'  # | 'diffusion_step' | 'mlp'
@@ -246,6 +247,11 @@ def get_config() -> ml_collections.ConfigDict:
   # that succeeds, a demonstration's or the agent's (t / steps to its first success, then 1), 0 on
   # episodes that never do (online runs; ld_mpc_jax.model.progress). 0: no head at all.
   l.w_progress = 0.0
+  # A learned exploration value (issue 70, runs without demonstrations; Plan2Explore, Sekar et
+  # al. 2020): an ensemble of next-latent MLPs whose variance is a novelty reward, learned into
+  # a value V_nov the acting planner adds to J (`online.act_novelty`; ld_mpc_jax.model.novelty).
+  # 0: no members, no value.
+  l.w_novelty = 0.0
   # Behaviour value target for V(z_i) (critic.value 'behaviour', ld_mpc_jax.learn.losses):
   # discounted rewards to the end of the window plus gamma^(H-i) times the EMA target network's
   # V(z_H) (TD-MPC2, DQN).

@@ -51,6 +51,11 @@ def online_settings() -> ml_collections.ConfigDict:
   # reward units, a latent's variance at most about 1 (RMS-normalised). Needs >= 2 draws.
   o.act_disagreement = 0.0
   o.act_disagreement_end = 0.0  # Its end value under act_schedule='linear'.
+  # Weight in J of the learned exploration value (ld_mpc_jax.model.novelty, needs loss.w_novelty
+  # > 0): Plan2Explore's novelty learned into a value, so the planner sees it past its horizon;
+  # in units of the average candidate's novelty (scaled to mean 1 over the candidates).
+  o.act_novelty = 0.0
+  o.act_novelty_end = 0.0  # Its end value under act_schedule='linear'.
   # Dynamics rollouts per candidate while acting (0: plan.dynamics_draws, evaluation's): the
   # ensemble of the disagreement term, so evaluation can keep one draw (Plan2Explore: 10 heads).
   o.act_dynamics_draws = 0

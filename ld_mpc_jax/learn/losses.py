@@ -26,6 +26,9 @@ like every other position.
   L_progress with the learned progress reward (`loss.w_progress` > 0, windows carrying
            'progress'): the progress head's cross-entropy on the clean, detached latents
            (ld_mpc_jax.model.progress; + w_progress L_progress in L).
+  L_novelty with the learned exploration value (`loss.w_novelty` > 0): the novelty members'
+           next-latent error and V_nov's error against the window's novelty returns, on the
+           clean, detached latents (ld_mpc_jax.model.novelty; + w_novelty L_novelty in L).
 Metrics: 'loss' and 'loss_<term>' for each term the config uses, plus the critics' and the
 value kind's own metrics.
 """
@@ -36,7 +39,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax.model import actors, dynamics, objective, progress, proposals
+from ld_mpc_jax.model import actors, dynamics, novelty, objective, progress, proposals
 from ld_mpc_jax.model.critics import make_critic_loss
 from ld_mpc_jax.model.models import Networks
 from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
@@ -44,7 +47,8 @@ from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
 # Loss weight of each term (config.loss.<weight>), in the order they are summed.
 WEIGHTS = (('dyn', 'w_dyn'), ('act', 'w_act'), ('rew', 'w_rew'), ('val', 'w_val'),
            ('actor', 'w_actor'), ('consistency', 'w_consistency'), ('q', 'w_q'), ('v', 'w_v'),
-           ('demo_bc', 'w_demo_bc'), ('noise_inv', 'w_noise_inv'), ('progress', 'w_progress'))
+           ('demo_bc', 'w_demo_bc'), ('noise_inv', 'w_noise_inv'), ('progress', 'w_progress'),
+           ('novelty', 'w_novelty'))
 
 
 def reward_loss(r_logits: jnp.ndarray, reward: jnp.ndarray, num_bins: int, vmin: float,
@@ -185,6 +189,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
       terms['demo_bc'] = demo_bc_loss(nets, params, sg(z[:, :-1]), action, batch['demo'])
     if 'progress' in batch and nets.progress is not None:  # The learned progress reward.
       terms['progress'] = progress.loss(nets.progress, params, z_clean, batch['progress'])
+    if nets.novelty is not None:  # The learned exploration value.
+      terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, config.gamma)
     loss = weighted_sum(terms, config.loss)
     metrics['loss'] = loss
     for name, _ in WEIGHTS:

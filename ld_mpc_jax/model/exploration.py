@@ -76,15 +76,27 @@ def acting_exploration(config: ml_collections.ConfigDict, env_steps: int,
                   o.env_steps))
 
 
+def acting_novelty(config: ml_collections.ConfigDict, env_steps: int, plan_start: int) -> float:
+  """Weight of the learned exploration value in the acting planner's J at `env_steps`
+  (ld_mpc_jax.model.novelty): `online.act_novelty`, or under `online.act_schedule='linear'`
+  linear from it at `plan_start` to `online.act_novelty_end` at `online.env_steps`."""
+  o = config.online
+  if o.act_schedule == 'constant':
+    return float(o.act_novelty)
+  return _linear(o.act_novelty, o.act_novelty_end, env_steps, plan_start, o.env_steps)
+
+
 def acting_intrinsic(config: ml_collections.ConfigDict, env_steps: int,
                      plan_start: int) -> Intrinsic:
   """The acting planner's traced intrinsic term at `env_steps` (planner.make_plan's `intrinsic`,
-  float32 scalars): `acting_exploration`'s values, except the pessimism under the 'constant'
-  schedule, which `acting_config` sets as `plan.pessimism` (0 here), as before the schedule."""
+  float32 scalars): `acting_exploration`'s values and `acting_novelty`'s, except the pessimism
+  under the 'constant' schedule, which `acting_config` sets as `plan.pessimism` (0 here), as
+  before the schedule."""
   pessimism, disagreement = acting_exploration(config, env_steps, plan_start)
   if config.online.act_schedule == 'constant':
     pessimism = 0.0
-  return Intrinsic(pessimism=np.float32(pessimism), disagreement=np.float32(disagreement))
+  return Intrinsic(pessimism=np.float32(pessimism), disagreement=np.float32(disagreement),
+                   novelty=np.float32(acting_novelty(config, env_steps, plan_start)))
 
 
 def validate_acting(config: ml_collections.ConfigDict) -> None:
@@ -101,6 +113,14 @@ def validate_acting(config: ml_collections.ConfigDict) -> None:
   if any(weights) and (o.act_dynamics_draws or p.dynamics_draws) < 2:
     raise ValueError('config.online.act_disagreement needs several dynamics draws while acting '
                      'to disagree: set config.online.act_dynamics_draws >= 2')
+  novelty_weights = (o.act_novelty,) + ((o.act_novelty_end,) if o.act_schedule == 'linear'
+                                         else ())
+  if min(novelty_weights) < 0:
+    raise ValueError('config.online.act_novelty and act_novelty_end must be >= 0, got '
+                     f'{o.act_novelty} and {o.act_novelty_end}')
+  if any(novelty_weights) and not config.loss.w_novelty > 0:
+    raise ValueError('config.online.act_novelty needs the learned exploration value: set '
+                     'config.loss.w_novelty > 0 (its loss weight) too')
   if o.act_proposal:
     return
   if not proposals.get(config).sequence:

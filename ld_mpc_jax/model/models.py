@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
-from ld_mpc_jax.model import actors, dynamics, objective, progress, proposals, tasks
+from ld_mpc_jax.model import actors, dynamics, novelty, objective, progress, proposals, tasks
 from ld_mpc_jax.ops import config_cache
 from ld_mpc_jax.model.actors import Actor
 from ld_mpc_jax.model.config_checks import validate_config
@@ -131,6 +131,7 @@ class Networks(NamedTuple):
   actor: Actor
   critics: Optional[Critics] = None  # Expectile V and Q ensembles (ld_mpc_jax.model.critics).
   progress: Optional[nn.Module] = None  # The learned progress reward (ld_mpc_jax.model.progress).
+  novelty: Optional[nn.Module] = None  # The learned exploration value (ld_mpc_jax.model.novelty).
 
 
 def uses_critics(config: ml_collections.ConfigDict) -> bool:
@@ -152,13 +153,15 @@ def build_networks(config: ml_collections.ConfigDict) -> Networks:
                   log_std_map=config.critic.log_std_map),
       critics=build_critics(config) if uses_critics(config) else None,
       progress=progress.build(config) if progress.enabled(config) else None,
+      novelty=novelty.build(config) if novelty.enabled(config) else None,
   )
 
 
 def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   """Initial parameters: {'encoder', 'proposal', 'dynamics', 'objective', 'actor'} -> pytree,
   plus 'critics' when the config uses them (`uses_critics`), 'progress' with the learned
-  progress reward (`loss.w_progress`) and 'task' for a multi-task config (ld_mpc_jax.model.tasks).
+  progress reward (`loss.w_progress`), 'novelty' with the learned exploration value
+  (`loss.w_novelty`) and 'task' for a multi-task config (ld_mpc_jax.model.tasks).
 
   One compiled program: initialising operation by operation compiles hundreds of small ones
   (about 16 s against 4 s on a 2-core CPU at smoke size).
@@ -193,6 +196,8 @@ def _init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
     params['critics'] = nets.critics.init(keys['critics'], z, jnp.zeros((1, a)))['params']
   if nets.progress is not None:  # Its own key: the other networks' start as without it.
     params['progress'] = nets.progress.init(jax.random.fold_in(key, 3), z)['params']
+  if nets.novelty is not None:  # Its own key too.
+    params['novelty'] = novelty.init(nets.novelty, jax.random.fold_in(key, 4), d, a)
   return tasks.init_task_params(config, jax.random.fold_in(key, 2), params)
 
 

@@ -65,14 +65,17 @@ class Intrinsic:
   """The acting planner's intrinsic term of J, traced scalars (annealing never recompiles;
   ld_mpc_jax.model.exploration schedules them; evaluation never passes one):
 
-    J_act = J - pessimism x std_m(J_m) + disagreement x D,
+    J_act = J - pessimism x std_m(J_m) + disagreement x D + novelty x N,
 
   std_m the std over the value members (`stable_std`, mean over the dynamics draws): pessimism < 0 is an
   optimism bonus for what the ensemble disputes (UCB; OAC, Ciosek et al. 2019); D the dynamics
   draws' disagreement about the latents a candidate reaches (`latent_disagreement`; Plan2Explore,
-  Sekar et al. 2020). Both are exactly 0 where the members and the draws agree."""
+  Sekar et al. 2020). Both are exactly 0 where the members and the draws agree. N the learned
+  exploration value along draw 0's rollout, scaled to mean 1 over the candidates
+  (ld_mpc_jax.model.novelty; only for a model that has it)."""
   pessimism: jnp.ndarray  # [] float32
   disagreement: jnp.ndarray  # [] float32
+  novelty: jnp.ndarray = 0.0  # [] float32
 
 
 def intrinsic_term(members: jnp.ndarray, latents: jnp.ndarray, intrinsic: Intrinsic,
@@ -86,11 +89,12 @@ def intrinsic_term(members: jnp.ndarray, latents: jnp.ndarray, intrinsic: Intrin
 
 
 def make_score_draws(member_fn: ScoreFn, draws: int, pessimism: float,
-                     gamma: float) -> Callable:
+                     gamma: float, novelty_fn: Optional[ScoreFn] = None) -> Callable:
   """score(params, z, proposals, key, roll, intrinsic=None) -> (actions [N, H, A], scores [N],
   members [draws x M, N]): J per draw combined over the value members (`combine`), averaged over
   `draws` rollouts of the same candidates, plus `intrinsic_term` when an `Intrinsic` is given
-  (acting). `roll(params, z, proposals, key) -> (actions, latents [N, H+1, D])`; draw i rolls
+  (acting), and its novelty weight x `novelty_fn(params, latents [N, H+1, D], actions)` -> [N]
+  on draw 0's rollout when there is one (ld_mpc_jax.model.novelty). `roll(params, z, proposals, key) -> (actions, latents [N, H+1, D])`; draw i rolls
   with fold_in(key, i); the draws run as one batch (vmap over their keys: the same draws as one
   after another, in one pass of the rollout's sequential steps)."""
   def score_draws(params, z, proposals_, key, roll, intrinsic=None):
@@ -106,6 +110,8 @@ def make_score_draws(member_fn: ScoreFn, draws: int, pessimism: float,
       scores = jnp.mean(jax.vmap(lambda m: combine(m, pessimism))(members), axis=0)
     if intrinsic is not None:
       scores = scores + intrinsic_term(members, latents, intrinsic, gamma)
+      if novelty_fn is not None:
+        scores = scores + intrinsic.novelty * novelty_fn(params, latents[0], actions)
     return actions, scores, members.reshape((-1,) + members.shape[2:])
 
   return score_draws

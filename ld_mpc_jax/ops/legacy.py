@@ -51,7 +51,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 2
+CONFIG_VERSION = 3
 
 
 def _online_fields(config: ml_collections.ConfigDict) -> dict:
@@ -87,7 +87,21 @@ def to_v2(config: ml_collections.ConfigDict) -> None:
     fill(config, section, fields)
 
 
-STEPS = {1: to_v1, 2: to_v2}  # version -> the step that brings a config of version - 1 to it.
+# Fields added in version 3, with the values that change nothing (the exploration value).
+V3_FIELDS = {'loss': dict(w_novelty=0.0), 'model': dict(novelty_members=5)}
+V3_ONLINE_FIELDS = dict(act_novelty=0.0, act_novelty_end=0.0)
+
+
+def to_v3(config: ml_collections.ConfigDict) -> None:
+  """Version 2 -> 3 (in place): the learned exploration value's fields, off."""
+  for section, fields in V3_FIELDS.items():
+    fill(config, section, fields)
+  if 'online' in config:
+    fill(config, 'online', V3_ONLINE_FIELDS)
+
+
+# version -> the step that brings a config of version - 1 to it.
+STEPS = {1: to_v1, 2: to_v2, 3: to_v3}
 
 
 def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:

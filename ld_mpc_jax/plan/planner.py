@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import ml_collections
 
 from ld_mpc_jax.ops import config_cache, diffusion
-from ld_mpc_jax.model import dynamics, proposals, search
+from ld_mpc_jax.model import dynamics, novelty, proposals, search
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.models import Networks, build_networks
 from ld_mpc_jax.model.objective import (Intrinsic, ScoreFn, as_members, make_member_scores,
@@ -312,6 +312,14 @@ def _cached_plan(config: ml_collections.ConfigDict) -> Callable:
   return _build_plan(config, None)
 
 
+def _novelty_fn(config: ml_collections.ConfigDict, nets: Networks) -> Optional[ScoreFn]:
+  """The learned exploration value's bonus in the acting J (ld_mpc_jax.model.novelty), or None
+  for a model without it."""
+  if nets.novelty is None:
+    return None
+  return lambda params, lats, acts: novelty.bonus(nets.novelty, params, lats, acts, config.gamma)
+
+
 def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) -> Callable:
   nets = build_networks(config)
   # Settings read now, not at trace time: a config changed after make_plan changes nothing.
@@ -321,7 +329,8 @@ def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) 
       lambda *args: as_members(score_fn(*args)))
   first_round = _make_first_round(config, nets)
   rollout = make_rollout(config, nets)
-  score_draws = make_score_draws(member_fn, p.dynamics_draws, p.pessimism, config.gamma)
+  score_draws = make_score_draws(member_fn, p.dynamics_draws, p.pessimism, config.gamma,
+                                 _novelty_fn(config, nets))
   confirm_draws = make_score_draws(member_fn, p.confirm_draws, p.pessimism, config.gamma)
   # Fixed sequences, no actor-prior rollouts among them: refined samples, and the pair that
   # plan.safe_confirm rolls again.

@@ -1,0 +1,110 @@
+"""A learned exploration value: novelty that the planner can see beyond its horizon (issue 70,
+exploration that seeks what the model does not know, for runs without demonstrations).
+
+The acting planner's disagreement term (objective.Intrinsic.disagreement) only sees the H steps
+it rolls out, and with a flat J it steers towards whatever the next few latents dispute. Here,
+as in Plan2Explore (Sekar et al. 2020), the novelty is also learned into a value:
+
+  members  E small MLPs f_e(z_t, a_t) ~ z_{t+1}, each fitted to the encoder's next latent (the
+           same windows, different initialisations: an ensemble whose spread is epistemic, large
+           where the buffer holds few transitions like this one);
+  r_nov    the variance over the members of their predictions, mean over the latent dimensions;
+  V_nov    an MLP of z fitted to the window's discounted r_nov, bootstrapped on its own
+           (stop-gradient) value after the window (`numerics.window_returns`).
+
+Both read the encoder's clean latents with their gradient stopped: they never shape the latent.
+While acting, `bonus` adds w x N to each candidate's J, N = sum_{i<H} gamma^i r_nov(z_i, a_i) +
+gamma^H V_nov(z_H) divided by its mean over the candidates (so w is in units of the average
+candidate's novelty, whatever the scale of r_nov as the ensemble learns); w is
+`online.act_novelty`, annealed like the other intrinsic weights (ld_mpc_jax.model.exploration).
+Evaluation never adds it.
+"""
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import ml_collections
+
+from ld_mpc_jax.nets import MLP
+from ld_mpc_jax.ops.numerics import window_returns
+
+
+class Novelty(nn.Module):
+  """The members and the value: `__call__(z [..., D], a [..., A]) -> [E, ..., D]` (each member's
+  predicted next latent) and `value(z [..., D]) -> [...]`."""
+  members: int
+  hidden: tuple
+  latent_dim: int
+
+  def setup(self):
+    self.nets = [MLP(tuple(self.hidden) + (self.latent_dim,), name=f'member_{e}')
+                 for e in range(self.members)]
+    self.value_net = MLP(tuple(self.hidden) + (1,), name='value')
+
+  def __call__(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
+    x = jnp.concatenate([z, a], axis=-1)
+    return jnp.stack([net(x) for net in self.nets])
+
+  def value(self, z: jnp.ndarray) -> jnp.ndarray:
+    return self.value_net(z)[..., 0]
+
+  def init_all(self, z: jnp.ndarray, a: jnp.ndarray):
+    """Touches every submodule (for init): the members and the value."""
+    return self(z, a), self.value(z)
+
+
+def enabled(config: ml_collections.ConfigDict) -> bool:
+  """Whether the model has the novelty members and value (their loss weight is positive)."""
+  return config.loss.w_novelty > 0
+
+
+def build(config: ml_collections.ConfigDict) -> Novelty:
+  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden),
+                 config.model.latent_dim)
+
+
+def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict:
+  return net.init(key, jnp.zeros((1, latent_dim)), jnp.zeros((1, action_dim)),
+                  method=Novelty.init_all)['params']
+
+
+def reward(net: Novelty, params: dict, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
+  """r_nov(z, a): the members' variance about the next latent, mean over its dimensions:
+  z [..., D], a [..., A] -> [...]; exactly 0 where the members agree."""
+  preds = net.apply({'params': params['novelty']}, z, a)  # [E, ..., D]
+  dev = preds - preds[:1]  # Deviations from member 0: exactly 0 where all are equal.
+  dev = dev - jnp.mean(dev, axis=0, keepdims=True)
+  return jnp.mean(jnp.mean(dev ** 2, axis=0), axis=-1)
+
+
+def value(net: Novelty, params: dict, z: jnp.ndarray) -> jnp.ndarray:
+  """V_nov(z): z [..., D] -> [...]."""
+  return net.apply({'params': params['novelty']}, z, method=Novelty.value)
+
+
+def loss(net: Novelty, params: dict, z: jnp.ndarray, action: jnp.ndarray,
+         gamma: float) -> jnp.ndarray:
+  """The members' mean squared error about the next latent plus V_nov's squared error against
+  the window's novelty returns: z [B, T+1, D] (clean latents), action [B, >= T, A] -> []. The
+  latents come in with their gradient stopped here."""
+  z = jax.lax.stop_gradient(z)
+  t = z.shape[1] - 1
+  zt, at, target = z[:, :-1], action[:, :t], z[:, 1:]
+  preds = net.apply({'params': params['novelty']}, zt, at)  # [E, B, T, D]
+  members = jnp.mean((preds - target[None]) ** 2)
+  r = jax.lax.stop_gradient(reward(net, params, zt, at))  # [B, T]
+  bootstrap = jax.lax.stop_gradient(value(net, params, z[:, -1]))  # [B]
+  returns = jax.lax.stop_gradient(window_returns(r, bootstrap, gamma))
+  return members + jnp.mean((value(net, params, zt) - returns) ** 2)
+
+
+def bonus(net: Novelty, params: dict, latents: jnp.ndarray, actions: jnp.ndarray,
+          gamma: float) -> jnp.ndarray:
+  """N per candidate, scaled to mean 1 over the candidates: latents [N, H+1, D], actions
+  [N, H, A] -> [N]; 0 where no candidate has any novelty."""
+  h = actions.shape[-2]
+  r = reward(net, params, latents[..., :-1, :], actions)  # [N, H]
+  n = jnp.sum(gamma ** jnp.arange(h) * r, axis=-1) + gamma ** h * value(net, params,
+                                                                          latents[..., -1, :])
+  n = jnp.maximum(n, 0.0)  # V_nov regresses non-negative returns; keep its small errors out.
+  return n / jnp.maximum(jnp.mean(n), 1e-12)
