@@ -65,7 +65,8 @@ def _cfg():
       horizon=2, action_dim=2, gamma=0.5, diffusion=dict(prediction='x0'),
       model=dict(num_bins=5, vmin=-2.0, vmax=2.0), critic=dict(entropy_coef=0.1),
       loss=dict(w_dyn=1.0, w_act=2.0, w_rew=3.0, w_val=4.0, w_actor=5.0, w_consistency=6.0,
-                w_q=7.0, w_v=8.0, w_demo_bc=9.0, w_noise_inv=10.0, w_progress=11.0)))
+                w_q=7.0, w_v=8.0, w_demo_bc=9.0, w_noise_inv=10.0, w_progress=11.0,
+                w_novelty=12.0)))
 
 
 Z = jnp.arange(2 * 4 * 3, dtype=jnp.float32).reshape(2, 4, 3) / 10.0  # [B=2, H+2=4, D=3]
@@ -104,9 +105,9 @@ def test_consistency_loss_hand_computed():
 def test_weighted_sum_order_and_absent_terms():
   config = _cfg()
   terms = {name: jnp.asarray(1.0) for name, _ in losses.WEIGHTS}
-  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 66.0)
+  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 78.0)
   del terms['q'], terms['consistency']  # Absent terms count 0.
-  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 66.0 - 7.0 - 6.0)
+  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 78.0 - 7.0 - 6.0)
 
 
 @pytest.mark.parametrize('kind', ['diffusion_seq', 'diffusion_step'])
