@@ -178,7 +178,7 @@ def _rows(path):
 
 def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, monkeypatch):
   """One acting wave without the proposal's candidates (`online.act_proposal=False`) and with
-  the annealed intrinsic term: online.csv says who won each planned decision, how spread the
+  the annealed intrinsic term (the learned exploration value's too): online.csv says who won each planned decision, how spread the
   candidates' first actions were and the term's weights; report.json and report.md repeat it."""
   config = door_open_online.get_config('smoke')
   config.plan.num_prior_candidates, config.online.act_num_gaussian = 2, 3
@@ -186,6 +186,7 @@ def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, mon
   o.act_proposal, o.act_schedule = False, 'linear'
   o.act_pessimism, o.act_pessimism_end, o.act_disagreement = -1.0, 0.0, 2.0
   o.act_dynamics_draws = 2
+  config.loss.w_novelty, o.act_novelty, o.act_novelty_end = 1.0, 3.0, 0.0  # The exploration value.
   acting = online.acting_config(config)  # Evaluation keeps the proposal's K - P candidates.
   assert (acting.plan.num_candidates, config.plan.num_candidates) == (2, 4)
   _record_policies(config, str(tmp_path / 'run'), monkeypatch)
@@ -197,7 +198,8 @@ def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, mon
   assert math.isnan(float(wave['spread_proposal']))  # No proposal candidate to spread.
   assert 0.05 < float(wave['spread_first']) <= 1.0  # Actions in [-1, 1]; the Gaussians spread.
   # The first planner wave acts with the schedule's start values (seed steps: 40).
-  assert (float(wave['act_pessimism']), float(wave['act_disagreement'])) == (-1.0, 2.0)
+  assert (float(wave['act_pessimism']), float(wave['act_disagreement']),
+          float(wave['act_novelty'])) == (-1.0, 2.0, 3.0)
   with open(tmp_path / 'run' / 'report.json') as f:
     whole = json.load(f)['acting']['whole']
   assert whole['planned'] == 20 and whole['spread_proposal'] is None

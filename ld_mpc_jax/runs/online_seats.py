@@ -16,7 +16,9 @@ from ld_mpc_jax.plan.agent import BatchAgentPolicy
 from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
 from ld_mpc_jax.data.demos import get_demos
 from ld_mpc_jax.data.online_buffer import Buffer
-from ld_mpc_jax.model.exploration import acting_exploration, ar1_noise, executed_noise
+from ld_mpc_jax.model import novelty
+from ld_mpc_jax.model.exploration import (acting_exploration, acting_novelty, ar1_noise,
+                                           executed_noise)
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.model.search import CANDIDATES
@@ -81,9 +83,13 @@ class Seat:
     mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
     pessimism, disagreement = (acting_exploration(self.config, before, job.plan_start)
                                if mode == 'plan' else (float('nan'),) * 2)
-    return dict(planned=int(self.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
-                spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
-                act_disagreement=disagreement)
+    out = dict(planned=int(self.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
+               spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
+               act_disagreement=disagreement)
+    if novelty.enabled(self.config):  # Only runs with the exploration value have the column.
+      out['act_novelty'] = (acting_novelty(self.config, before, job.plan_start)
+                            if mode == 'plan' else float('nan'))
+    return out
 
 
 class SeatRuns:
