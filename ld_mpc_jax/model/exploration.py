@@ -62,28 +62,30 @@ def plan_start(config: ml_collections.ConfigDict, learn_start: int) -> int:
   return o.seed_steps if o.demos and o.demo_seed_actor else learn_start
 
 
+def _scheduled(config: ml_collections.ConfigDict, name: str, env_steps: int,
+               plan_start: int) -> float:
+  """`online.<name>`, or under `online.act_schedule='linear'` linear from it at `plan_start`
+  (the first planner wave) to `online.<name>_end` at `online.env_steps`."""
+  o = config.online
+  if o.act_schedule == 'constant':
+    return float(o[name])
+  return _linear(o[name], o[f'{name}_end'], env_steps, plan_start, o.env_steps)
+
+
 def acting_exploration(config: ml_collections.ConfigDict, env_steps: int,
                        plan_start: int) -> Tuple[float, float]:
   """(pessimism, disagreement weight) of the acting planner at `env_steps`:
   `online.act_pessimism` and `online.act_disagreement`, or under `online.act_schedule='linear'`
   linear from them at `plan_start` (the first planner wave) to `online.act_pessimism_end` and
   `online.act_disagreement_end` at `online.env_steps`."""
-  o = config.online
-  if o.act_schedule == 'constant':
-    return float(o.act_pessimism), float(o.act_disagreement)
-  return (_linear(o.act_pessimism, o.act_pessimism_end, env_steps, plan_start, o.env_steps),
-          _linear(o.act_disagreement, o.act_disagreement_end, env_steps, plan_start,
-                  o.env_steps))
+  return (_scheduled(config, 'act_pessimism', env_steps, plan_start),
+          _scheduled(config, 'act_disagreement', env_steps, plan_start))
 
 
 def acting_novelty(config: ml_collections.ConfigDict, env_steps: int, plan_start: int) -> float:
   """Weight of the learned exploration value in the acting planner's J at `env_steps`
-  (ld_mpc_jax.model.novelty): `online.act_novelty`, or under `online.act_schedule='linear'`
-  linear from it at `plan_start` to `online.act_novelty_end` at `online.env_steps`."""
-  o = config.online
-  if o.act_schedule == 'constant':
-    return float(o.act_novelty)
-  return _linear(o.act_novelty, o.act_novelty_end, env_steps, plan_start, o.env_steps)
+  (ld_mpc_jax.model.novelty): `online.act_novelty`, scheduled as `acting_exploration`'s."""
+  return _scheduled(config, 'act_novelty', env_steps, plan_start)
 
 
 def acting_intrinsic(config: ml_collections.ConfigDict, env_steps: int,

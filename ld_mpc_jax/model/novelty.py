@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
+from ld_mpc_jax.model.objective import stable_std
 from ld_mpc_jax.nets import MLP
 from ld_mpc_jax.ops.numerics import window_returns
 
@@ -68,13 +69,16 @@ def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict
                   method=Novelty.init_all)['params']
 
 
+def _spread(preds: jnp.ndarray) -> jnp.ndarray:
+  """The members' predictions [E, ..., D] -> their variance, mean over D [...]; exactly 0 where
+  they agree (`objective.stable_std`)."""
+  return jnp.mean(stable_std(preds, axis=0) ** 2, axis=-1)
+
+
 def reward(net: Novelty, params: dict, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
   """r_nov(z, a): the members' variance about the next latent, mean over its dimensions:
   z [..., D], a [..., A] -> [...]; exactly 0 where the members agree."""
-  preds = net.apply({'params': params['novelty']}, z, a)  # [E, ..., D]
-  dev = preds - preds[:1]  # Deviations from member 0: exactly 0 where all are equal.
-  dev = dev - jnp.mean(dev, axis=0, keepdims=True)
-  return jnp.mean(jnp.mean(dev ** 2, axis=0), axis=-1)
+  return _spread(net.apply({'params': params['novelty']}, z, a))
 
 
 def value(net: Novelty, params: dict, z: jnp.ndarray) -> jnp.ndarray:
@@ -92,10 +96,10 @@ def loss(net: Novelty, params: dict, z: jnp.ndarray, action: jnp.ndarray,
   zt, at, target = z[:, :-1], action[:, :t], z[:, 1:]
   preds = net.apply({'params': params['novelty']}, zt, at)  # [E, B, T, D]
   members = jnp.mean((preds - target[None]) ** 2)
-  r = jax.lax.stop_gradient(reward(net, params, zt, at))  # [B, T]
-  bootstrap = jax.lax.stop_gradient(value(net, params, z[:, -1]))  # [B]
-  returns = jax.lax.stop_gradient(window_returns(r, bootstrap, gamma))
-  return members + jnp.mean((value(net, params, zt) - returns) ** 2)
+  v = value(net, params, z)  # [B, T+1]: V_nov(z_t), then the bootstrap after the window.
+  sg = jax.lax.stop_gradient
+  returns = window_returns(sg(_spread(preds)), sg(v[:, -1]), gamma)  # [B, T]
+  return members + jnp.mean((v[:, :-1] - returns) ** 2)
 
 
 def bonus(net: Novelty, params: dict, latents: jnp.ndarray, actions: jnp.ndarray,
