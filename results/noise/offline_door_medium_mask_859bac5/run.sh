@@ -3,7 +3,8 @@
 # (model.obs_mask_constant, the default since it landed), three training seeds in one process (one virtual CPU device
 # each), then each seed's noise sweep: planner, actor prior, proposal at std 0, 0.01, 0.02, 0.05 on the same held-out
 # episodes; then BC (data seed 0) on the same episodes under the same noise. Run from a worktree of commit 859bac5 ($REPO); resumes where it stopped.
-# Here: the final evaluation (seed*_episodes.csv.gz, pooled.*); the sweep JSONs follow when it has run.
+# Here: the final evaluation (seed*_episodes.csv.gz, pooled.*), each seed's sweep (seed*.json.gz) and BC's (bc.json.gz).
+# Table and plot: python -m experiments.report --noise_plot=docs/noise_offline_door_open.png R/seed{0,1,2}.json.gz
 set -e
 cd "$REPO"  # a worktree of commit 859bac5
 R=runs/noise_offline_mask/run
