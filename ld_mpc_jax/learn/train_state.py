@@ -151,11 +151,6 @@ def stack_states(states):
   return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *states)
 
 
-def seed_slice(tree, i: int):
-  """Seed i's tree from one with a leading seed axis (`stack_states`)."""
-  return jax.tree_util.tree_map(lambda x: x[i], tree)
-
-
 def make_seeds_update(config: ml_collections.ConfigDict, num_seeds: int, per_call: int = 1
                       ) -> Callable:
   """Returns jitted update(state, batches, keys) -> (state, metrics) for `num_seeds`
