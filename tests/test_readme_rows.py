@@ -61,3 +61,22 @@ def test_the_check_recomputes_a_paired_test_from_the_records(tmp_path):
       '23 / 8, 0.011')
   assert pool_evals._paired_cell([os.path.join(ROOT, f) for f in num['files']],
                                  *reversed(num['pair'])) == '8 / 23, 0.011'  # Either order.
+
+
+def test_a_noise_cell_reads_the_sweep_at_its_std(tmp_path):
+  manifest = _copy(tmp_path)
+  row = next(r for r in manifest['rows'] if any('obs_noise' in n for n in r['numbers']))
+  num = next(n for n in row['numbers'] if 'obs_noise' in n and 'policy' in n)
+  path = tmp_path / num['files'][0]
+  with gzip.open(path, 'rt') as f:
+    result = json.load(f)
+  hit = next(r for r in result['noise_sweep']['records'] if r['policy'] == num['policy']
+             and float(r['obs_noise']) == num['obs_noise'] and r['success'])
+  hit['success'] = 0  # One success at that std undone; the same policy's other stds untouched.
+  with gzip.open(path, 'wt') as f:
+    json.dump(result, f)
+  failures = pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))
+  assert any(f"{num['policy']} at obs noise {num['obs_noise']}: README {num['expect']}" in f
+             for f in failures)
+  # The same files' other stds (and the protocol records) still match.
+  assert all(f"at obs noise {num['obs_noise']}:" in f for f in failures)

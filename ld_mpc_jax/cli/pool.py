@@ -137,9 +137,26 @@ def _noise_records(result: dict) -> list:
   return sweep
 
 
+def _cell_records(arg: str, obs_noise) -> list:
+  """The records a manifest number reads from one of its files: the protocol records (None), or
+  the noise sweep's at that std (every '+' part a sweep JSON; `_noise_records`), as the policy's
+  ordinary records, so that they count and pair like them."""
+  if obs_noise is None:
+    return read_joined(arg)
+  records = []
+  for path in arg.split('+'):
+    path, tag = _tagged(path)
+    if path.endswith(('.csv', '.csv.gz')):
+      cli.fail(f'{path}: a noise cell reads a noise sweep (evaluate --noise_sweep --out), not episodes.csv')
+    records += _tag([r for r in _noise_records(read_json(path))
+                     if abs(float(r['obs_noise']) - float(obs_noise)) < 1e-9], tag)
+  return records
+
+
 def check(manifest_path: str, readme_path: str = 'README.md') -> list:
   """The README numbers of the manifest that disagree with their records (empty: all agree).
-  Paths in the manifest are relative to its repository (the manifest's folder's parent)."""
+  Paths in the manifest are relative to its repository (the manifest's folder's parent). A
+  number with `obs_noise` reads the files' observation-noise sweeps at that std."""
   root = os.path.dirname(os.path.dirname(os.path.abspath(manifest_path)))
   manifest = read_json(manifest_path)
   with open(os.path.join(root, readme_path)) as f:
@@ -152,24 +169,27 @@ def check(manifest_path: str, readme_path: str = 'README.md') -> list:
       continue
     for num in row['numbers']:
       files = ['+'.join(os.path.join(root, p) for p in f.split('+')) for f in num['files']]
-      got = _paired_cell(files, *num['pair']) if 'pair' in num else _count_cell(files, num['policy'])
+      noise = num.get('obs_noise')
+      got = (_paired_cell(files, *num['pair'], obs_noise=noise) if 'pair' in num
+             else _count_cell(files, num['policy'], obs_noise=noise))
       if got != num['expect'] or num['expect'] not in lines[0]:
         what = ' vs '.join(num['pair']) if 'pair' in num else num['policy']
+        what += '' if noise is None else f' at obs noise {noise}'
         failures.append(f"{row['line']!r}, {what}: README {num['expect']}, records {got}")
   return failures
 
 
-def _count_cell(files: list, policy: str) -> str:
-  """'successes/episodes' of `policy` on held-out goals over `files`."""
-  mine = [r for f in files for r in read_joined(f)
+def _count_cell(files: list, policy: str, obs_noise=None) -> str:
+  """'successes/episodes' of `policy` on held-out goals over `files` (at `obs_noise`: its sweep)."""
+  mine = [r for f in files for r in _cell_records(f, obs_noise)
           if r['policy'] == policy and r.get('split', 'held_out') == 'held_out']
   return f"{sum(int(r['success']) for r in mine)}/{len(mine)}"
 
 
-def _paired_cell(files: list, a: str, b: str) -> str:
+def _paired_cell(files: list, a: str, b: str, obs_noise=None) -> str:
   """'A-only / B-only, p' of the exact McNemar test of policies a and b over `files` (each file's
   episodes pair only within it), p to two significant digits (1.4e-9 for small ones)."""
-  paired = pool([{'records': read_joined(f)} for f in files], files)['held_out']['paired']
+  paired = pool([{'records': _cell_records(f, obs_noise)} for f in files], files)['held_out']['paired']
   if f'{a} vs {b}' in paired:
     t = paired[f'{a} vs {b}']
     a_only, b_only = t['a_only'], t['b_only']
