@@ -22,7 +22,8 @@ def online_settings() -> ml_collections.ConfigDict:
   o.enabled = True
   # An offline run's workdir to start from (its latest checkpoint and its dataset); '' = scratch.
   o.init_from = ''
-  o.env_steps = 100_000  # TD-MPC2's published door-open result at 100k steps is 0.67.
+  # Simulator steps. TD-MPC2's published door-open 0.67 is at 100k decisions = 200k simulator steps.
+  o.env_steps = 100_000
   o.num_envs = 4  # Environments stepped in lockstep, one episode each per wave.
   o.episode_steps = 500  # Full-length episodes (success does not end them), as the data's.
   # Random-action steps before the first update (from scratch): TD-MPC2 seeds with 5 episodes'
