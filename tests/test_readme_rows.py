@@ -19,8 +19,8 @@ def test_readme_numbers_match_their_records():
 def _copy(tmp_path):
   """A copy of the README, the manifest and the files it names, under tmp_path."""
   manifest = json.load(open(MANIFEST))
-  files = {p for row in manifest['rows'] for n in row['numbers'] for f in n['files']
-           for p in f.split('+')}
+  files = {p.partition('#')[0] for row in manifest['rows'] for n in row['numbers']
+           for f in n['files'] for p in f.split('+')}  # PATH#TAG names the file PATH.
   for rel in files | {'README.md', 'results/readme_rows.json'}:
     os.makedirs(tmp_path / os.path.dirname(rel), exist_ok=True)
     shutil.copy(os.path.join(ROOT, rel), tmp_path / rel)
