@@ -49,7 +49,7 @@ def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env
                     seed_devices: Sequence[int] = (1,)) -> List[Dict[str, float]]:
   """One entry per N in `seeds` (and per setting of `overlaps`, updates dispatched ahead of the
   steps or not, and per number of devices the seeds are spread over, `train.seed_devices`,
-  skipped where it exceeds N unless N is 1): wall seconds of the whole run (compilation
+  skipped where it exceeds N unless N is 1; 0: one device per seed, as runs train by default): wall seconds of the whole run (compilation
   included), the median environment steps per second of one seed over its acting waves after
   `skip`, the updates per second that implies (`online.update_ratio` x that, per seed), and both summed over the N seeds."""
   out = []
@@ -58,7 +58,7 @@ def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env
   for n, overlap, devices in settings:
     c = ml_collections.ConfigDict(config.to_dict())
     c.train.num_seeds, c.online.env_steps = n, env_steps
-    c.train.seed_devices = min(devices, n)
+    c.train.seed_devices = min(devices, n) or n
     c.online.eval_every = c.online.checkpoint_every = env_steps
     c.eval.episodes = 0
     wall, rates = _run(c, overlap, skip)

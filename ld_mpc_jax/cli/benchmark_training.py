@@ -4,7 +4,7 @@
   python -m experiments.benchmark_training --configs=door_open.py:cpu --repeats=20
   python -m experiments.benchmark_training --configs=door_open.py:smoke --repeats=2 --out=b.json
   python -m experiments.benchmark_training --data_parallel       # batch split over all devices
-  python -m experiments.benchmark_training --online_seeds=1,3,5 \
+  python -m experiments.benchmark_training --online_seeds=1,3,5 --online_seed_devices=0 \
       --configs=door_open_online.py:cpu --online_env_steps=4000  # seeds in one online run
   python -m experiments.benchmark_training --online_seeds=1,3 --online_seed_devices=1,2 \
       --configs=door_open_online.py:cpu    # and spread over 2 devices (train.seed_devices)
@@ -43,7 +43,7 @@ _ONLINE_OVERLAP = flags.DEFINE_enum('online_overlap', 'on', ['on', 'off', 'both'
 _ONLINE_DEVICES = flags.DEFINE_list('online_seed_devices', ['1'], 'With --online_seeds: each '
                                      'N also with its seeds spread over each of these numbers '
                                      'of devices (train.seed_devices; on a CPU, virtual '
-                                     'devices made before JAX starts).')
+                                     'devices made before JAX starts); 0: one per seed.')
 _ONLINE_STEPS = flags.DEFINE_integer('online_env_steps', 4000, 'Environment steps (simulator '
                                      'steps) of each timed online run, seed waves included.')
 
@@ -66,6 +66,8 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the output.
   devices = max(int(d) for d in _ONLINE_DEVICES.value)
+  if _ONLINE_SEEDS.value and 0 in [int(d) for d in _ONLINE_DEVICES.value]:  # One per seed.
+    devices = max(devices, *(int(n) for n in _ONLINE_SEEDS.value))
   if _ONLINE_SEEDS.value and devices > 1:  # Before JAX starts: the CPU as that many devices.
     import jax
     jax.config.update('jax_num_cpu_devices', devices)
