@@ -49,8 +49,8 @@ def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env
                     seed_devices: Sequence[int] = (1,)) -> List[Dict[str, float]]:
   """One entry per N in `seeds` (and per setting of `overlaps`, updates dispatched ahead of the
   steps or not, and per number of devices the seeds are spread over, `train.seed_devices`,
-  skipped where it exceeds N unless N is 1; 0: one device per seed, as runs train by default): wall seconds of the whole run (compilation
-  included), the median environment steps per second of one seed over its acting waves after
+  skipped where it exceeds N unless N is 1; 0: one device per seed, as runs train by default):
+  wall seconds of the whole run (compilation included), the median environment steps per second of one seed over its acting waves after
   `skip`, the updates per second that implies (`online.update_ratio` x that, per seed), and both summed over the N seeds."""
   out = []
   settings = [(n, overlap, d) for n in seeds for overlap in overlaps for d in seed_devices

@@ -108,14 +108,16 @@ def _key(r: dict) -> tuple:
   return tuple(str(r.get(k)) for k in ('run', 'task', 'policy', 'split', 'eval_seed', 'episode'))
 
 
-def read_joined(arg: str) -> list:
+def read_joined(arg: str, reader=None) -> list:
   """The records of one path, or of paths joined by '+' as one file: an episode of a policy in
-  several keeps the first, and differing outcomes end the program with one line."""
+  several keeps the first, and differing outcomes end the program with one line. `reader`:
+  path -> records (default `read_records`)."""
+  reader = reader or read_records
   if '+' not in arg:
-    return read_records(arg)
+    return reader(arg)
   records, seen = [], {}
   for path in arg.split('+'):
-    for r in read_records(path):
+    for r in reader(path):
       k = _key(r)
       if k in seen:
         if int(seen[k]['success']) != int(r['success']):
@@ -138,19 +140,17 @@ def _noise_records(result: dict) -> list:
 
 
 def _cell_records(arg: str, obs_noise) -> list:
-  """The records a manifest number reads from one of its files: the protocol records (None), or
-  the noise sweep's at that std (every '+' part a sweep JSON; `_noise_records`), as the policy's
-  ordinary records, so that they count and pair like them."""
-  if obs_noise is None:
-    return read_joined(arg)
-  records = []
-  for path in arg.split('+'):
+  """The records a manifest number reads from one of its files (`read_joined`): the protocol
+  records (None), or the noise sweep's at that std (every '+' part a sweep JSON;
+  `_noise_records`), as ordinary records, so that they count and pair like them."""
+  def sweep_at(path: str) -> list:
     path, tag = _tagged(path)
     if path.endswith(('.csv', '.csv.gz')):
-      cli.fail(f'{path}: a noise cell reads a noise sweep (evaluate --noise_sweep --out), not episodes.csv')
-    records += _tag([r for r in _noise_records(read_json(path))
-                     if abs(float(r['obs_noise']) - float(obs_noise)) < 1e-9], tag)
-  return records
+      cli.fail(f'{path}: a noise cell reads a noise sweep (evaluate --noise_sweep --out), not '
+               'episodes.csv')
+    return _tag([r for r in _noise_records(read_json(path))
+                 if abs(float(r['obs_noise']) - float(obs_noise)) < 1e-9], tag)
+  return read_joined(arg, None if obs_noise is None else sweep_at)
 
 
 def check(manifest_path: str, readme_path: str = 'README.md') -> list:
