@@ -288,3 +288,20 @@ def test_a_tagged_file_pairs_the_same_policy_under_other_settings(tmp_path, caps
   pool_evals.run([f'{tmp_path}/a.json+{tmp_path}/b.json#f'])
   out = capsys.readouterr().out
   assert '| plan#f | 3/4 = 0.75 |' in out and '| held_out | planner vs plan#f | 4 | 1 | 0 |' in out
+
+
+def test_an_evaluation_json_without_runs_joins_its_checkpoints_episodes_csv(tmp_path, capsys):
+  # experiments.train ablations writes the baselines' records without `run`; the variant's own
+  # evaluation is the run's episodes.csv (its run: the training seed): joined, they pair.
+  path = tmp_path / 'episodes.csv'
+  rows = ['run,policy,split,eval_seed,episode,reset_seed,goal_id,success,first_success,return,'
+          'length,env_steps']
+  rows += [f'1,plan,held_out,0,{i},{i},g{i},{p},,1.0,50,100' for i, p in enumerate([1, 0, 0, 1])]
+  path.write_text('\n'.join(rows) + '\n')
+  actor = {'records': [dict(policy='actor', split='held_out', eval_seed=0, episode=i, success=a,
+                            **{'return': 1.0}) for i, a in enumerate([1, 1, 1, 1])]}
+  (tmp_path / 'eval_actor.json').write_text(json.dumps(actor))
+  pool_evals.run([f'{path}+{tmp_path}/eval_actor.json'])
+  out = capsys.readouterr().out
+  assert '| held_out | actor prior | 4/4 = 1.00 |' in out
+  assert '| held_out | planner vs actor prior | 4 | 0 | 2 | 0.5 |' in out

@@ -38,12 +38,13 @@ from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
 
 def named_records(results: list, names: list) -> list:
   """The records of [evaluate JSON dicts], each file's `run` renamed by its name (NAME:RUN where
-  a file holds several runs), so that episodes of different files or checkpoints never pair."""
+  a file holds several runs), so that episodes of different files or checkpoints never pair.
+  Records without a `run` (an evaluation of one checkpoint) belong to the file's one run."""
   records = []
   for result, name in zip(results, names):
-    several = len({str(r.get('run')) for r in result['records']}) > 1
+    several = len({str(r['run']) for r in result['records'] if r.get('run') is not None}) > 1
     for r in result['records']:
-      records.append({**r, 'run': f"{name}:{r['run']}" if several else name})
+      records.append({**r, 'run': f"{name}:{r.get('run')}" if several else name})
   return records
 
 
