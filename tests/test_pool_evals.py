@@ -256,6 +256,25 @@ def test_joined_files_are_one_run_whose_policies_pair(tmp_path, capsys):
   assert 'not the same checkpoints' in capsys.readouterr().err
 
 
+def test_a_run_less_json_joined_with_a_run_counts_a_shared_policy_once(tmp_path):
+  # An evaluation JSON of one checkpoint (records without `run`) joined with that run's records
+  # (run = the training seed): the actor prior in both is one set of episodes, not two.
+  with_run = _result({'plan': [1, 1, 0, 1], 'actor': [1, 0, 0, 1]})
+  for r in with_run['records']:
+    r['run'] = 2
+  run_less = _result({'bc': [0, 0, 1, 0], 'actor': [1, 0, 0, 1]})
+  paths = [str(tmp_path / 'run.json'), str(tmp_path / 'bc.json')]
+  for path, res in zip(paths, (with_run, run_less)):
+    with open(path, 'w') as f:
+      json.dump(res, f)
+  records = pool_evals.read_joined('+'.join(paths))
+  assert len(records) == 12 and {r['run'] for r in records} == {2}
+  s = pool_evals.pool([{'records': records}], ['joined'])['held_out']
+  assert s['policies']['actor']['successes'] == 2
+  t = s['paired']['plan vs bc']
+  assert (t['n'], t['a_only'], t['b_only']) == (4, 3, 1)
+
+
 def test_noise_sweeps_pool_with_bc_protocol_records_as_std_zero(tmp_path, capsys):
   """pool_evals pools noise sweeps over files; a BC file whose sweep lacks std 0 counts its
   protocol records there; the policies pair on the episodes of each joined file."""

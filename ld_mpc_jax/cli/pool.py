@@ -111,14 +111,20 @@ def _key(r: dict) -> tuple:
 
 def read_joined(arg: str, reader=None) -> list:
   """The records of one path, or of paths joined by '+' as one file: an episode of a policy in
-  several keeps the first, and differing outcomes end the program with one line. `reader`:
-  path -> records (default `read_records`)."""
+  several keeps the first, and differing outcomes end the program with one line. Records without
+  a `run` take the join's run where the others name exactly one. `reader`: path -> records
+  (default `read_records`)."""
   reader = reader or read_records
   if '+' not in arg:
     return reader(arg)
+  parts = [reader(path) for path in arg.split('+')]
+  runs = {str(r['run']) for part in parts for r in part if r.get('run') is not None}
+  if len(runs) == 1:  # Run-less records (one checkpoint's evaluation JSON) are the join's one run.
+    (run,) = {r['run'] for part in parts for r in part if r.get('run') is not None}
+    parts = [[r if r.get('run') is not None else dict(r, run=run) for r in part] for part in parts]
   records, seen = [], {}
-  for path in arg.split('+'):
-    for r in reader(path):
+  for part in parts:
+    for r in part:
       k = _key(r)
       if k in seen:
         if int(seen[k]['success']) != int(r['success']):
