@@ -118,9 +118,9 @@ def read_joined(arg: str, reader=None) -> list:
   if '+' not in arg:
     return reader(arg)
   parts = [reader(path) for path in arg.split('+')]
-  runs = {str(r['run']) for part in parts for r in part if r.get('run') is not None}
+  runs = {r['run'] for part in parts for r in part if r.get('run') is not None}
   if len(runs) == 1:  # Run-less records (one checkpoint's evaluation JSON) are the join's one run.
-    (run,) = {r['run'] for part in parts for r in part if r.get('run') is not None}
+    (run,) = runs
     parts = [[r if r.get('run') is not None else dict(r, run=run) for r in part] for part in parts]
   records, seen = [], {}
   for part in parts:
