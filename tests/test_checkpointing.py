@@ -13,6 +13,7 @@ import orbax.checkpoint as ocp
 import pytest
 
 from ld_mpc_jax.configs import door_open
+from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.model.config_checks import validate_config
@@ -205,6 +206,20 @@ def test_continuing_with_other_networks_is_refused_even_with_the_flag(tmp_path):
   wider = with_overrides(door_open.get_config('smoke'), {'model.width': 32})
   with pytest.raises(checkpointing.WorkdirError, match=r'networks differ \(model.width'):
     checkpointing.check_workdir(wider, workdir, continue_with_changes=True)
+
+
+def test_continuing_to_more_steps_warns_that_the_schedules_move(tmp_path, capsys):
+  workdir = str(tmp_path)
+  checkpointing.save_config(door_open_online.get_config('smoke'), workdir)
+  longer = door_open_online.get_config('smoke')
+  longer.online.env_steps *= 2
+  checkpointing.check_workdir(longer, workdir, continue_with_changes=True)
+  err = capsys.readouterr().err.strip()
+  old = longer.online.env_steps // 2
+  assert err.count('\n') == 0 and err.endswith(f'--config.online.schedule_steps={old} keeps the run\'s')
+  longer.online.schedule_steps = old  # Kept: nothing to say.
+  checkpointing.check_workdir(longer, workdir, continue_with_changes=True)
+  assert capsys.readouterr().err == ''
 
 
 def test_a_changed_config_keeps_the_earlier_one_beside_it(tmp_path):

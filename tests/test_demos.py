@@ -44,6 +44,16 @@ def test_demo_share_is_linear_from_start_to_end_and_zero_without_demos():
   assert demos.demo_share(config, 0) == 0.0
 
 
+def test_schedule_steps_moves_where_the_demo_share_ends():
+  """A run continued from 1000 to 2000 steps keeps its schedule with online.schedule_steps."""
+  config = door_open_online.get_config('smoke')
+  o = config.online
+  o.env_steps, o.demos, o.demo_share_start, o.demo_share_end = 2000, 5, 0.5, 0.25
+  assert demos.demo_share(config, 1000) == 0.375
+  o.schedule_steps = 1000
+  assert [demos.demo_share(config, s) for s in (500, 1000, 2000)] == [0.375, 0.25, 0.25]
+
+
 @pytest.mark.parametrize('share', [0.5, 0.25, 0.0])
 def test_every_batch_of_a_call_holds_its_share_of_demo_windows(share):
   buffer = Buffer(seq_len=4, offline=None, seed=0,

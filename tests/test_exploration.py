@@ -75,6 +75,18 @@ def test_executed_noise_anneals_linearly():
   mid = (1_600 + c.online.env_steps) // 2
   assert exploration.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
   assert exploration.executed_noise(c, c.online.env_steps, 1_600) == pytest.approx(end)
+  # online.schedule_steps moves where every schedule ends (a run continued to more steps).
+  c.online.schedule_steps = c.online.env_steps
+  c.online.env_steps *= 2
+  assert exploration.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
+  assert exploration.executed_noise(c, c.online.schedule_steps, 1_600) == pytest.approx(end)
+  c.online.act_schedule, c.online.act_pessimism, c.online.act_pessimism_end = 'linear', -1.0, 0.0
+  assert exploration.acting_exploration(c, c.online.schedule_steps, 0)[0] == pytest.approx(0.0)
+  c.online.schedule_steps = 0
+  assert exploration.acting_exploration(c, c.online.env_steps // 2, 0)[0] == pytest.approx(-0.5)
+  c.online.schedule_steps = -1
+  with pytest.raises(ValueError, match='schedule_steps must be an integer >= 0'):
+    exploration.validate_acting(c)
 
 
 def test_correlated_noise_has_the_annealed_std_and_its_correlation():

@@ -24,6 +24,10 @@ def online_settings() -> ml_collections.ConfigDict:
   o.init_from = ''
   # Simulator steps. TD-MPC2's published door-open 0.67 is at 100k decisions = 200k simulator steps.
   o.env_steps = 100_000
+  # Where every annealed schedule ends (the demonstrations' share, the executed-action noise,
+  # act_schedule='linear'), in simulator steps; 0 = env_steps. A run continued to more steps
+  # (--continue_with_changes) keeps its schedules with this set to its first env_steps.
+  o.schedule_steps = 0
   o.num_envs = 4  # Environments stepped in lockstep, one episode each per wave.
   o.episode_steps = 500  # Full-length episodes (success does not end them), as the data's.
   # Random-action steps before the first update (from scratch): TD-MPC2 seeds with 5 episodes'

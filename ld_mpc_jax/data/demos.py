@@ -89,12 +89,12 @@ def get_demos(config: ml_collections.ConfigDict) -> List[Episode]:
 
 def demo_share(config: ml_collections.ConfigDict, env_steps: int) -> float:
   """Share of a batch's windows drawn from the demonstrations at `env_steps`: linear from
-  `online.demo_share_start` at 0 to `online.demo_share_end` at `online.env_steps`; 0 without
-  demonstrations."""
+  `online.demo_share_start` at 0 to `online.demo_share_end` at `online.schedule_steps` (0:
+  `online.env_steps`); 0 without demonstrations."""
   o = config.online
   if not o.demos:
     return 0.0
-  frac = min(max(env_steps / o.env_steps, 0.0), 1.0)
+  frac = min(max(env_steps / (o.schedule_steps or o.env_steps), 0.0), 1.0)
   return float(o.demo_share_start + frac * (o.demo_share_end - o.demo_share_start))
 
 

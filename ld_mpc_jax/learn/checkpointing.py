@@ -226,6 +226,21 @@ def check_workdir(config: ml_collections.ConfigDict, workdir: str,
   if has_checkpoint(workdir) and shapes(saved) != shapes(config):
     raise WorkdirError(f'{workdir}: even with --continue_with_changes, its checkpoints cannot '
                        f'continue under this config: the networks differ ({", ".join(changes)})')
+  _warn_moved_schedules(saved, config)
+
+
+def _warn_moved_schedules(saved: ml_collections.ConfigDict,
+                          config: ml_collections.ConfigDict) -> None:
+  """Warns, in one line, when a continued online run's annealed schedules (they end at
+  `online.env_steps` unless `online.schedule_steps` is set) would end elsewhere than its own."""
+  if 'online' not in saved or 'online' not in config:
+    return
+  end = lambda o: o.schedule_steps or o.env_steps
+  old, new = end(saved.online), end(config.online)
+  if old != new:
+    _warn(f'the annealed schedules (demonstrations\' share, executed-action noise, '
+          f'act_schedule=linear) of this run ended at {old} simulator steps and now end at {new}; '
+          f'--config.online.schedule_steps={old} keeps the run\'s')
 
 
 def record_config(config: ml_collections.ConfigDict, workdir: str) -> str:

@@ -41,6 +41,13 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   return c
 
 
+def schedule_end(config: ml_collections.ConfigDict) -> int:
+  """Simulator steps at which every annealed schedule of online training ends:
+  `online.schedule_steps`, or `online.env_steps` where it is 0."""
+  o = config.online
+  return int(o.schedule_steps or o.env_steps)
+
+
 def _linear(start: float, end: float, env_steps: int, first: int, total: int) -> float:
   """start at `first` environment steps (and before), end at `total` (and after), linear between."""
   frac = np.clip((env_steps - first) / max(total - first, 1), 0.0, 1.0)
@@ -50,9 +57,9 @@ def _linear(start: float, end: float, env_steps: int, first: int, total: int) ->
 def executed_noise(config: ml_collections.ConfigDict, env_steps: int, learn_start: int) -> float:
   """Std of the noise on the executed action at `env_steps`: linear from
   `online.exec_noise_start` when the planner starts acting to `online.exec_noise_end` at
-  `online.env_steps`."""
+  `schedule_end` (`online.env_steps` by default)."""
   o = config.online
-  return _linear(o.exec_noise_start, o.exec_noise_end, env_steps, learn_start, o.env_steps)
+  return _linear(o.exec_noise_start, o.exec_noise_end, env_steps, learn_start, schedule_end(config))
 
 
 def plan_start(config: ml_collections.ConfigDict, learn_start: int) -> int:
@@ -65,11 +72,11 @@ def plan_start(config: ml_collections.ConfigDict, learn_start: int) -> int:
 def _scheduled(config: ml_collections.ConfigDict, name: str, env_steps: int,
                plan_start: int) -> float:
   """`online.<name>`, or under `online.act_schedule='linear'` linear from it at `plan_start`
-  (the first planner wave) to `online.<name>_end` at `online.env_steps`."""
+  (the first planner wave) to `online.<name>_end` at `schedule_end` (`online.env_steps`)."""
   o = config.online
   if o.act_schedule == 'constant':
     return float(o[name])
-  return _linear(o[name], o[f'{name}_end'], env_steps, plan_start, o.env_steps)
+  return _linear(o[name], o[f'{name}_end'], env_steps, plan_start, schedule_end(config))
 
 
 def acting_exploration(config: ml_collections.ConfigDict, env_steps: int,
@@ -77,7 +84,7 @@ def acting_exploration(config: ml_collections.ConfigDict, env_steps: int,
   """(pessimism, disagreement weight) of the acting planner at `env_steps`:
   `online.act_pessimism` and `online.act_disagreement`, or under `online.act_schedule='linear'`
   linear from them at `plan_start` (the first planner wave) to `online.act_pessimism_end` and
-  `online.act_disagreement_end` at `online.env_steps`."""
+  `online.act_disagreement_end` at `schedule_end` (`online.env_steps`)."""
   return (_scheduled(config, 'act_pessimism', env_steps, plan_start),
           _scheduled(config, 'act_disagreement', env_steps, plan_start))
 
@@ -107,6 +114,9 @@ def validate_acting(config: ml_collections.ConfigDict) -> None:
   if o.act_schedule not in SCHEDULES:
     raise ValueError(f'config.online.act_schedule must be one of {SCHEDULES}, '
                      f'got {o.act_schedule!r}')
+  if not isinstance(o.schedule_steps, int) or o.schedule_steps < 0:
+    raise ValueError('config.online.schedule_steps must be an integer >= 0 (0: online.env_steps), '
+                     f'got {o.schedule_steps!r}')
   if not isinstance(o.act_dynamics_draws, int) or o.act_dynamics_draws < 0:
     raise ValueError('config.online.act_dynamics_draws must be an integer >= 0, '
                      f'got {o.act_dynamics_draws!r}')

@@ -51,7 +51,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 3
+CONFIG_VERSION = 4
 
 
 def _online_fields(config: ml_collections.ConfigDict) -> dict:
@@ -100,8 +100,18 @@ def to_v3(config: ml_collections.ConfigDict) -> None:
     fill(config, 'online', V3_ONLINE_FIELDS)
 
 
+# Field added in version 4, with the value that changes nothing: the schedules end at env_steps.
+V4_ONLINE_FIELDS = dict(schedule_steps=0)
+
+
+def to_v4(config: ml_collections.ConfigDict) -> None:
+  """Version 3 -> 4 (in place): `online.schedule_steps`, 0 (the schedules end at env_steps)."""
+  if 'online' in config:
+    fill(config, 'online', V4_ONLINE_FIELDS)
+
+
 # version -> the step that brings a config of version - 1 to it.
-STEPS = {1: to_v1, 2: to_v2, 3: to_v3}
+STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4}
 
 
 def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
