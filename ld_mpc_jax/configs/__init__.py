@@ -5,6 +5,14 @@ import os
 CONFIG_DIR = os.path.dirname(os.path.abspath(__file__))
 
 
+def schedule_end(config) -> int:
+  """Simulator steps at which every annealed schedule of online training ends (the
+  demonstrations' share, executed-action noise, `online.act_schedule='linear'`):
+  `online.schedule_steps`, or `online.env_steps` where it is 0."""
+  o = config.online
+  return int(o.schedule_steps or o.env_steps)
+
+
 def resolve_config_arg(argv):
   """Rewrites --config=name.py[:preset] to a path under experiments/configs when needed.
 

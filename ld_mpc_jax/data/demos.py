@@ -14,10 +14,10 @@ from typing import Dict, List
 import ml_collections
 import numpy as np
 
+from ld_mpc_jax import configs
 from ld_mpc_jax import envs
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import dataset as dataset_lib
-from ld_mpc_jax.model import exploration
 
 Episode = Dict[str, np.ndarray]
 
@@ -95,7 +95,7 @@ def demo_share(config: ml_collections.ConfigDict, env_steps: int) -> float:
   o = config.online
   if not o.demos:
     return 0.0
-  frac = min(max(env_steps / exploration.schedule_end(config), 0.0), 1.0)
+  frac = min(max(env_steps / configs.schedule_end(config), 0.0), 1.0)
   return float(o.demo_share_start + frac * (o.demo_share_end - o.demo_share_start))
 
 

@@ -16,9 +16,9 @@ import jax
 import ml_collections
 import orbax.checkpoint as ocp
 
+from ld_mpc_jax import configs
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.learn.train_state import TrainState, create_train_state
-from ld_mpc_jax.model import exploration
 
 CONFIG_FILE = 'config.json'
 def legacy_defaults() -> dict:
@@ -236,7 +236,7 @@ def _warn_moved_schedules(saved: ml_collections.ConfigDict,
   `online.env_steps` unless `online.schedule_steps` is set) would end elsewhere than its own."""
   if 'online' not in saved or 'online' not in config:
     return
-  old, new = exploration.schedule_end(saved), exploration.schedule_end(config)
+  old, new = configs.schedule_end(saved), configs.schedule_end(config)
   if old != new:
     _warn(f'the annealed schedules (demonstrations\' share, executed-action noise, '
           f'act_schedule=linear) of this run ended at {old} simulator steps and now end at {new}; '

@@ -8,6 +8,7 @@ from typing import Tuple
 import ml_collections
 import numpy as np
 
+from ld_mpc_jax.configs import schedule_end
 from ld_mpc_jax.model import proposals
 from ld_mpc_jax.model.objective import Intrinsic
 
@@ -39,13 +40,6 @@ def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
   if not o.act_proposal:  # The first round without the proposal's K - P sequences.
     c.plan.num_candidates = config.plan.num_prior_candidates
   return c
-
-
-def schedule_end(config: ml_collections.ConfigDict) -> int:
-  """Simulator steps at which every annealed schedule of online training ends:
-  `online.schedule_steps`, or `online.env_steps` where it is 0."""
-  o = config.online
-  return int(o.schedule_steps or o.env_steps)
 
 
 def _linear(start: float, end: float, env_steps: int, first: int, total: int) -> float:
