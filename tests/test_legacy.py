@@ -88,11 +88,11 @@ def test_a_version_1_config_gets_the_progress_reward_off():
 def test_a_version_3_online_config_keeps_its_schedules_ending_at_env_steps():
   import json
   import ml_collections
+  from ld_mpc_jax import configs
   from ld_mpc_jax.configs import door_open_online
-  from ld_mpc_jax.model import exploration
   v3 = json.loads(door_open_online.get_config('smoke').to_json())
   v3['version'] = 3
   del v3['online']['schedule_steps']
   migrated = legacy.migrate(ml_collections.ConfigDict(v3))
   assert (migrated.version, migrated.online.schedule_steps) == (legacy.CONFIG_VERSION, 0)
-  assert exploration.schedule_end(migrated) == migrated.online.env_steps
+  assert configs.schedule_end(migrated) == migrated.online.env_steps
