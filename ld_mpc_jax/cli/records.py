@@ -47,7 +47,7 @@ def write_records(workdir: str, out: str) -> List[str]:
                             'evaluation (or it is not a run directory)')
   os.makedirs(out, exist_ok=True)
   written = []
-  for i, (src, prefix) in enumerate(sources):
+  for src, prefix in sources:
     for name in GZIPPED + COPIED:
       path = os.path.join(src, name)
       if not os.path.isfile(path):
@@ -59,11 +59,10 @@ def write_records(workdir: str, out: str) -> List[str]:
         dst = os.path.join(out, f'{prefix}{name}')
         shutil.copyfile(path, dst)
       written.append(dst)
-    config = os.path.join(src, 'config.json')
-    if i == 0 and os.path.isfile(config):
-      dst = os.path.join(out, f'config_{prefix.rstrip("_") or "run"}.json')
-      shutil.copyfile(config, dst)
-      written.append(dst)
+  src, prefix = sources[0]  # The first seed's config stands for the run's.
+  if os.path.isfile(os.path.join(src, 'config.json')):
+    written.append(os.path.join(out, f'config_{prefix.rstrip("_") or "run"}.json'))
+    shutil.copyfile(os.path.join(src, 'config.json'), written[-1])
   for name in RUN_FILES if seeds else ():
     path = os.path.join(workdir, name)
     if os.path.isfile(path):
