@@ -113,4 +113,4 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.eval.noise_stds = (0.0,)
     c.eval.batch_size = 2
     return c
-  raise ValueError(f"unknown preset {preset!r}: use '', 'cpu', 'ablation', 'quick' or 'smoke'")
+  raise ValueError(f"unknown preset {preset!r}: use '' or 'reference', 'cpu', 'ablation', 'quick' or 'smoke'")

@@ -74,7 +74,7 @@ def online_settings() -> ml_collections.ConfigDict:
   o.act_safe_selection = False
   # The search while acting (evaluation keeps plan.num_gaussian and plan.iterations): broad
   # Gaussian candidates and MPPI refinement rounds widen what is tried; on push's online
-  # checkpoints they cost success when evaluating (docs/results.md). Presets set both sides.
+  # checkpoints they cost success when evaluating (docs/results.md). :cpu acts with them only.
   o.act_num_gaussian = 0
   o.act_iterations = 0
   # Gaussian noise on the executed action while acting, its std linear from start to end over
