@@ -33,11 +33,12 @@ def _episodes(workdir):
 
 
 @pytest.fixture(scope='module')
-def runs(tmp_path_factory):
-  root = tmp_path_factory.mktemp('seeds')
-  online.train_online(_config(0, 2), str(root / 'both'))
-  online.train_online(_config(1, 1), str(root / 'alone1'))
-  return root
+def runs(build_once):
+  """Seeds 0 and 1 in one run, and seed 1 alone: trained once for every xdist worker."""
+  def build(root):
+    online.train_online(_config(0, 2), str(root / 'both'))
+    online.train_online(_config(1, 1), str(root / 'alone1'))
+  return build_once('online_seeds', build)
 
 
 def test_a_seed_trained_beside_another_is_the_seed_trained_alone(runs):
@@ -118,6 +119,7 @@ print(json.dumps(dict(devices=len(jax.local_devices()))))
 '''
 
 
+@pytest.mark.long  # Compiles every program again for two devices; the grouping: test_seed_groups.py.
 def test_seeds_on_two_devices_are_the_seeds_on_one(runs, tmp_path):
   """Seeds 0 and 1 on two devices (a group each, dispatched side by side) end where seed 1
   trained alone and seed 0 trained beside seed 1 on one device end."""

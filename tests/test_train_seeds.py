@@ -28,11 +28,12 @@ def _params(workdir, seed):
 
 
 @pytest.fixture(scope='module')
-def runs(tmp_path_factory):
-  root = tmp_path_factory.mktemp('offline_seeds')
-  train_and_evaluate(_config(0, 2), str(root / 'both'))
-  train_and_evaluate(_config(1, 1), str(root / 'alone1'))
-  return root
+def runs(build_once):
+  """Seeds 0 and 1 in one run, and seed 1 alone: trained once for every xdist worker."""
+  def build(root):
+    train_and_evaluate(_config(0, 2), str(root / 'both'))
+    train_and_evaluate(_config(1, 1), str(root / 'alone1'))
+  return build_once('offline_seeds', build)
 
 
 def _close(a_tree, b_tree):
@@ -83,6 +84,7 @@ assert len(jax.local_devices()) == 2
 '''
 
 
+@pytest.mark.long  # Compiles every program again for two devices; the grouping: test_seed_groups.py.
 def test_seeds_on_two_devices_end_where_they_end_on_one(runs, tmp_path):
   """Seeds 0 and 1 on two devices (one program each, `train.seed_devices`) end where seed 0
   beside seed 1 on one device and seed 1 alone end."""
