@@ -26,6 +26,7 @@ def _train(tmp_path, *args):
 @pytest.mark.parametrize('args,words', [
     (['--config=door_open.py:nosuch'], ['--config', "'nosuch'", "'smoke'"]),
     (['--config=door_open_online.py:nosuch'], ["'nosuch'", "'finetune'"]),
+    (['--config=mt10.py:quick'], ["'quick'", 'mt10.py', "'smoke'"]),  # door_open's, not mt10's.
     (['--config=door_open.py:smoke', '--config.data.preset=bogus'],
      ['config.data.preset', "'bogus'", "'mixed'", "'weak'"]),
     (['--config=door_open_online.py:smoke', '--config.train.batch_size=16'],

@@ -20,7 +20,12 @@ MT10_TASKS = ('reach-v3', 'push-v3', 'pick-place-v3', 'door-open-v3', 'drawer-op
               'window-open-v3', 'window-close-v3')
 
 
+PRESETS = ('', 'reference', 'cpu', 'smoke')
+
+
 def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
+  if preset not in (None,) + PRESETS:  # door_open's :ablation and :quick are single-task tours.
+    raise ValueError(f"unknown preset {preset!r} for mt10.py: use '' or 'reference', 'cpu' or 'smoke'")
   c = door_open.get_config(preset)
   c.task = 'mt10'  # A label for reports; the tasks are config.tasks.
   c.tasks = MT10_TASKS
