@@ -275,6 +275,24 @@ def test_a_run_less_json_joined_with_a_run_counts_a_shared_policy_once(tmp_path)
   assert (t['n'], t['a_only'], t['b_only']) == (4, 3, 1)
 
 
+def test_an_old_bc_file_with_outcomes_only_pairs_as_bc(tmp_path):
+  # `evaluate bc` without --run wrote `records: null` and per-episode `outcomes` (no policy).
+  run = _result({'plan': [1, 1, 0, 1]})
+  for r in run['records']:
+    r['run'] = 0
+  old = dict(records=None, outcomes=[
+      {k: v for k, v in r.items() if k not in ('policy', 'run')} | dict(success=ok)
+      for r, ok in zip(run['records'], [0, 1, 1, 0])])
+  paths = [str(tmp_path / 'run.json'), str(tmp_path / 'bc.json')]
+  for path, res in zip(paths, (run, old)):
+    with open(path, 'w') as f:
+      json.dump(res, f)
+  assert [r['success'] for r in pool_evals.read_records(paths[1])] == [0, 1, 1, 0]
+  t = pool_evals.pool([{'records': pool_evals.read_joined('+'.join(paths))}],
+                      ['joined'])['held_out']['paired']['plan vs bc']
+  assert (t['n'], t['a_only'], t['b_only']) == (4, 2, 1)
+
+
 def test_noise_sweeps_pool_with_bc_protocol_records_as_std_zero(tmp_path, capsys):
   """pool_evals pools noise sweeps over files; a BC file whose sweep lacks std 0 counts its
   protocol records there; the policies pair on the episodes of each joined file."""

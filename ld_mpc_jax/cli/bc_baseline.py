@@ -136,10 +136,12 @@ def main(argv):
                 run=_RUN.value, split=episodes[0].split,
                 outcomes=[dict(ep.record(), success=int(o))
                           for ep, o in zip(episodes, res['outcomes'])],
-                # With --run: records as the run's episodes.csv names them (its seed as `run`,
-                # policy 'bc'), so that experiments.report pairs them with the run's own.
-                records=[dict(ep.record(), run=seed, policy='bc', success=int(o))
-                         for ep, o in zip(episodes, res['outcomes'])] if _RUN.value else None,
+                # Records as a run's episodes.csv names them (policy 'bc'; with --run, its seed as
+                # `run`; without, none, so that a join takes the run it is joined with), so that
+                # experiments.report pairs them with the run's own.
+                records=[dict(ep.record(), policy='bc', success=int(o),
+                              **(dict(run=seed) if _RUN.value else {}))
+                         for ep, o in zip(episodes, res['outcomes'])],
                 dataset=collection.summary(ds), final_loss=loss,
                 train_seconds=round(train_s, 1),
                 eval_seconds=round(time.time() - start, 1),

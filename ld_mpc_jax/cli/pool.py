@@ -88,7 +88,13 @@ def read_records(path: str) -> list:
 
 def _read_records(path: str) -> list:
   if not path.endswith(('.csv', '.csv.gz')):
-    records = read_json(path).get('records')
+    result = read_json(path)
+    records = result.get('records')
+    outcomes = result.get('outcomes')
+    if records is None and outcomes and isinstance(outcomes[0], dict):
+      # `evaluate bc` without --run used to write its episodes as `outcomes` only
+      # (results/noise/offline_door_medium_mask_859bac5/bc.json.gz).
+      records = [dict(o, policy='bc') for o in outcomes]
     if records is None:
       cli.fail(f'{path} has no per-episode records (written by an older evaluate?)')
     return records
