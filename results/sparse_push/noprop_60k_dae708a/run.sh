@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 70, "does the diffusion proposal explore?" on push, where its candidates won 26-34% of acting decisions: the sparse
+# Issue 70, "does the diffusion proposal explore?" on push, where its candidates won 19-26% of acting decisions (to 60k; 26-34% over 100k): the sparse
 # push recipe of ../v3_5demos_7b652a9 (5 demonstrations, the same flags, 60k simulator steps = 30k TD-MPC2 decisions) with
 # the proposal's candidates removed while acting (online.act_proposal=False; evaluation keeps them). Three seeds in one run.
 cd "$(git rev-parse --show-toplevel)"  # a worktree at commit dae708a
