@@ -96,3 +96,31 @@ def test_seeds_on_two_devices_end_where_they_end_on_one(runs, tmp_path):
   assert done.returncode == 0, done.stderr[-3000:]
   _close(_params(str(tmp_path / 'two' / 'seed0'), 0), _params(str(runs / 'both' / 'seed0'), 0))
   _close(_params(str(tmp_path / 'two' / 'seed1'), 1), _params(str(runs / 'alone1'), 1))
+
+
+def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(runs, tmp_path):
+  """`online.init_from` = a run of two offline seeds: online seed s starts from <run>/seed<s>,
+  and its saved config names that folder, as a run of seed s alone fine-tuned from it would."""
+  from ld_mpc_jax import data  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.configs import door_open_online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
+  config = door_open_online.get_config('smoke')
+  config.model.normalize_obs = True  # As the offline run's networks.
+  config.train.num_seeds, config.online.init_from = 2, str(runs / 'both')
+  source = online.check_init_from(config)
+  config.data.update(source.data.to_dict())
+  job = online.OnlineJob(config, str(tmp_path / 'ft'), source, data.load_for_config(config))
+  job.bar.close()
+  assert [seat.config.online.init_from for seat in job.seats] == [
+      str(runs / 'both' / f'seed{s}') for s in (0, 1)]
+  (stack,) = job.states  # One device: both seeds in one stack.
+  for s in (0, 1):
+    ours = jax.tree_util.tree_map(lambda x, s=s: np.asarray(x)[s], stack.params)
+    for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(_params(
+        str(runs / 'both' / f'seed{s}'), s)), strict=True):
+      np.testing.assert_array_equal(a, b)
+  one = tmp_path / 'one_seed'  # A folder with seed 0 only: seed 1's source is missing.
+  shutil.copytree(runs / 'both' / 'seed0', one / 'seed0')
+  config.online.init_from = str(one)
+  with pytest.raises(ValueError, match='run of several seeds without seed1/'):
+    online.check_init_from(config)

@@ -261,8 +261,19 @@ def seed_configs(config: ml_collections.ConfigDict, workdir: str):
   for i in range(n):
     c = ml_collections.ConfigDict(config.to_dict())
     c.seed, c.train.num_seeds = config.seed + i, 1
+    if 'online' in c and c.online.init_from:  # Each seed fine-tunes from its own offline seed.
+      c.online.init_from = seed_source(c.online.init_from, c.seed)
     out.append((c, os.path.join(workdir, f'seed{c.seed}')))
   return out
+
+
+def seed_source(path: str, seed: int) -> str:
+  """The offline run a training seed fine-tunes from: <path>/seed<seed> when `path` is a run of
+  several seeds (no config of its own, a folder per seed), else `path` itself."""
+  own = os.path.join(path, f'seed{seed}')
+  if not os.path.exists(os.path.join(path, checkpointing.CONFIG_FILE)) and os.path.isdir(own):
+    return own
+  return path
 
 
 def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:

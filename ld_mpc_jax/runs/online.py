@@ -60,16 +60,31 @@ from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy
 def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collections.ConfigDict]:
   """The config of the offline run `online.init_from` (None: from scratch).
 
-  Raises a one-line ValueError when it is not a training workdir with a checkpoint, when it was
-  trained on another task, or when its networks differ from config's (the parameters would not
-  fit).
+  A run of several offline seeds (`train.num_seeds`: a folder per seed) gives each training seed
+  its own: seed s fine-tunes from <init_from>/seed<s> (`runs.seed_source`); every one is checked,
+  and they must share their data. Raises a one-line ValueError when one is not a training workdir
+  with a checkpoint, when it was trained on another task, or when its networks differ from
+  config's (the parameters would not fit).
   """
-  path = config.online.init_from
-  if not path:
+  if not config.online.init_from:
     return None
+  seeds = [c for c, _ in runs.seed_configs(config, '')]
+  sources = [_check_source(c) for c in seeds]
+  for c, source in zip(seeds[1:], sources[1:]):
+    if source.data.to_dict() != sources[0].data.to_dict():
+      raise ValueError(f'config.online.init_from: {c.online.init_from!r} was trained on other '
+                       f'data than {seeds[0].online.init_from!r}')
+  return sources[0]
+
+
+def _check_source(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+  path = runs.seed_source(config.online.init_from, config.seed)
   try:
     source = checkpointing.load_config(path)
   except FileNotFoundError as err:
+    if os.path.isdir(path) and any(n.startswith('seed') for n in os.listdir(path)):
+      raise ValueError(f'config.online.init_from={path!r} is a run of several seeds without '
+                       f'seed{config.seed}/, which training seed {config.seed} starts from') from None
     raise ValueError(f'config.online.init_from: {err}') from None
   if source.task != config.task:  # Its dataset would be collected again on the wrong task.
     raise ValueError(f'config.online.init_from={path!r} was trained on {source.task}, not '
@@ -105,8 +120,9 @@ class OnlineJob:
                          pretrain_updates=0)
     states = self._restore()
     if states is None and source is not None:
-      states = [checkpointing.restore_latest(checkpointing.checkpoint_manager(o.init_from),
-                                             seat.config) for seat in self.seats]
+      states = [checkpointing.restore_latest(checkpointing.checkpoint_manager(
+          runs.seed_source(seat.config.online.init_from, seat.config.seed)), seat.config)
+                for seat in self.seats]
     elif states is None:  # From scratch; observation statistics come with the seed data.
       states = [create_train_state(seat.config, jax.random.key(seat.config.seed))
                 for seat in self.seats]
