@@ -33,6 +33,8 @@ if hasattr(module, 'define_flags'):
 FLAGS, errors = flags.FLAGS, []
 for argv in commands:
   FLAGS.unparse_flags()
+  for flag in [f for f in FLAGS if f.startswith('config.')]:  # Defined by the last parse.
+    delattr(FLAGS, flag)
   try:
     argv, items = resolve_config_arg(argv), []  # As ld_mpc_jax.cli.dispatch does.
     if hasattr(module, 'OVERRIDES'):
@@ -141,6 +143,7 @@ python -m experiments.train --config=door_open.py:cpu --workdir=DIR --no_such_fl
 | `python -m experiments.report nomode a.json` | x |
 | `python -m experiments.evaluate selection --workdir=A --workdir=B --out=x.json --config.plan.nope=1`
 | `python -m experiments.train --config=door_open.py:cpu --seeds=0,1 --workdir=DIR --config.seed=2`
+| `python -m experiments.train --config=door_open.py:cpu --workdir=DIR --config.train.num_seeds=2`
 '''
   commands = readme_commands(text)
   assert commands[0] == ['experiments.train', '--config=door_open.py:cpu', '--workdir=DIR',
@@ -157,3 +160,4 @@ python -m experiments.train --config=door_open.py:cpu --workdir=DIR --no_such_fl
   assert 'unknown mode' in errors[8] and 'curves' in errors[8]
   assert errors[9] is not None  # selection: fields are checked only where the mode loads a
   assert errors[10] is None     # config; the sweep mode (--seeds) takes --config.x itself.
+  assert errors[11] is None  # A field the first command set too: each command parses afresh.
