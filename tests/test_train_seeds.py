@@ -100,7 +100,7 @@ def test_seeds_on_two_devices_end_where_they_end_on_one(runs, tmp_path):
 
 def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(runs, tmp_path):
   """`online.init_from` = a run of two offline seeds: online seed s starts from <run>/seed<s>,
-  and its saved config names that folder, as a run of seed s alone fine-tuned from it would."""
+  and its config (the one it saves) names that folder, as a run of seed s alone would."""
   from ld_mpc_jax import data  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.configs import door_open_online  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
