@@ -148,7 +148,8 @@ python -m experiments.train --config=door_open.py:cpu --workdir=DIR --no_such_fl
   commands = readme_commands(text)
   assert commands[0] == ['experiments.train', '--config=door_open.py:cpu', '--workdir=DIR',
                          '--config.train.num_seeds=3']
-  errors = [check_commands(commands, tmp_path)[tuple(c)] for c in commands]
+  found = check_commands(commands, tmp_path)  # One subprocess per module for all of them.
+  errors = [found[tuple(c)] for c in commands]
   assert errors[0] is None, errors[0]
   assert 'no_such_flag' in errors[1]
   assert 'nopreset' in errors[2]
