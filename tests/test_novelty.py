@@ -8,6 +8,7 @@ import numpy as np
 import optax
 import pytest
 
+from ld_mpc_jax import validate_config
 from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import losses
@@ -91,8 +92,29 @@ def test_the_bonus_is_scaled_to_mean_one_and_is_zero_without_novelty():
   assert np.all(np.asarray(novelty.bonus(net, zero, latents, actions, 0.9)) == 0.0)
 
 
-def test_the_model_and_its_loss_have_the_term_only_when_on(smoke_config):
-  c = with_overrides(smoke_config, ON)
+def test_obs_targets_are_each_coordinates_change_in_units_of_its_batch_spread():
+  rng = np.random.default_rng(4)
+  obs = rng.normal(size=(8, 5, 3)).astype(np.float32)
+  obs[..., 1] *= 100.0  # A coordinate on another scale is in the same units.
+  obs[..., 2] = 0.5  # One that never moves: its targets are 0.
+  obs[3, 2:, 2] = 0.51  # ... until it moves once, by 1 cm: then large where it did.
+  t = np.asarray(novelty.obs_targets(jnp.asarray(obs)))
+  change = np.diff(obs, axis=1)
+  expected = change / (change.std(axis=(0, 1)) + novelty.OBS_SCALE_FLOOR)
+  np.testing.assert_allclose(t, expected, rtol=1e-4, atol=1e-6)
+  assert t.shape == (8, 4, 3)
+  assert t[..., 0].std() == pytest.approx(t[..., 1].std(), rel=0.01)
+  assert abs(t[3, 1, 2]) > 3 and np.count_nonzero(t[..., 2]) == 1
+  assert np.all(np.asarray(novelty.obs_targets(jnp.full((2, 3, 4), 7.0))) == 0.0)
+  c = door_open_online.get_config('smoke')
+  c.model.novelty_target = 'observation'
+  with pytest.raises(ValueError, match="novelty_target must be 'latent' or 'obs'"):
+    validate_config(c)
+
+
+@pytest.mark.parametrize('target', ['latent', 'obs'])
+def test_the_model_and_its_loss_have_the_term_only_when_on(smoke_config, target):
+  c = with_overrides(smoke_config, dict(ON, **{'model.novelty_target': target}))
   params = models.init_params(c, jax.random.key(0))
   plain = models.init_params(smoke_config, jax.random.key(0))
   assert 'novelty' in params and 'novelty' not in plain
@@ -106,12 +128,15 @@ def test_the_model_and_its_loss_have_the_term_only_when_on(smoke_config):
   nets = models.build_networks(c)
   _, metrics = jax.jit(losses.make_loss_fn(c, nets))(params, params, batch, jax.random.key(1))
   z = models.encode(params, batch['obs'])
-  expected = novelty.loss(nets.novelty, params, z, batch['action'], c.gamma)
+  obs = batch['obs'] if target == 'obs' else None
+  preds = nets.novelty.apply({'params': params['novelty']}, z[:, :-1], batch['action'])
+  assert preds.shape[-1] == (c.obs_dim if target == 'obs' else c.model.latent_dim)
+  expected = novelty.loss(nets.novelty, params, z, batch['action'], c.gamma, obs)
   np.testing.assert_allclose(metrics['loss_novelty'], expected, rtol=1e-5)
   assert ('novelty', 'w_novelty') in losses.WEIGHTS  # So the total counts it, weighted.
   # It reads the latent, it does not shape it: no gradient reaches the latents from its loss;
   # its own parameters get one.
-  loss = lambda p, z_: novelty.loss(nets.novelty, p, z_, batch['action'], c.gamma)
+  loss = lambda p, z_: novelty.loss(nets.novelty, p, z_, batch['action'], c.gamma, obs)
   g_params, g_z = jax.grad(loss, argnums=(0, 1))(params, z)
   assert np.all(np.asarray(g_z) == 0.0)
   assert float(jnp.abs(g_params['novelty']['value']['dense_0']['kernel']).max()) > 0
@@ -157,9 +182,10 @@ def test_the_weight_is_annealed_and_validated():
 def test_a_version_2_config_gets_the_fields_off():
   c = door_open_online.get_config('smoke')
   c.version = 2
-  del c.loss['w_novelty'], c.model['novelty_members']
+  del c.loss['w_novelty'], c.model['novelty_members'], c.model['novelty_target']
   del c.online['act_novelty'], c.online['act_novelty_end']
   legacy.migrate(c)
   assert (c.version, c.loss.w_novelty, c.online.act_novelty, c.online.act_novelty_end) == (
       legacy.CONFIG_VERSION, 0.0, 0.0, 0.0)
+  assert c.model.novelty_target == 'latent' and not novelty.predicts_obs(c)
   assert not novelty.enabled(c)

@@ -34,6 +34,10 @@ def get_config() -> ml_collections.ConfigDict:
   m.objective_blocks = 10
   m.actor_hidden = (256, 256)  # TD-MPC2's policy MLP width.
   m.novelty_members = 5  # Next-latent MLPs of the exploration value (loss.w_novelty); P2E: 10.
+  # What they predict: 'latent' (the next latent, as Plan2Explore) or 'obs' (the observation's
+  # next change, each coordinate in units of its spread in the batch, so a door that rarely moves
+  # counts as much as the hand that always does; ld_mpc_jax.model.novelty).
+  m.novelty_target = 'latent'
   # Model kinds (ld_mpc_jax.model.models): the project's model is a whole-sequence diffusion proposal
   # with autoregressive latent diffusion dynamics; the others exist for the ablations.
   m.proposal_type = 'diffusion_seq'  # | 'diffusion_step' | 'mlp'

@@ -27,8 +27,9 @@ like every other position.
            'progress'): the progress head's cross-entropy on the clean, detached latents
            (ld_mpc_jax.model.progress; + w_progress L_progress in L).
   L_novelty with the learned exploration value (`loss.w_novelty` > 0): the novelty members'
-           next-latent error and V_nov's error against the window's novelty returns, on the
-           clean, detached latents (ld_mpc_jax.model.novelty; + w_novelty L_novelty in L).
+           next-latent (or next observation change: model.novelty_target) error and V_nov's
+           error against the window's novelty returns, on the clean, detached latents
+           (ld_mpc_jax.model.novelty; + w_novelty L_novelty in L).
 Metrics: 'loss' and 'loss_<term>' for each term the config uses, plus the critics' and the
 value kind's own metrics.
 """
@@ -190,7 +191,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     if 'progress' in batch and nets.progress is not None:  # The learned progress reward.
       terms['progress'] = progress.loss(nets.progress, params, z_clean, batch['progress'])
     if nets.novelty is not None:  # The learned exploration value.
-      terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, config.gamma)
+      terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, config.gamma,
+                                      obs if novelty.predicts_obs(config) else None)
     loss = weighted_sum(terms, config.loss)
     metrics['loss'] = loss
     for name, _ in WEIGHTS:

@@ -13,6 +13,10 @@ as in Plan2Explore (Sekar et al. 2020), the novelty is also learned into a value
            (stop-gradient) value after the window (`numerics.window_returns`).
 
 Both read the encoder's clean latents with their gradient stopped: they never shape the latent.
+With `model.novelty_target='obs'` the members predict the observation's next change instead,
+each coordinate divided by its spread in the batch (plus OBS_SCALE_FLOOR): the latent is scaled
+by the hand that moves at every step, and a door that has barely moved is a small direction of
+it, while here a door coordinate that moved in a few transitions counts as much as the hand.
 While acting, `bonus` adds w x N to each candidate's J, N = sum_{i<H} gamma^i r_nov(z_i, a_i) +
 gamma^H V_nov(z_H) divided by its mean over the candidates (so w is in units of the average
 candidate's novelty, whatever the scale of r_nov as the ensemble learns); w is
@@ -59,9 +63,20 @@ def enabled(config: ml_collections.ConfigDict) -> bool:
   return config.loss.w_novelty > 0
 
 
+# Added to each coordinate's batch spread of the observation's change (the units of
+# 'obs'-target members): Meta-World's positions are in metres, so 1 mm per step; a coordinate
+# that never moves in the batch is then fitted to 0, not divided by 0.
+OBS_SCALE_FLOOR = 1e-3
+
+
+def predicts_obs(config: ml_collections.ConfigDict) -> bool:
+  """Whether the members predict the observation's next change (else the next latent)."""
+  return config.model.get('novelty_target', 'latent') == 'obs'
+
+
 def build(config: ml_collections.ConfigDict) -> Novelty:
-  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden),
-                 config.model.latent_dim)
+  out = config.obs_dim if predicts_obs(config) else config.model.latent_dim
+  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden), out)
 
 
 def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict:
@@ -70,14 +85,14 @@ def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict
 
 
 def _spread(preds: jnp.ndarray) -> jnp.ndarray:
-  """The members' predictions [E, ..., D] -> their variance, mean over D [...]; exactly 0 where
+  """The members' predictions [E, ..., D] (or [E, ..., O]) -> their variance, mean over D [...]; exactly 0 where
   they agree (`objective.stable_std`)."""
   return jnp.mean(stable_std(preds, axis=0) ** 2, axis=-1)
 
 
 def reward(net: Novelty, params: dict, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
-  """r_nov(z, a): the members' variance about the next latent, mean over its dimensions:
-  z [..., D], a [..., A] -> [...]; exactly 0 where the members agree."""
+  """r_nov(z, a): the members' variance about the next latent (or observation change), mean over
+  its dimensions: z [..., D], a [..., A] -> [...]; exactly 0 where the members agree."""
   return _spread(net.apply({'params': params['novelty']}, z, a))
 
 
@@ -86,14 +101,23 @@ def value(net: Novelty, params: dict, z: jnp.ndarray) -> jnp.ndarray:
   return net.apply({'params': params['novelty']}, z, method=Novelty.value)
 
 
+def obs_targets(obs: jnp.ndarray) -> jnp.ndarray:
+  """The 'obs'-target members' targets: obs [B, T+1, O] -> its change [B, T, O], each
+  coordinate divided by its standard deviation over the batch plus OBS_SCALE_FLOOR."""
+  change = obs[:, 1:] - obs[:, :-1]
+  return change / (jnp.std(change, axis=(0, 1)) + OBS_SCALE_FLOOR)
+
+
 def loss(net: Novelty, params: dict, z: jnp.ndarray, action: jnp.ndarray,
-         gamma: float) -> jnp.ndarray:
-  """The members' mean squared error about the next latent plus V_nov's squared error against
-  the window's novelty returns: z [B, T+1, D] (clean latents), action [B, >= T, A] -> []. The
-  latents come in with their gradient stopped here."""
+         gamma: float, obs: jnp.ndarray | None = None) -> jnp.ndarray:
+  """The members' mean squared error about the next latent (or, given `obs` [B, T+1, O], its
+  `obs_targets`) plus V_nov's squared error against the window's novelty returns: z [B, T+1, D]
+  (clean latents), action [B, >= T, A] -> []. The latents come in with their gradient stopped
+  here."""
   z = jax.lax.stop_gradient(z)
   t = z.shape[1] - 1
-  zt, at, target = z[:, :-1], action[:, :t], z[:, 1:]
+  zt, at = z[:, :-1], action[:, :t]
+  target = z[:, 1:] if obs is None else jax.lax.stop_gradient(obs_targets(obs))
   preds = net.apply({'params': params['novelty']}, zt, at)  # [E, B, T, D]
   members = jnp.mean((preds - target[None]) ** 2)
   v = value(net, params, z)  # [B, T+1]: V_nov(z_t), then the bootstrap after the window.

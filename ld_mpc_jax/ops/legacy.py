@@ -51,7 +51,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 4
+CONFIG_VERSION = 5
 
 
 def _online_fields(config: ml_collections.ConfigDict) -> dict:
@@ -110,8 +110,19 @@ def to_v4(config: ml_collections.ConfigDict) -> None:
     fill(config, 'online', V4_ONLINE_FIELDS)
 
 
+# Field added in version 5, with the value that changes nothing: the novelty members predict the
+# next latent.
+V5_FIELDS = {'model': dict(novelty_target='latent')}
+
+
+def to_v5(config: ml_collections.ConfigDict) -> None:
+  """Version 4 -> 5 (in place): `model.novelty_target`, 'latent'."""
+  for section, fields in V5_FIELDS.items():
+    fill(config, section, fields)
+
+
 # version -> the step that brings a config of version - 1 to it.
-STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4}
+STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5}
 
 
 def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
