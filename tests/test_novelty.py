@@ -106,6 +106,13 @@ def test_obs_targets_are_each_coordinates_change_in_units_of_its_batch_spread():
   assert t[..., 0].std() == pytest.approx(t[..., 1].std(), rel=0.01)
   assert abs(t[3, 1, 2]) > 3 and np.count_nonzero(t[..., 2]) == 1
   assert np.all(np.asarray(novelty.obs_targets(jnp.full((2, 3, 4), 7.0))) == 0.0)
+  net = novelty.Novelty(2, (8,), 3, 'obs')
+  z, action = _toy()
+  params = {'novelty': novelty.init(net, jax.random.key(0), D, A)}
+  window_obs = jnp.asarray(rng.normal(size=(64, 5, 3)), jnp.float32)  # The toy's windows.
+  assert np.isfinite(float(novelty.loss(net, params, z, action, 0.9, window_obs)))
+  with pytest.raises(ValueError, match="target 'obs' need the window's observations"):
+    novelty.loss(net, params, z, action, 0.9)
   c = door_open_online.get_config('smoke')
   c.model.novelty_target = 'observation'
   with pytest.raises(ValueError, match="novelty_target must be 'latent' or 'obs'"):
@@ -128,7 +135,7 @@ def test_the_model_and_its_loss_have_the_term_only_when_on(smoke_config, target)
   nets = models.build_networks(c)
   _, metrics = jax.jit(losses.make_loss_fn(c, nets))(params, params, batch, jax.random.key(1))
   z = models.encode(params, batch['obs'])
-  obs = batch['obs'] if target == 'obs' else None
+  obs = batch['obs']  # Read only by members of target 'obs'.
   preds = nets.novelty.apply({'params': params['novelty']}, z[:, :-1], batch['action'])
   assert preds.shape[-1] == (c.obs_dim if target == 'obs' else c.model.latent_dim)
   expected = novelty.loss(nets.novelty, params, z, batch['action'], c.gamma, obs)

@@ -191,8 +191,7 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
     if 'progress' in batch and nets.progress is not None:  # The learned progress reward.
       terms['progress'] = progress.loss(nets.progress, params, z_clean, batch['progress'])
     if nets.novelty is not None:  # The learned exploration value.
-      terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, config.gamma,
-                                      obs if novelty.predicts_obs(config) else None)
+      terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, config.gamma, obs)
     loss = weighted_sum(terms, config.loss)
     metrics['loss'] = loss
     for name, _ in WEIGHTS:

@@ -35,14 +35,16 @@ from ld_mpc_jax.ops.numerics import window_returns
 
 
 class Novelty(nn.Module):
-  """The members and the value: `__call__(z [..., D], a [..., A]) -> [E, ..., D]` (each member's
-  predicted next latent) and `value(z [..., D]) -> [...]`."""
+  """The members and the value: `__call__(z [..., D], a [..., A]) -> [E, ..., out_dim]` (each
+  member's predicted next latent, or observation change for `target` 'obs') and
+  `value(z [..., D]) -> [...]`."""
   members: int
   hidden: tuple
-  latent_dim: int
+  out_dim: int
+  target: str = 'latent'  # What the members predict (model.novelty_target).
 
   def setup(self):
-    self.nets = [MLP(tuple(self.hidden) + (self.latent_dim,), name=f'member_{e}')
+    self.nets = [MLP(tuple(self.hidden) + (self.out_dim,), name=f'member_{e}')
                  for e in range(self.members)]
     self.value_net = MLP(tuple(self.hidden) + (1,), name='value')
 
@@ -75,8 +77,9 @@ def predicts_obs(config: ml_collections.ConfigDict) -> bool:
 
 
 def build(config: ml_collections.ConfigDict) -> Novelty:
-  out = config.obs_dim if predicts_obs(config) else config.model.latent_dim
-  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden), out)
+  target = 'obs' if predicts_obs(config) else 'latent'
+  out = config.obs_dim if target == 'obs' else config.model.latent_dim
+  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden), out, target)
 
 
 def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict:
@@ -110,14 +113,16 @@ def obs_targets(obs: jnp.ndarray) -> jnp.ndarray:
 
 def loss(net: Novelty, params: dict, z: jnp.ndarray, action: jnp.ndarray,
          gamma: float, obs: jnp.ndarray | None = None) -> jnp.ndarray:
-  """The members' mean squared error about the next latent (or, given `obs` [B, T+1, O], its
-  `obs_targets`) plus V_nov's squared error against the window's novelty returns: z [B, T+1, D]
-  (clean latents), action [B, >= T, A] -> []. The latents come in with their gradient stopped
-  here."""
+  """The members' mean squared error about the next latent (members of `target` 'obs': about
+  the window's `obs_targets`, obs [B, T+1, O]) plus V_nov's squared error against the window's
+  novelty returns: z [B, T+1, D] (clean latents), action [B, >= T, A] -> []. The latents come in
+  with their gradient stopped here."""
   z = jax.lax.stop_gradient(z)
   t = z.shape[1] - 1
   zt, at = z[:, :-1], action[:, :t]
-  target = z[:, 1:] if obs is None else jax.lax.stop_gradient(obs_targets(obs))
+  if net.target == 'obs' and obs is None:
+    raise ValueError("novelty members with target 'obs' need the window's observations")
+  target = jax.lax.stop_gradient(obs_targets(obs)) if net.target == 'obs' else z[:, 1:]
   preds = net.apply({'params': params['novelty']}, zt, at)  # [E, B, T, D]
   members = jnp.mean((preds - target[None]) ** 2)
   v = value(net, params, z)  # [B, T+1]: V_nov(z_t), then the bootstrap after the window.
