@@ -88,8 +88,8 @@ def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict
 
 
 def _spread(preds: jnp.ndarray) -> jnp.ndarray:
-  """The members' predictions [E, ..., D] (or [E, ..., O]) -> their variance, mean over D [...]; exactly 0 where
-  they agree (`objective.stable_std`)."""
+  """The members' predictions [E, ..., D] (or [E, ..., O]) -> their variance, mean over the last
+  axis [...]; exactly 0 where they agree (`objective.stable_std`)."""
   return jnp.mean(stable_std(preds, axis=0) ** 2, axis=-1)
 
 
