@@ -114,7 +114,7 @@ def _validate_plan(config: ml_collections.ConfigDict) -> None:
     if p.progress_weight > 0 and not config.loss.w_progress > 0:
       raise ValueError('config.plan.progress_weight > 0 needs the progress head: set '
                        'config.loss.w_progress > 0 (its loss weight) too')
-  if config.model.get('novelty_target', 'latent') not in ('latent', 'obs'):
+  if config.model.novelty_target not in ('latent', 'obs'):
     raise ValueError(f"config.model.novelty_target must be 'latent' or 'obs', got "
                      f'{config.model.novelty_target!r}')
 

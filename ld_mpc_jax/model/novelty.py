@@ -73,7 +73,7 @@ OBS_SCALE_FLOOR = 1e-3
 
 def predicts_obs(config: ml_collections.ConfigDict) -> bool:
   """Whether the members predict the observation's next change (else the next latent)."""
-  return config.model.get('novelty_target', 'latent') == 'obs'
+  return config.model.novelty_target == 'obs'
 
 
 def build(config: ml_collections.ConfigDict) -> Novelty:
