@@ -77,8 +77,8 @@ def predicts_obs(config: ml_collections.ConfigDict) -> bool:
 
 
 def build(config: ml_collections.ConfigDict) -> Novelty:
-  target = 'obs' if predicts_obs(config) else 'latent'
-  out = config.obs_dim if target == 'obs' else config.model.latent_dim
+  target = config.model.novelty_target  # Validated: 'latent' or 'obs'.
+  out = config.obs_dim if predicts_obs(config) else config.model.latent_dim
   return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden), out, target)
 
 
