@@ -1,7 +1,7 @@
 """Door-open exploration coverage of a buffer file, in chunks of its episodes: the hand's closest approach to the handle
 and how far the handle moved. Usage: .venv/bin/python lab/exploration/door_coverage.py RUN_DIR/online/buffer_N.npz ...
 """
-import sys, glob, os
+import sys
 import numpy as np
 from ld_mpc_jax import data
 for path in sys.argv[1:]:

@@ -3,10 +3,9 @@ from z, and of the handle's displacement within an episode (the door's angle). U
   .venv/bin/python lab/exploration/latent_probe.py RUN_DIR [RUN_DIR ...]
 """
 import sys, glob, os
-import numpy as np, jax
+import numpy as np
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data, encode
-from ld_mpc_jax.data.online_buffer import buffer_path
 
 GROUPS = {'hand': slice(0, 3), 'gripper': slice(3, 4), 'obj1_pos': slice(4, 7), 'obj1_quat': slice(7, 11), 'goal': slice(36, 39)}
 
@@ -35,4 +34,3 @@ for workdir in sys.argv[1:]:
   disp = lambda ids: np.concatenate([eps[i][:, 4:7] - eps[i][:1, 4:7] for i in ids])
   rz, sd = r2(ztr, disp(idx[:cut]), zte, disp(idx[cut:]))
   print(f'  handle displacement R2 {rz:6.3f} (held-out std {sd:.4f})')
-  # Next-step change of each group (what obs-target novelty members predict).

@@ -77,9 +77,9 @@ def predicts_obs(config: ml_collections.ConfigDict) -> bool:
 
 
 def build(config: ml_collections.ConfigDict) -> Novelty:
-  target = config.model.novelty_target  # Validated: 'latent' or 'obs'.
   out = config.obs_dim if predicts_obs(config) else config.model.latent_dim
-  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden), out, target)
+  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden), out,
+                 config.model.novelty_target)
 
 
 def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict:
