@@ -25,6 +25,4 @@ python -m experiments.report $R/seed0_episodes.csv.gz+$B/seed0.json.gz $R/seed1_
 D=results/online_pick/dense_3seeds_227620e
 python -m experiments.report $R/seed0_episodes.csv.gz+$D/seed0_episodes.csv.gz#dense \
   $R/seed1_episodes.csv.gz+$D/seed1_episodes.csv.gz#dense $R/seed2_episodes.csv.gz+$D/seed2_episodes.csv.gz#dense > $R/paired_with_dense.md
-# Curves, dense from scratch and sparse with 5 demonstrations, against TD-MPC2's published dense seeds (decisions doubled):
-python -m experiments.report curves --workdir=$D/seed0_,$D/seed1_,$D/seed2_,$R/seed0_,$R/seed1_,$R/seed2_ \
-  --anchor=docs/anchors/tdmpc2_mw-pick-place.csv --max_steps=200000 --out=docs/pick_dense_sparse_curves.png
+# The curves (docs/pick_dense_sparse_curves.png) are drawn from the run continued to 60k: ../v3_5demos_60k_3b9bf74/run.sh
