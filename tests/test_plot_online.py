@@ -84,3 +84,20 @@ def test_committed_records_named_by_a_prefix_read_like_their_run(tmp_path):
   ours, theirs = (plot_online.curve_table([r]).splitlines()[2:] for r in (prefix, run))
   assert ours == theirs and '| 3k | 25/50 |' in ours[1]
   assert plot_online.exploration(prefix, 1600) == plot_online.exploration(run, 1600)
+
+
+def test_runs_of_two_folders_are_pooled_apart(tmp_path):
+  """The seeds of a sparse run and of a dense run, named together: one pooled column each, not
+  one pool of all six."""
+  runs = []
+  for group, rate in (('sparse', 0.2), ('dense', 0.6)):
+    (tmp_path / group).mkdir()
+    for s in range(3):
+      runs.append(_run(tmp_path / group, f'seed{s}', [0.0] * 4, [0.0] * 4))
+      _write(tmp_path / group / f'seed{s}' / 'eval.csv',
+             [dict(step=3200, episodes=50, success_rate=rate, ci_lo=0, ci_hi=1)])
+  head, _, row = plot_online.curve_table(runs).splitlines()
+  assert head.endswith('| pooled sparse | 95% CI | pooled dense | 95% CI |')
+  assert row.startswith('| 3k | 10/50 | 10/50 | 10/50 | 30/50 | 30/50 | 30/50 | 30/150 = 0.20 |')
+  assert '| 90/150 = 0.60 |' in row
+  assert plot_online.curve_table(runs[:3]).splitlines()[0].endswith('| pooled | 95% CI (Wilson) |')

@@ -133,9 +133,16 @@ def draw(runs, anchor: str, max_steps: float):
   return fig
 
 
+def run_group(run: str) -> str:
+  """The group a run is pooled in: the folder holding it (a run of several seeds keeps each seed
+  in `<run>/seed<s>`, and committed records name each seed by a prefix in one folder)."""
+  return os.path.dirname(os.path.normpath(run)) if os.path.isdir(run) else os.path.dirname(run)
+
+
 def curve_table(runs) -> str:
   """Markdown: held-out planner successes per run at each evaluation, and pooled over the runs
-  at the steps every run reached (Wilson 95% interval)."""
+  of each group (`run_group`: the seeds of one run) at the steps all of them reached (Wilson 95%
+  interval). Runs from several groups (sparse against dense, say) get a pooled column each."""
   from ld_mpc_jax.ops import stats
   per_run = {}
   for run in runs:
@@ -143,19 +150,26 @@ def curve_table(runs) -> str:
       n = int(r['episodes'])
       k = round(float(r['success_rate']) * n)
       per_run.setdefault(round(int(float(r['step'])), -3), {})[run] = (k, n)
+  groups = {}
+  for run in runs:
+    groups.setdefault(run_group(run), []).append(run)
   names = [run_name(r) for r in runs]
-  lines = ['| environment steps | ' + ' | '.join(names) + ' | pooled | 95% CI (Wilson) |',
-           '| --- |' + ' --- |' * (len(runs) + 2)]
+  pooled_names = (['pooled | 95% CI (Wilson)'] if len(groups) == 1 else
+                  [f'pooled {os.path.basename(g) or g} | 95% CI' for g in groups])
+  lines = ['| environment steps | ' + ' | '.join(names + pooled_names) + ' |',
+           '| --- |' + ' --- |' * (len(runs) + 2 * len(groups))]
   for step in sorted(per_run):
     cells = [per_run[step].get(run) for run in runs]
     shown = [f'{c[0]}/{c[1]}' if c else '-' for c in cells]
-    if all(cells):
-      k, n = sum(c[0] for c in cells), sum(c[1] for c in cells)
-      lo, hi = stats.wilson_interval(k, n)
-      pooled = [f'{k}/{n} = {k / n:.2f}', f'[{lo:.2f}, {hi:.2f}]']
-    else:
-      pooled = ['-', '-']
-    lines.append(f'| {step // 1000}k | ' + ' | '.join(shown + pooled) + ' |')
+    for members in groups.values():
+      got = [per_run[step].get(run) for run in members]
+      if all(got):
+        k, n = sum(c[0] for c in got), sum(c[1] for c in got)
+        lo, hi = stats.wilson_interval(k, n)
+        shown += [f'{k}/{n} = {k / n:.2f}', f'[{lo:.2f}, {hi:.2f}]']
+      else:
+        shown += ['-', '-']
+    lines.append(f'| {step // 1000}k | ' + ' | '.join(shown) + ' |')
   return '\n'.join(lines)
 
 
