@@ -37,11 +37,12 @@ class _Job:
 
 
 class _Run:
-  def __init__(self):
-    self.evals = []
+  def __init__(self, last_eval=-1):
+    self.evals, self.last_eval = [], last_eval
 
-  def periodic_eval(self, params, step):
-    self.evals.append((params, step))
+  def periodic_eval(self, params, step, missing_since=None):
+    if missing_since is None or self.last_eval < missing_since:
+      self.evals.append((params, step))
 
 
 def test_loop_checkpoints_at_crossings_and_the_end_and_evaluates_before_the_end():
@@ -58,6 +59,30 @@ def test_loop_resumed_at_the_end_does_nothing():
   run, job = _Run(), _Job(step=1, start=10)
   runs.loop(run, job, total=10, checkpoint_every=5, eval_every=5)
   assert job.calls == [] and run.evals == []
+
+
+def test_a_run_killed_during_the_evaluation_after_its_checkpoint_makes_it_when_resumed():
+  """Checkpointed at 120, killed while evaluating 120: resumed, it evaluates 120 first; one whose
+  evaluation of 100 is logged goes on (the next is at 200)."""
+  run, job = _Run(last_eval=0), _Job(step=40, start=120)
+  runs.loop(run, job, total=240, checkpoint_every=40, eval_every=100)
+  assert run.evals == [('params', 120), ('params', 200)]
+  run, job = _Run(last_eval=120), _Job(step=40, start=120)
+  runs.loop(run, job, total=240, checkpoint_every=40, eval_every=100)
+  assert run.evals == [('params', 200)]
+
+
+def test_a_run_skips_the_catch_up_evaluation_it_has_logged(tmp_path, monkeypatch):
+  run = runs.Run(door_open.get_config('smoke'), str(tmp_path))
+  assert run.last_eval_step() == -1
+  for step in (0, 100):
+    run_files.append_csv(os.path.join(str(tmp_path), runs.EVAL_CSV), dict(step=step))
+  assert run.last_eval_step() == 100
+  made = []
+  monkeypatch.setattr(runs, 'run_evaluation', lambda *a, **k: made.append(a) or 'result')
+  monkeypatch.setattr(run, 'log_eval', lambda step, result: None)
+  assert run.periodic_eval('params', 120, missing_since=100) is None and not made
+  assert run.periodic_eval('params', 220, missing_since=200) == 'result' and len(made) == 1
 
 
 def test_checkpoint_comes_before_the_evaluation_of_the_same_step():

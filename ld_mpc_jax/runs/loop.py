@@ -173,15 +173,24 @@ class Run:
                     f"{hi:.2f}] over {result['episodes']} episodes on held-out goals")
     run_files.write_plots(self.workdir)
 
-  def periodic_eval(self, params, step: int) -> Optional[Dict[str, Any]]:
-    """The planner on `eval.periodic_episodes` held-out episodes (none when eval.episodes = 0)."""
+  def periodic_eval(self, params, step: int,
+                    missing_since: Optional[int] = None) -> Optional[Dict[str, Any]]:
+    """The planner on `eval.periodic_episodes` held-out episodes (none when eval.episodes = 0);
+    with `missing_since`, only if eval.csv has no row from that step on (`loop`'s catch-up)."""
     c = self.config
     if c.eval.episodes <= 0:
+      return None
+    if missing_since is not None and self.last_eval_step() >= missing_since:
       return None
     result = run_evaluation(c, params, 'plan', c.eval.periodic_episodes, c.eval.seeds[0],
                             split='held_out')
     self.log_eval(step, result)
     return result
+
+  def last_eval_step(self) -> int:
+    """The step of eval.csv's last row (-1 without one)."""
+    rows = run_files.read_csv(os.path.join(self.workdir, EVAL_CSV))
+    return max((int(float(r['step'])) for r in rows), default=-1)
 
   def final_evaluation(self, params, step: int):
     """Every policy on every goal split and seed: (final, baselines, summary, records).
@@ -281,8 +290,12 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
 
   After each advance: `job.log`; a checkpoint when a multiple of `checkpoint_every` is crossed
   and at the end; a periodic evaluation when a multiple of `eval_every` is crossed, except at the
-  end (the final evaluation follows).
+  end (the final evaluation follows). A run resumed from a checkpoint whose periodic evaluation
+  never logged (killed during it) makes that evaluation first.
   """
+  due = job.progress // eval_every * eval_every
+  if 0 < due and job.progress < total:
+    run.periodic_eval(job.eval_params(), job.progress, missing_since=due)
   while job.progress < total:
     before = job.progress
     job.advance()

@@ -98,9 +98,9 @@ class SeatRuns:
   def __init__(self, seats):
     self.seats = seats
 
-  def periodic_eval(self, params, step: int) -> None:
+  def periodic_eval(self, params, step: int, missing_since=None) -> None:
     for seat, p in zip(self.seats, params):
-      seat.run.periodic_eval(p, step)
+      seat.run.periodic_eval(p, step, missing_since)
 
 
 class WavePolicy:

@@ -33,9 +33,9 @@ class _SeedRuns:
   def __init__(self, seed_runs: List[runs.Run]):
     self.seed_runs = seed_runs
 
-  def periodic_eval(self, params, step: int) -> None:
+  def periodic_eval(self, params, step: int, missing_since=None) -> None:
     for run, p in zip(self.seed_runs, params):
-      run.periodic_eval(p, step)
+      run.periodic_eval(p, step, missing_since)
 
 
 class OfflineSeedsJob:
