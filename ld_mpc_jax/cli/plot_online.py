@@ -136,7 +136,7 @@ def draw(runs, anchor: str, max_steps: float):
 def run_group(run: str) -> str:
   """The group a run is pooled in: the folder holding it (a run of several seeds keeps each seed
   in `<run>/seed<s>`, and committed records name each seed by a prefix in one folder)."""
-  return os.path.dirname(os.path.normpath(run)) if os.path.isdir(run) else os.path.dirname(run)
+  return os.path.dirname(os.path.normpath(run))
 
 
 def curve_table(runs) -> str:
