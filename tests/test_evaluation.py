@@ -99,6 +99,40 @@ def test_lockstep_waves_give_the_same_records_as_one_at_a_time():
 
 
 
+class _Bar:
+  """Records what run_episodes shows on its progress bar."""
+  made = []
+
+  def __init__(self, total, **kwargs):
+    self.total, self.n, self.trace, self.postfix = total, 0, [], ''
+    _Bar.made.append(self)
+
+  def update(self, k):
+    self.n += k
+    self.trace.append(self.n)
+
+  def set_postfix_str(self, s):
+    self.postfix = s
+
+  def close(self):
+    pass
+
+
+def test_the_progress_bar_counts_lockstep_decisions_and_ends_full(monkeypatch):
+  # In lockstep, episodes end together at the limit: a bar over episodes reads 0 until then.
+  monkeypatch.setattr(evaluation.tqdm, 'tqdm', _Bar)
+  episodes = evaluation.seeded_episodes(5, 7)
+  records, _ = evaluation.run_episodes(evaluation.CallablePolicy(lambda obs: np.zeros(1)),
+                                       episodes, 'door-open-v3', batch_size=3,
+                                       max_episode_steps=20, env_factory=_FakeEnv)
+  bar = _Bar.made[-1]
+  assert bar.total == 3 * 10  # Three waves of at most 10 decisions.
+  assert bar.n == bar.total and bar.trace == sorted(bar.trace)
+  assert bar.trace[:3] == [1, 2, 3]  # One tick a decision, from the first.
+  solved = sum(r['success'] for r in records)
+  assert 0 < solved < 7 and bar.postfix == f'episodes 7/7, solved {solved}'
+
+
 class _InfoPolicy(evaluation.CallablePolicy):
   """Reports `info` [4] per environment after each decision, as agent.BatchAgentPolicy does."""
 

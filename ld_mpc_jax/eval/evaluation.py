@@ -132,7 +132,7 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
     video_path: if set, the first environment of the first `video_episodes` waves is rendered
       to this .mp4 (imageio-ffmpeg) or .gif (MUJOCO_GL=osmesa on a headless machine).
     env_seed: MT1 seed of the environments (their own goal draw, for `seeded_episodes`).
-    progress: show a tqdm bar over episodes.
+    progress: show a tqdm bar over the waves' decisions (episodes ended and solved beside it).
 
   Returns:
     (records, info): one record per episode (module docstring), and info = dict(seconds,
@@ -154,7 +154,13 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
   # truncate by themselves).
   max_decisions = -(-max_episode_steps // action_repeat)
   records, frames, seconds = [], [], 0.0
-  bar = tqdm.tqdm(total=len(episodes), desc=desc, disable=not progress, dynamic_ncols=True)
+  # The episodes of a wave step in lockstep and most end together at the decision limit, so the
+  # bar counts the wave's decisions (its length is an upper bound: a wave whose episodes all end
+  # early skips the rest) and shows the episodes ended and solved beside it.
+  num_waves = -(-len(episodes) // n_env)
+  bar = tqdm.tqdm(total=num_waves * max_decisions, desc=desc, unit='decision',
+                  disable=not progress, dynamic_ncols=True)
+  bar.set_postfix_str(f'episodes 0/{len(episodes)}, solved 0')
   for w, first in enumerate(range(0, len(episodes), n_env)):
     wave = list(episodes[first:first + n_env])
     slots = list(pool[:len(wave)])
@@ -164,6 +170,9 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
                                    frames if slots[0] is video_env else None, warmup=w == 0)
     seconds += wave_seconds
     records.extend(recs)
+    bar.update((w + 1) * max_decisions - bar.n)  # The decisions a wave ended early skipped.
+    bar.set_postfix_str(f'episodes {len(records)}/{len(episodes)}, '
+                        f'solved {sum(r["success"] for r in records)}')
   bar.close()
   if video_env is not None and hasattr(video_env, 'close'):
     video_env.close()
@@ -203,11 +212,10 @@ def _run_wave(policy: BatchPolicy, wave: Sequence[goals_lib.Episode], slots: Lis
       _record_step(rec[i], t, reward, info, action_repeat)
       if rec[i]['success'] or terminated or truncated:
         active[i] = False
-        bar.update(1)
+    bar.update(1)
     if not active.any():
       break
   seconds = time.perf_counter() - start_time
-  bar.update(int(active.sum()))  # Episodes cut at the decision limit.
   return rec, seconds
 
 
