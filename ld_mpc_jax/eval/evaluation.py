@@ -154,13 +154,7 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
   # truncate by themselves).
   max_decisions = -(-max_episode_steps // action_repeat)
   records, frames, seconds = [], [], 0.0
-  # The episodes of a wave step in lockstep and most end together at the decision limit, so the
-  # bar counts the wave's decisions (its length is an upper bound: a wave whose episodes all end
-  # early skips the rest) and shows the episodes ended and solved beside it.
-  num_waves = -(-len(episodes) // n_env)
-  bar = tqdm.tqdm(total=num_waves * max_decisions, desc=desc, unit='decision',
-                  disable=not progress, dynamic_ncols=True)
-  bar.set_postfix_str(f'episodes 0/{len(episodes)}, solved 0')
+  bar = _progress_bar(-(-len(episodes) // n_env), max_decisions, desc, progress)
   for w, first in enumerate(range(0, len(episodes), n_env)):
     wave = list(episodes[first:first + n_env])
     slots = list(pool[:len(wave)])
@@ -170,9 +164,7 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
                                    frames if slots[0] is video_env else None, warmup=w == 0)
     seconds += wave_seconds
     records.extend(recs)
-    bar.update((w + 1) * max_decisions - bar.n)  # The decisions a wave ended early skipped.
-    bar.set_postfix_str(f'episodes {len(records)}/{len(episodes)}, '
-                        f'solved {sum(r["success"] for r in records)}')
+    _show_ended(bar, w + 1, max_decisions, records, len(episodes))
   bar.close()
   if video_env is not None and hasattr(video_env, 'close'):
     video_env.close()
@@ -181,6 +173,23 @@ def run_episodes(policy: BatchPolicy, episodes: Sequence[goals_lib.Episode], tas
   return records, dict(seconds=seconds, decisions=decisions,
                        decisions_per_s=decisions / seconds if seconds > 0 else float('inf'),
                        video_path=written)
+
+
+def _progress_bar(num_waves: int, max_decisions: int, desc: str, progress: bool):
+  """A bar over the waves' decisions. The episodes of a wave step in lockstep and most end
+  together at the decision limit, so a bar over episodes read 0 until then; this one's length
+  is an upper bound (a wave whose episodes all end early skips the rest)."""
+  return tqdm.tqdm(total=num_waves * max_decisions, desc=desc, unit='decision',
+                   disable=not progress, dynamic_ncols=True)
+
+
+def _show_ended(bar, waves_done: int, max_decisions: int, records: Sequence[dict],
+                num_episodes: int) -> None:
+  """Moves `bar` to the end of wave `waves_done` and shows the episodes ended and solved."""
+  if waves_done * max_decisions > bar.n:  # The decisions a wave that ended early skipped.
+    bar.update(waves_done * max_decisions - bar.n)
+  bar.set_postfix_str(f'episodes {len(records)}/{num_episodes}, '
+                      f'solved {sum(r["success"] for r in records)}')
 
 
 def _run_wave(policy: BatchPolicy, wave: Sequence[goals_lib.Episode], slots: List[Any],
