@@ -4,10 +4,13 @@ Every markdown link in README.md, BUILD.md, docs/*.md and lab/**/*.md that is no
 name a file or folder that exists; a `#anchor` must be the GitHub slug of a heading in the target
 file (lowercase, punctuation other than '-' and '_' removed, spaces to '-', a repeated heading
 numbered -1, -2, ...). Links and headings inside code (fenced blocks, inline `code`) are not
-links. docs/*.md together stay at most 1,800 lines (issue 73: history goes to lab/).
+links. docs/*.md together stay at most 1,800 lines (issue 73: history goes to lab/). Every Python
+name the README, BUILD.md and docs/*.md write out (`ldmpc.X.Y`, `ld_mpc_jax.X.Y`,
+`from ld_mpc_jax.X import a, b`) imports and resolves.
 """
 
 import glob
+import importlib
 import os
 import re
 import urllib.parse
@@ -137,3 +140,51 @@ def test_docs_stay_short():
   assert total <= MAX_DOCS_LINES, (
       f'docs/*.md hold {total} lines (at most {MAX_DOCS_LINES}; history belongs in lab/): '
       + ', '.join(f'{k} {v}' for k, v in sorted(counts.items(), key=lambda kv: -kv[1])))
+
+
+# `ldmpc.a.b` (the README's alias) or `ld_mpc_jax.a.b`; `from ld_mpc_jax.a import b, c`.
+_NAME = re.compile(r'\b(?:ldmpc|ld_mpc_jax)((?:\.[A-Za-z_]\w*)+)')
+_FROM = re.compile(r'from (ld_mpc_jax(?:\.\w+)*) import ([\w, ]+)')
+
+
+def python_names(text: str) -> set:
+  """The dotted names under ld_mpc_jax that a markdown text writes out."""
+  names = {'ld_mpc_jax' + m.group(1) for m in _NAME.finditer(text)}
+  for m in _FROM.finditer(text):
+    names |= {f'{m.group(1)}.{x.strip()}' for x in m.group(2).split(',') if x.strip()}
+  return names
+
+
+def resolves(name: str) -> bool:
+  """Whether the longest importable module prefix of `name` has the rest as attributes."""
+  parts = name.split('.')
+  for i in range(len(parts), 0, -1):
+    try:
+      obj = importlib.import_module('.'.join(parts[:i]))
+    except ImportError:
+      continue
+    for part in parts[i:]:
+      if not hasattr(obj, part):
+        return False
+      obj = getattr(obj, part)
+    return True
+  return False
+
+
+def test_the_name_checker_tells_real_names_from_gone_ones():
+  text = ('`ldmpc.make_plan(config)`, ld_mpc_jax.model.search.CANDIDATES.names(), '
+          'ldmpc.search.CANDIDATES\nfrom ld_mpc_jax import checkpointing, encode\n')
+  names = python_names(text)
+  assert names == {'ld_mpc_jax.make_plan', 'ld_mpc_jax.model.search.CANDIDATES.names',
+                   'ld_mpc_jax.search.CANDIDATES', 'ld_mpc_jax.checkpointing', 'ld_mpc_jax.encode'}
+  assert sorted(n for n in names if not resolves(n)) == [
+      'ld_mpc_jax.checkpointing', 'ld_mpc_jax.search.CANDIDATES']
+
+
+def test_the_python_names_in_the_docs_resolve():
+  paths = ['README.md', 'BUILD.md'] + sorted(
+      os.path.relpath(p, ROOT) for p in glob.glob(os.path.join(ROOT, 'docs', '*.md')))
+  gone = [f'{path}: {name}' for path in paths
+          for name in sorted(python_names(open(os.path.join(ROOT, path), encoding='utf-8').read()))
+          if not resolves(name)]
+  assert not gone, 'names the docs use that do not resolve:\n' + '\n'.join(gone)

@@ -139,7 +139,7 @@ def get_config() -> ml_collections.ConfigDict:
   # Confirmation: a departure must also beat the actor prior on a second, independent rollout
   # of both sequences, by confirm_margin x the spread (ld_mpc_jax.plan.planner, search.beats). The
   # winner's first score carries the selection's optimism, a fresh one does not: the double
-  # estimator (van Hasselt 2010, "Double Q-learning"). Costs two more rollouts per call.
+  # estimator (van Hasselt 2010, "Double Q-learning"). Costs 2 x confirm_draws rollouts per call.
   p.safe_confirm = True  # With safe selection only (search.gates).
   # Fresh rollouts of the pair that confirmation scores: the gain must hold on their mean, by
   # confirm_margin x the spread over members and rollouts together, so that it counts the
