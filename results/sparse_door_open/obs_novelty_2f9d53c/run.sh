@@ -6,7 +6,8 @@
 # seed<N>_eval.csv.gz here are the run so far (stopped at the end of a session; the same command resumes it from its
 # last checkpoint), not its end.
 cd "$(git rev-parse --show-toplevel)"  # a worktree at commit 2f9d53c
-R=runs/sparse_door_obsnov
+R=${R:-runs/sparse_door_obsnov}  # Run directory and records folder: the rerun sets both.
+OUT=${OUT:-results/sparse_door_open/obs_novelty_2f9d53c}
 python -m experiments.train --config=ld_mpc_jax/configs/door_open_online.py:cpu \
   --config.online.reward=sparse --config.train.num_seeds=3 --config.online.env_steps=200000 \
   --config.loss.w_novelty=1 --config.model.novelty_target=obs --config.online.act_schedule=linear \
@@ -15,5 +16,5 @@ python -m experiments.train --config=ld_mpc_jax/configs/door_open_online.py:cpu 
   --workdir=$R
 # Records so far, gzipped without name or time:
 for s in 0 1 2; do for f in online eval; do
-  gzip -9 -n -c $R/seed$s/$f.csv > results/sparse_door_open/obs_novelty_2f9d53c/seed${s}_$f.csv.gz
+  gzip -9 -n -c $R/seed$s/$f.csv > $OUT/seed${s}_$f.csv.gz
 done; done
