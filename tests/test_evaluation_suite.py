@@ -109,7 +109,8 @@ def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
                    ('actor', 'held_out', 2)]
   assert len(records) == 12 and all(r['run'] == 7 and r['decisions_per_s'] == 50.0
                                     for r in records)
-  assert lines[0] == 'planner, held_out goals, seed 0: success 1.00 [0.00, 1.00] (50 decisions/s)'
+  assert lines[0] == ('planner, held_out goals, evaluation seed 0 (run 7): success 1.00 [0.00, 1.00] '
+                      '(50 decisions/s)')
   assert len(os.listdir(os.path.join(workdir, 'evals'))) == 4
   # The same grid again: every cell from its file, the records as before, tagged with this run.
   again = evaluation_suite.evaluate_checkpoint(config, None, workdir, run=8, log=lines.append,

@@ -218,7 +218,8 @@ def evaluate_checkpoint(config: ml_collections.ConfigDict, params, workdir: Opti
           json.dump(cell, f)
         os.replace(path + '.tmp', path)
       s = cell['summary']
-      log(f"{POLICY_NAMES.get(mode, mode)}, {split} goals, seed {seed}: success "
+      of_run = '' if run is None else f' (run {run})'  # The training seed, in a run of several.
+      log(f"{POLICY_NAMES.get(mode, mode)}, {split} goals, evaluation seed {seed}{of_run}: success "
           f"{s['success_rate']:.2f} [{s['success_ci95'][0]:.2f}, {s['success_ci95'][1]:.2f}] "
           f"({s['decisions_per_s']:.0f} decisions/s)")
     for rec in cell['records']:
