@@ -3,7 +3,7 @@
 # *dense* reward, otherwise the command of ../progress_w10_1005061/run.sh without its progress flags (the safe-selection
 # margins, set for the sparse reward's scale, are kept as they are). Three seeds in one run, 100k simulator steps
 # (= 50k TD-MPC2 decisions). Run from a worktree at commit 251e821 (git worktree add ../wt_251e821 251e821).
-# The seed<N>_eval.csv.gz and seed<N>_online.csv.gz here are the run so far (stopped at its 40,000 checkpoint at the end
+# The seed<N>_eval.csv.gz and seed<N>_online.csv.gz here are the run so far (stopped at its 48,000 checkpoint at the end
 # of a session; the same command resumes it), not its end.
 cd "$(git rev-parse --show-toplevel)"  # a worktree at commit 251e821
 R=runs/push_dense_demos
