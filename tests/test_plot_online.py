@@ -101,3 +101,30 @@ def test_runs_of_two_folders_are_pooled_apart(tmp_path):
   assert row.startswith('| 3k | 10/50 | 10/50 | 10/50 | 30/50 | 30/50 | 30/50 | 30/150 = 0.20 |')
   assert '| 90/150 = 0.60 |' in row
   assert plot_online.curve_table(runs[:3]).splitlines()[0].endswith('| pooled | 95% CI (Wilson) |')
+
+
+def test_pooled_curves_draw_one_line_per_run_of_seeds_with_its_wilson_band(tmp_path):
+  """--pooled: the seeds of each run become one curve of pooled successes (at the steps all
+  seeds reached) and one line of training episodes solved (the seeds' mean per wave)."""
+  from ld_mpc_jax.ops import stats  # pylint: disable=g-import-not-at-top
+  runs = []
+  for group, rates in (('sparse', (0.2, 0.4, 0.6)), ('dense', (0.6, 0.6, 0.6))):
+    (tmp_path / group).mkdir()
+    for s, rate in enumerate(rates):
+      runs.append(_run(tmp_path / group, f'seed{s}', [0.0, 0.25 * s, 0.5, 1.0], [0.0] * 4))
+      _write(tmp_path / group / f'seed{s}' / 'eval.csv',
+             [dict(step=1600, episodes=10, success_rate=rate, ci_lo=0, ci_hi=1)]
+             + ([dict(step=3200, episodes=50, success_rate=rate, ci_lo=0, ci_hi=1)] if s else []))
+  curves = plot_online.pooled_curves(runs)
+  sparse, dense = str(tmp_path / 'sparse'), str(tmp_path / 'dense')
+  assert [p[:3] for p in curves[sparse]] == [(2000, 12, 30)]  # 3200: seed 0 never reached it.
+  assert curves[sparse][0][3:] == pytest.approx(stats.wilson_interval(12, 30))
+  assert [p[:3] for p in curves[dense]] == [(2000, 18, 30)]
+  waves = plot_online.pooled_waves(runs)
+  assert waves[sparse] == [(800, 0.0), (1600, 0.25), (2400, 0.5), (3200, 1.0)]
+  fig = plot_online.draw(runs, '', max_steps=4000, pooled=True)
+  ax, diag = fig.axes
+  assert [list(l.get_ydata()) for l in ax.lines] == [[0.4], [0.6]]
+  assert [l.get_label() for l in ax.lines][0] == 'sparse (3 seeds pooled), held-out goals'
+  assert len(ax.collections) == 2 and len(diag.lines) == 2  # a band and a wave line per group
+  assert len(plot_online.draw(runs, '', max_steps=4000).axes[0].lines) == 6  # per seed

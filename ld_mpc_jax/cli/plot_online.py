@@ -33,6 +33,9 @@ def define_flags() -> None:
   flags.DEFINE_float('max_steps', 100_000, 'Right end of the x axis (simulator steps).')
   flags.DEFINE_integer('late_from', 80_000, 'The exploration table averages the waves after '
                        'this many environment steps.')
+  flags.DEFINE_bool('pooled', False, 'Draw one curve per group of runs (the seeds of one run, '
+                    'see run_group): successes pooled over its seeds with their Wilson band, '
+                    'instead of a curve per seed.')
 
 
 def read_csv(path):
@@ -73,7 +76,7 @@ def main(argv):
         read_csv(run_file(run, name))
     if FLAGS.anchor:
       read_csv(FLAGS.anchor)
-  fig = draw(_workdirs(), FLAGS.anchor, FLAGS.max_steps)
+  fig = draw(_workdirs(), FLAGS.anchor, FLAGS.max_steps, pooled=FLAGS.pooled)
   os.makedirs(os.path.dirname(os.path.abspath(FLAGS.out)), exist_ok=True)
   fig.savefig(FLAGS.out, dpi=100)
   print(f'wrote {FLAGS.out}')
@@ -99,9 +102,10 @@ def anchor_curves(path: str, max_steps: float) -> dict:
   return curves
 
 
-def draw(runs, anchor: str, max_steps: float):
+def draw(runs, anchor: str, max_steps: float, pooled: bool = False):
   """The figure: held-out success per run against simulator steps (with TD-MPC2's curves from
-  `anchor` when not empty) on the left, the per-wave exploration diagnostics on the right."""
+  `anchor` when not empty) on the left, the per-wave exploration diagnostics on the right. With
+  `pooled`, one curve per group of runs (`pooled_curves`, `pooled_waves`) instead of one per run."""
   import matplotlib
   matplotlib.use('Agg')
   import matplotlib.pyplot as plt
@@ -110,7 +114,9 @@ def draw(runs, anchor: str, max_steps: float):
     if pts:
       ax.plot(*zip(*pts), 's--', color='gray', alpha=0.7,
               label=None if i else 'TD-MPC2 (published, per seed)')
-  for i, run in enumerate(runs):
+  if pooled:
+    _draw_pooled(ax, diag, runs)
+  for i, run in enumerate(() if pooled else runs):
     name, color = run_name(run), f'C{i}'
     ev = read_csv(run_file(run, 'eval.csv'))
     x = [int(float(r['step'])) for r in ev]
@@ -133,6 +139,65 @@ def draw(runs, anchor: str, max_steps: float):
   return fig
 
 
+def _draw_pooled(ax, diag, runs) -> None:
+  """One curve per group of `runs`: pooled held-out success with its Wilson band, and the
+  training episodes solved per wave (mean over the group's seeds)."""
+  curves, waves = pooled_curves(runs), pooled_waves(runs)
+  for i, (group, members) in enumerate(_groups(runs).items()):
+    name, color = f'{os.path.basename(group) or group} ({len(members)} seeds pooled)', f'C{i}'
+    pts = curves[group]
+    x = [p[0] for p in pts]
+    ax.plot(x, [p[1] / p[2] for p in pts], 'o-', color=color, label=f'{name}, held-out goals')
+    ax.fill_between(x, [p[3] for p in pts], [p[4] for p in pts], color=color, alpha=0.15)
+    wx = [w[0] for w in waves[group]]
+    diag.plot(wx, [w[1] for w in waves[group]], '-', color=color,
+              label=f'{name}: training episodes solved')
+
+
+def _groups(runs) -> dict:
+  """{run_group: [its runs]}, in the order the runs are named."""
+  groups = {}
+  for run in runs:
+    groups.setdefault(run_group(run), []).append(run)
+  return groups
+
+
+def _eval_counts(run: str) -> dict:
+  """{evaluation step (rounded to 1,000): (successes, episodes)} of a run's `eval.csv`."""
+  counts = {}
+  for r in read_csv(run_file(run, 'eval.csv')):
+    n = int(r['episodes'])
+    counts[round(int(float(r['step'])), -3)] = (round(float(r['success_rate']) * n), n)
+  return counts
+
+
+def pooled_curves(runs) -> dict:
+  """{run_group: [(step, successes, episodes, Wilson low, Wilson high)]}: held-out successes
+  pooled over the runs of each group, at the evaluation steps every one of them reached."""
+  from ld_mpc_jax.ops import stats
+  out = {}
+  for group, members in _groups(runs).items():
+    counts = [_eval_counts(run) for run in members]
+    steps = sorted(set.intersection(*(set(c) for c in counts)))
+    out[group] = []
+    for step in steps:
+      k, n = sum(c[step][0] for c in counts), sum(c[step][1] for c in counts)
+      out[group].append((step, k, n, *stats.wilson_interval(k, n)))
+  return out
+
+
+def pooled_waves(runs) -> dict:
+  """{run_group: [(environment steps, share of training episodes solved)]}: the mean over the
+  group's runs of each wave's `episode_success`, at the wave ends every run reached."""
+  out = {}
+  for group, members in _groups(runs).items():
+    per_run = [{int(r['env_steps']): float(r['episode_success'])
+                for r in read_csv(run_file(run, 'online.csv'))} for run in members]
+    steps = sorted(set.intersection(*(set(w) for w in per_run)))
+    out[group] = [(s, sum(w[s] for w in per_run) / len(per_run)) for s in steps]
+  return out
+
+
 def run_group(run: str) -> str:
   """The group a run is pooled in: the folder holding it (a run of several seeds keeps each seed
   in `<run>/seed<s>`, and committed records name each seed by a prefix in one folder)."""
@@ -143,16 +208,12 @@ def curve_table(runs) -> str:
   """Markdown: held-out planner successes per run at each evaluation, and pooled over the runs
   of each group (`run_group`: the seeds of one run) at the steps all of them reached (Wilson 95%
   interval). Runs from several groups (sparse against dense, say) get a pooled column each."""
-  from ld_mpc_jax.ops import stats
   per_run = {}
   for run in runs:
-    for r in read_csv(run_file(run, 'eval.csv')):
-      n = int(r['episodes'])
-      k = round(float(r['success_rate']) * n)
-      per_run.setdefault(round(int(float(r['step'])), -3), {})[run] = (k, n)
-  groups = {}
-  for run in runs:
-    groups.setdefault(run_group(run), []).append(run)
+    for step, counts in _eval_counts(run).items():
+      per_run.setdefault(step, {})[run] = counts
+  groups = _groups(runs)
+  pooled = {g: {p[0]: p[1:] for p in pts} for g, pts in pooled_curves(runs).items()}
   names = [run_name(r) for r in runs]
   pooled_names = (['pooled | 95% CI (Wilson)'] if len(groups) == 1 else
                   [f'pooled {os.path.basename(g) or g} | 95% CI' for g in groups])
@@ -161,11 +222,9 @@ def curve_table(runs) -> str:
   for step in sorted(per_run):
     cells = [per_run[step].get(run) for run in runs]
     shown = [f'{c[0]}/{c[1]}' if c else '-' for c in cells]
-    for members in groups.values():
-      got = [per_run[step].get(run) for run in members]
-      if all(got):
-        k, n = sum(c[0] for c in got), sum(c[1] for c in got)
-        lo, hi = stats.wilson_interval(k, n)
+    for group in groups:
+      if step in pooled[group]:
+        k, n, lo, hi = pooled[group][step]
         shown += [f'{k}/{n} = {k / n:.2f}', f'[{lo:.2f}, {hi:.2f}]']
       else:
         shown += ['-', '-']

@@ -18,4 +18,4 @@ R=runs/sparse_door_obsnov_rerun OUT=results/sparse_door_open/obs_novelty_2f9d53c
 #   N=results/sparse_door_open/obs_novelty_2f9d53c_rerun
 #   python -m experiments.report curves --workdir=$D/seed0_,$D/seed1_,$D/seed2_ --workdir=$S/seed0_,$S/seed1_,$S/seed2_ \
 #     --workdir=$N/seed0_,$N/seed1_,$N/seed2_ --anchor=docs/anchors/tdmpc2_mw-door-open.csv --max_steps=200000 \
-#     --out=docs/door_dense_sparse_curves.png
+#     --pooled --out=docs/door_dense_sparse_curves.png
