@@ -277,7 +277,7 @@ def get_config() -> ml_collections.ConfigDict:
   # Independent training seeds in one run (config.seed, config.seed + 1, ...): parameters,
   # optimiser states and keys carry a leading seed axis and the update is vmapped over it; each
   # seed has its own data order, buffer and environments and writes <workdir>/seed<seed> as a
-  # run of that seed alone would (online runs; ld_mpc_jax.runs.online).
+  # run of that seed alone would (online and offline runs; ld_mpc_jax.runs).
   t.num_seeds = 1
   # Devices the seeds are spread over (online and offline), in contiguous groups, one program per
   # device dispatched without waiting (ld_mpc_jax.ops.seed_groups). 0: one device per seed, as
