@@ -114,9 +114,19 @@ def draw(runs, anchor: str, max_steps: float, pooled: bool = False):
     if pts:
       ax.plot(*zip(*pts), 's--', color='gray', alpha=0.7,
               label=None if i else 'TD-MPC2 (published, per seed)')
-  if pooled:
-    _draw_pooled(ax, diag, runs)
-  for i, run in enumerate(() if pooled else runs):
+  (_draw_pooled if pooled else _draw_per_run)(ax, diag, runs)
+  ax.set_xlabel('simulator steps'); ax.set_ylabel('success rate')
+  ax.set_xlim(0, max_steps); ax.set_ylim(-0.02, 1.02); ax.legend(fontsize=8)
+  diag.set_xlabel('simulator steps'); diag.set_ylabel('share')
+  diag.set_xlim(0, max_steps); diag.set_ylim(-0.02, 1.02); diag.legend(fontsize=7)
+  fig.tight_layout()
+  return fig
+
+
+def _draw_per_run(ax, diag, runs) -> None:
+  """One curve per run: its held-out success with the Wilson band it logged, its training
+  episodes solved per wave and, where logged, how often a refined candidate won while acting."""
+  for i, run in enumerate(runs):
     name, color = run_name(run), f'C{i}'
     ev = read_csv(run_file(run, 'eval.csv'))
     x = [int(float(r['step'])) for r in ev]
@@ -131,12 +141,6 @@ def draw(runs, anchor: str, max_steps: float, pooled: bool = False):
     if waves and 'won_refined' in waves[0]:
       diag.plot(wx, [float(r['won_refined']) for r in waves], ':', color=color,
                 label=f'{name}: refined candidate won (acting)')
-  ax.set_xlabel('simulator steps'); ax.set_ylabel('success rate')
-  ax.set_xlim(0, max_steps); ax.set_ylim(-0.02, 1.02); ax.legend(fontsize=8)
-  diag.set_xlabel('simulator steps'); diag.set_ylabel('share')
-  diag.set_xlim(0, max_steps); diag.set_ylim(-0.02, 1.02); diag.legend(fontsize=7)
-  fig.tight_layout()
-  return fig
 
 
 def _draw_pooled(ax, diag, runs) -> None:
