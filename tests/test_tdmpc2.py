@@ -152,6 +152,72 @@ def test_chunks_are_unpickled_without_running_code(tmp_path):
   assert not allowed('subprocess', 'Popen') and not allowed('numpy', 'no_such_name')
 
 
+def _global_call(module, name, arg, opcode='stack'):
+  """A hand-written pickle that looks up `module`/`name` and calls it with one string: what a
+  crafted file can do that `pickle.dumps` never writes (e.g. a dotted name through a module)."""
+  def text(s):
+    b = s.encode()
+    return b'\x8c' + bytes([len(b)]) + b  # SHORT_BINUNICODE.
+  if opcode == 'stack':  # Protocol 4: STACK_GLOBAL resolves dotted names attribute by attribute.
+    head = b'\x80\x04' + text(module) + text(name) + b'\x93'
+  else:  # Protocol 0's GLOBAL.
+    head = b'c' + module.encode() + b'\n' + name.encode() + b'\n'
+  return head + text(arg) + b'\x85R.'  # TUPLE1, REDUCE, STOP.
+
+
+@pytest.mark.parametrize('module,name,opcode', [
+    ('numpy.f2py', 'os.system', 'stack'),  # Issue 102: a module's attribute path to os.system.
+    ('numpy', 'os.system', 'stack'),
+    ('collections', 'os.system', 'stack'),
+    ('torch._utils', '_rebuild_tensor_v2.__globals__', 'stack'),
+    ('os', 'system', 'global'),
+    ('posix', 'system', 'stack'),
+    ('builtins', 'eval', 'global'),
+    ('builtins', 'getattr', 'stack'),
+    ('builtins', '__import__', 'stack'),
+    ('numpy', 'load', 'stack'),
+    ('numpy.f2py', 'compile', 'stack'),
+    ('subprocess', 'Popen', 'stack'),
+    ('numpy.testing', 'os', 'stack'),
+])
+def test_crafted_globals_are_refused_before_anything_runs(tmp_path, module, name, opcode):
+  """Every global outside the exact allowlist is refused at lookup, so its call never happens."""
+  import io
+  import pickle
+  marker = tmp_path / 'ran'
+  data = _global_call(module, name, f'touch {marker}', opcode)
+  with pytest.raises(pickle.UnpicklingError, match='refused to load'):
+    tdmpc2.SafePickle.load(io.BytesIO(data))
+  assert not marker.exists()
+  assert not tdmpc2.SafePickle.allowed(module, name)
+
+
+def test_a_nested_payload_is_refused_and_the_plain_pickle_would_have_run_it(tmp_path):
+  """The payload deep inside lists and dicts is refused too; plain pickle on the same bytes runs
+  it (so the test would see a loader that does not restrict)."""
+  import io
+  import pickle
+  marker = tmp_path / 'ran'
+  data = pickle.dumps({'obs': [np.zeros(2), {'inner': (_Payload(marker),)}]}, protocol=4)
+  with pytest.raises(pickle.UnpicklingError, match='refused to load'):
+    tdmpc2.SafePickle.load(io.BytesIO(data))
+  assert not marker.exists()
+  crafted = _global_call('numpy.f2py', 'os.system', f'touch {marker}')
+  pickle.loads(crafted)  # The unrestricted unpickler runs the crafted file's command.
+  assert marker.exists()
+
+
+def test_the_allowlist_is_exact_pairs():
+  """No prefix rule: every allowed pair is a module and a plain name; near misses are refused."""
+  allowed = tdmpc2.SafePickle.allowed
+  for module, name in tdmpc2.SafePickle.ALLOWED:
+    assert '.' not in name and module.split('.')[0] in (
+        'torch', 'tensordict', 'numpy', 'collections', 'builtins')
+  assert allowed('torch._utils', '_rebuild_tensor_v2') and allowed('torch', 'float32')
+  assert not allowed('torch._utils', '_rebuild_tensor_v9') and not allowed('torch', 'load')
+  assert not allowed('numpy.core.multiarray', 'fromfile')
+
+
 def test_a_malicious_chunk_fails_in_one_line_through_the_loader(tmp_path, monkeypatch):
   """The loader's torch.load gets SafePickle (here the test stand-in for torch reads through
   it as torch does): DatasetError naming the file, and the payload never runs."""

@@ -22,18 +22,18 @@ the chunk files are found.
 Safety: TensorDicts do not load with `weights_only=True`, not even with
 tensordict's classes allowlisted (pytorch/tensordict#1363), so chunk files are
 read by torch's full unpickler with a restricted `find_class` (`SafePickle`, the
-"restricting globals" recipe of Python's pickle docs): a file may name only
-classes and constants of torch, tensordict, numpy and collections and their
-tensor-rebuilding functions (`_rebuild_*`, `_reconstruct`), never a function
-such as os.system or builtins.eval, so the pickled code of a malicious file is
-refused on one line instead of run. Not tested here against real torch files
-(the extra is not installed on the CI machine): a chunk that names another
-function fails on one line naming it.
+"restricting globals" recipe of Python's pickle docs): a file may name only the
+exact fully-qualified names in `SafePickle.ALLOWED` (tensor, storage and dtype
+classes, TensorDict, numpy's array pickling and the tensor-rebuilding
+functions), never anything else: no prefix or module-wide rule, no dotted
+attribute path (`numpy.f2py` + `os.system` reached os.system through a module's
+attribute before), no module is even imported unless the pair is listed. A
+malicious file is refused on one line instead of run. Not tested here against
+real torch files (the extra is not installed on the CI machine): a chunk that
+names another global fails on one line naming it.
 """
 
-import builtins
 import glob
-import importlib
 import os
 import pickle
 from typing import Dict, List, Optional, Sequence, Tuple, Union
@@ -86,6 +86,16 @@ class MissingExtraError(dataset_lib.DatasetError, ImportError):
   """torch or tensordict is not installed (one line saying how to install them)."""
 
 
+_TORCH_DTYPES = ('float16', 'float32', 'float64', 'bfloat16', 'half', 'float', 'double',
+                 'complex64', 'complex128', 'uint8', 'int8', 'int16', 'int32', 'int64',
+                 'short', 'int', 'long', 'bool')
+_TORCH_STORAGES = ('UntypedStorage', 'DoubleStorage', 'FloatStorage', 'HalfStorage',
+                   'BFloat16Storage', 'LongStorage', 'IntStorage', 'ShortStorage',
+                   'CharStorage', 'ByteStorage', 'BoolStorage', 'ComplexFloatStorage',
+                   'ComplexDoubleStorage')
+_TENSORDICTS = ('TensorDict', 'LazyStackedTensorDict')
+
+
 class _RestrictedUnpickler(pickle.Unpickler):
   """pickle.Unpickler whose globals are limited to `SafePickle.allowed`."""
 
@@ -97,26 +107,32 @@ class _RestrictedUnpickler(pickle.Unpickler):
 
 
 class SafePickle:
-  """A pickle module for `torch.load(pickle_module=...)` that refuses any global but classes
-  of torch, tensordict, numpy and collections and the tensor-rebuilding functions."""
+  """A pickle module for `torch.load(pickle_module=...)` that refuses every global but the exact
+  (module, name) pairs of `ALLOWED`."""
   Unpickler = _RestrictedUnpickler
   __name__ = 'SafePickle'
-  _ROOTS = ('torch', 'tensordict', 'numpy', 'collections')
-  _FUNCTIONS = ('_rebuild_', '_reconstruct', 'scalar')  # torch._utils, numpy's array pickling.
+  # Every global a TD-MPC2 chunk (a TensorDict of tensors, via torch.save) or a pickled numpy
+  # array may name, fully qualified; nothing else is ever looked up.
+  ALLOWED = frozenset(
+      [('torch', n) for n in _TORCH_DTYPES + _TORCH_STORAGES + ('Size', 'device', 'Tensor')]
+      + [('torch.storage', n) for n in ('UntypedStorage', 'TypedStorage', '_load_from_bytes')]
+      + [('torch._utils', n) for n in ('_rebuild_tensor', '_rebuild_tensor_v2',
+                                       '_rebuild_tensor_v3', '_rebuild_parameter')]
+      + [('torch._tensor', '_rebuild_from_type_v2'), ('torch.serialization', '_get_layout')]
+      + [(m, n) for m in ('tensordict', 'tensordict._td', 'tensordict.tensordict',
+                          'tensordict._lazy') for n in _TENSORDICTS]
+      + [('tensordict._reductions', '_rebuild_tensordict_files')]
+      + [(m, n) for m in ('numpy.core.multiarray', 'numpy._core.multiarray')
+         for n in ('_reconstruct', 'scalar')]
+      + [('numpy', 'ndarray'), ('numpy', 'dtype'), ('collections', 'OrderedDict')]
+      + [('builtins', n) for n in ('set', 'frozenset', 'slice', 'complex')]
+      + [('numpy.dtypes', n) for n in ('Float32DType', 'Float64DType', 'Int64DType',
+                                       'Int32DType', 'BoolDType', 'UInt8DType')])
 
   @staticmethod
   def allowed(module: str, name: str) -> bool:
-    if module.split('.')[0] not in SafePickle._ROOTS:
-      return module == 'builtins' and name in ('set', 'frozenset', 'slice', 'complex')
-    try:
-      obj = getattr(importlib.import_module(module), name.split('.')[0])
-    except (ImportError, AttributeError):
-      return False
-    if isinstance(obj, type):  # Classes (TensorDict, torch.Size, OrderedDict, ...).
-      return not issubclass(obj, BaseException)
-    if not callable(obj):  # Constants such as torch.float32: nothing to call.
-      return True
-    return name.startswith(SafePickle._FUNCTIONS) and not hasattr(builtins, name)
+    """Whether a file may name `module.name`: an exact listed pair, never a dotted path."""
+    return (module, name) in SafePickle.ALLOWED
 
   @staticmethod
   def load(file, **kwargs):
