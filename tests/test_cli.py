@@ -67,3 +67,17 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_work(tmp_path):
     cli.check_new_output(str(tmp_path), overwrite=True)
   cli.check_new_output(str(tmp_path / 'new' / 'deeper' / 'e.json'), overwrite=False)
   assert sorted(os.listdir(tmp_path)) == ['a_file']  # Checking made no folder and no file.
+
+
+def test_collect_keeps_an_existing_dataset_unless_overwrite(tmp_path):
+  """Issue 102: `collect --out=EXISTING` replaced the dataset silently; now it refuses on one
+  line before collecting, and the file is untouched."""
+  out = tmp_path / 'door.npz'
+  out.write_bytes(b'an earlier dataset')
+  done = subprocess.run([sys.executable, '-m', 'experiments.collect', f'--out={out}',
+                         '--episodes=1'], cwd=tmp_path, capture_output=True, text=True,
+                        timeout=120, env=dict(os.environ, PYTHONPATH=REPO))
+  assert done.returncode == 2, done.stderr[-2000:]
+  lines = [l for l in done.stderr.splitlines() if l.startswith('error: ')]
+  assert len(lines) == 1 and 'door.npz exists' in lines[0] and '--overwrite' in lines[0]
+  assert out.read_bytes() == b'an earlier dataset'

@@ -16,6 +16,13 @@ analysis with the scans unrolled, peak_gflops measured in this run, bound_ratio 
 FLOP-bound time, devices), and a markdown table next to it (.md). Method: docs/scaling.md.
 With --online_seeds, instead: online training of the first config with N training seeds in one
 run for each N, one after the other in this process (benchmarks/online_seeds.py).
+With --online_breakdown=1,3 instead: where a simulator step's time goes in online training of the
+first config (environments, plan, update, buffer sampling, host), for each N seeds in one run,
+--repeats runs each, and the FLOPs of a decision and an update against the peak
+(benchmarks/online_breakdown.py; docs/scaling.md):
+
+  python -m experiments.benchmark_training --configs=door_open_online.py:cpu \
+      --online_breakdown=1,3 --repeats=3 --out=runs/bench/online_breakdown.json
 """
 
 import importlib.util
@@ -44,6 +51,10 @@ _ONLINE_DEVICES = flags.DEFINE_list('online_seed_devices', ['1'], 'With --online
                                      'N also with its seeds spread over each of these numbers '
                                      'of devices (train.seed_devices; on a CPU, virtual '
                                      'devices made before JAX starts); 0: one per seed.')
+_BREAKDOWN = flags.DEFINE_list('online_breakdown', [], 'Numbers of training seeds in one online '
+                                'run whose time per simulator step to break down, e.g. 1,3.')
+_WAVES = flags.DEFINE_integer('online_waves', 3, 'With --online_breakdown: timed waves per run '
+                              '(after the seed waves and the compiling wave).')
 _ONLINE_STEPS = flags.DEFINE_integer('online_env_steps', 4000, 'Environment steps (simulator '
                                      'steps) of each timed online run, seed waves included.')
 
@@ -65,10 +76,14 @@ OVERRIDES = []  # 'field=value' items of --config.field=value, for every config.
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the output.
+  if _REPEATS.value < 1 or _WAVES.value < 1:
+    raise app.UsageError('--repeats and --online_waves must be at least 1')
   devices = max(int(d) for d in _ONLINE_DEVICES.value)
+  if _BREAKDOWN.value:  # One device per seed, as runs train by default.
+    devices = max(devices, *(int(n) for n in _BREAKDOWN.value))
   if _ONLINE_SEEDS.value and 0 in [int(d) for d in _ONLINE_DEVICES.value]:  # One per seed.
     devices = max(devices, *(int(n) for n in _ONLINE_SEEDS.value))
-  if _ONLINE_SEEDS.value and devices > 1:  # Before JAX starts: the CPU as that many devices.
+  if (_ONLINE_SEEDS.value or _BREAKDOWN.value) and devices > 1:  # Before JAX starts: the CPU as that many devices.
     import jax
     jax.config.update('jax_num_cpu_devices', devices)
   from ld_mpc_jax.configs.overrides import parse_items, with_overrides
@@ -83,6 +98,16 @@ def main(argv):
   device = hardware.device_info()
   print(f"device: {device['name']} x {device['device_count']}; load average "
         f"{device['loadavg_1min_at_start']:.2f}")
+  if _BREAKDOWN.value:
+    from benchmarks import online_breakdown
+    spec = _CONFIGS.value[0]
+    peak = hardware.measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
+    entries = online_breakdown.run(configs[spec], [int(n) for n in _BREAKDOWN.value],
+                                   _WAVES.value, peak, _REPEATS.value)
+    table = online_breakdown.markdown(entries, spec, device['name'])
+    print(table)
+    bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)
+    return
   if _ONLINE_SEEDS.value:
     from benchmarks import online_seeds
     spec = _CONFIGS.value[0]

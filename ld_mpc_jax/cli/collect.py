@@ -4,13 +4,15 @@ r"""Collects a scripted-policy dataset and measures the scripted policy.
       --preset=mixed --out=runs/data/door-open-v3_mixed.npz \
       --protocol_episodes=50
 
-Writes the dataset (atomic .npz, see docs/data.md), prints its summary and,
+Writes the dataset (atomic .npz, see docs/data.md; an existing --out is kept unless
+--overwrite, and checked before collecting), prints its summary and,
 with --protocol_episodes > 0, the scripted policy's success under the
 evaluation protocol at the preset's noise levels (episode i of the evaluation
 uses the level the preset assigns to its i-th episode).
 """
 
 import json
+import sys
 
 from absl import app
 from absl import flags
@@ -29,6 +31,7 @@ _PRESET = flags.DEFINE_enum('preset', 'mixed', list(collect_lib.PRESETS),
 _SEED = flags.DEFINE_integer('seed', 0, 'Environment / collection seed.')
 _ACTION_REPEAT = flags.DEFINE_integer('action_repeat', 2, 'Action repeat.')
 _OUT = flags.DEFINE_string('out', None, 'Output .npz path.', required=True)
+_OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out.')
 _PROTOCOL_EPISODES = flags.DEFINE_integer(
     'protocol_episodes', 0, 'If > 0, also evaluate the noisy scripted policy '
     'under the protocol for this many episodes.')
@@ -60,10 +63,17 @@ def main(argv):
     for name in ('episodes', 'action_repeat'):
       if flags.FLAGS[name].value < 1:
         raise ValueError(f'--{name} must be >= 1, got {flags.FLAGS[name].value}')
+    if _PROTOCOL_EPISODES.value < 0:
+      raise ValueError(f'--protocol_episodes must be >= 0, got {_PROTOCOL_EPISODES.value}')
+    cli.check_new_output(_OUT.value, _OVERWRITE.value)  # Before collecting: kept, or unwritable.
   ds = collect_lib.collect(_TASK.value, _PRESET.value, _EPISODES.value,
                            seed=_SEED.value,
                            action_repeat=_ACTION_REPEAT.value)
-  dataset_lib.save(ds, _OUT.value)
+  try:
+    dataset_lib.save(ds, _OUT.value)  # Atomic: a failed write leaves no partial file.
+  except OSError as err:  # A fault of the machine (a full disk): one line, exit code 1.
+    print(f'error: could not write {_OUT.value}: {err.strerror or err}', file=sys.stderr)
+    sys.exit(1)
   report = dict(out=_OUT.value, preset=_PRESET.value,
                 collection_seconds=ds.metadata['collection_seconds'],
                 **collect_lib.summary(ds))

@@ -43,10 +43,13 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   with `train.num_seeds` = N > 1, N seeds in one process (`ld_mpc_jax.runs.train_seeds`), each in
   <workdir>/seed<seed>, and the returned report is the pooled one.
 
+  The workdir is locked for the whole run (`checkpointing.workdir_lock`): a second run on it
+  stops at once on one line naming the first one's pid.
+
   A write that fails for want of space stops the run on one line (`checkpointing.DiskFullError`,
   a WorkdirError) naming the checkpoint the same command resumes from once space is freed.
   """
-  with checkpointing.stop_when_disk_full(workdir):
+  with checkpointing.workdir_lock(workdir), checkpointing.stop_when_disk_full(workdir):
     return _train_and_evaluate(config, workdir, continue_with_changes)
 
 
