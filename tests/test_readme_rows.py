@@ -80,3 +80,35 @@ def test_a_noise_cell_reads_the_sweep_at_its_std(tmp_path):
              for f in failures)
   # The same files' other stds (and the protocol records) still match.
   assert all(f"at obs noise {num['obs_noise']}:" in f for f in failures)
+
+
+def test_swapped_readme_cells_fail_and_the_message_shows_both_sides(tmp_path):
+  """Issue 102: swapping the planner and actor-prior cells of a row passed (each number was
+  only looked for somewhere in the line); a changed README count was reported with the records'
+  value on the README's side."""
+  manifest = _copy(tmp_path)
+  row = next(r for r in manifest['rows'] if r['line'] == '| door-open `weak` |')
+  plan, actor = row['numbers'][0]['expect'], row['numbers'][2]['expect']
+  readme = (tmp_path / 'README.md').read_text()
+  line = next(l for l in readme.splitlines() if row['line'] in l)
+  swapped = line.replace(f'| {plan} |', '| PLAN |').replace(f'| {actor} |', f'| {plan} |').replace(
+      '| PLAN |', f'| {actor} |')
+  assert swapped != line
+  (tmp_path / 'README.md').write_text(readme.replace(line, swapped))
+  failures = pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))
+  assert any(f'README {actor}, manifest {plan}, records {plan}' in f for f in failures), failures
+  assert any(f'README {plan}, manifest {actor}, records {actor}' in f for f in failures), failures
+  changed = line.replace(f'| {plan} |', '| 1/150 |')
+  (tmp_path / 'README.md').write_text(readme.replace(line, changed))
+  failures = pool_evals.check(str(tmp_path / 'results' / 'readme_rows.json'))
+  assert failures == [f"'| door-open `weak` |', {row['numbers'][0]['policy']}: README 1/150, "
+                      f'manifest {plan}, records {plan}']
+
+
+def test_prose_numbers_must_appear_in_order():
+  shows = pool_evals.readme_shows
+  line = 'the planner keeps 137/150 at 0.05, level with BC (12 / 10, 0.83) and 0/50'
+  assert shows(line, ['137/150', '12 / 10, 0.83', '0/50', '0/50']) == [
+      '137/150', '12 / 10, 0.83', '0/50', '0/50']
+  assert shows(line, ['12 / 10, 0.83', '137/150']) == ['12 / 10, 0.83', 'not in order']
+  assert shows('solves 10/50', ['0/50']) == ['not in order']  # Bounded: not inside 10/50.

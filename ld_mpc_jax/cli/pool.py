@@ -30,6 +30,7 @@ import csv
 import gzip
 import json
 import os
+import re
 import sys
 
 from ld_mpc_jax.cli import errors as cli
@@ -180,16 +181,51 @@ def check(manifest_path: str, readme_path: str = 'README.md') -> list:
     if len(lines) != 1:
       failures.append(f"{row['line']!r}: {len(lines)} README lines show it, not 1")
       continue
-    for num in row['numbers']:
+    shown = readme_shows(lines[0], [num['expect'] for num in row['numbers']])
+    for num, in_readme in zip(row['numbers'], shown):
       files = ['+'.join(os.path.join(root, p) for p in f.split('+')) for f in num['files']]
       noise = num.get('obs_noise')
       got = (_paired_cell(files, *num['pair'], obs_noise=noise) if 'pair' in num
              else _count_cell(files, num['policy'], obs_noise=noise))
-      if got != num['expect'] or num['expect'] not in lines[0]:
+      if got != num['expect'] or in_readme != num['expect']:
         what = ' vs '.join(num['pair']) if 'pair' in num else num['policy']
         what += '' if noise is None else f' at obs noise {noise}'
-        failures.append(f"{row['line']!r}, {what}: README {num['expect']}, records {got}")
+        manifest_says = '' if in_readme == num['expect'] else f", manifest {num['expect']}"
+        failures.append(f"{row['line']!r}, {what}: README {in_readme}{manifest_says}, "
+                        f'records {got}')
   return failures
+
+
+# A count ('145/150') or a paired test ('34 / 0, 1.2e-10') as the README writes them.
+_NUMBER = re.compile(r'\d+ / \d+, \d+(?:\.\d+)?(?:e-?\d+)?|\d+/\d+')
+
+
+def readme_shows(line: str, expected: list) -> list:
+  """What a README line shows in the place of each manifest number, in the manifest's order.
+
+  A table row: its cells after the first that start with a count or a paired test, left to
+  right, one per number (so swapped cells disagree; missing ones show as 'nothing'). A line of
+  prose: each number must appear after the one before it (the same position again for a
+  repeated number), bounded by non-digits; one that does not shows as 'not in order'.
+  """
+  if line.lstrip().startswith('|'):
+    cells = [c.strip() for c in line.strip().strip('|').split('|')][1:]
+    tokens = [m.group(0) for m in (_NUMBER.match(c) for c in cells) if m]
+    return [tokens[i] if i < len(tokens) else 'nothing' for i in range(len(expected))]
+  out, start, start_after, previous = [], 0, 0, None
+  for want in expected:
+    at = start if want == previous else start_after
+    found = None
+    for m in _NUMBER.finditer(line, at):
+      if m.group(0) == want:
+        found = m
+        break
+    if found is None:
+      out.append('not in order')
+      continue
+    out.append(want)
+    start, start_after, previous = found.start(), found.end(), want
+  return out
 
 
 def _count_cell(files: list, policy: str, obs_noise=None) -> str:
