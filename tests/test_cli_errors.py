@@ -91,3 +91,35 @@ def test_a_stale_lock_file_is_taken_over(tmp_path):
   with checkpointing.workdir_lock(str(workdir)):
     assert (workdir / checkpointing.LOCK_FILE).read_text().strip() == str(os.getpid())
   assert workdir.exists() and not (workdir / checkpointing.LOCK_FILE).exists()
+
+
+@pytest.mark.parametrize('content', [b'\x83\x00binary', b'{"model": {"width": ', b'[1, 2]'])
+def test_a_damaged_config_json_is_one_line_naming_it(tmp_path, content):
+  """Issue 102: a damaged config.json gave a 30-line UnicodeDecodeError or a 38-line
+  JSONDecodeError; now one line naming the file, from resume and from evaluate alike."""
+  from ld_mpc_jax.learn import checkpointing
+  workdir = tmp_path / 'run'
+  workdir.mkdir()
+  (workdir / checkpointing.CONFIG_FILE).write_bytes(content)
+  with pytest.raises(checkpointing.WorkdirError, match='config.json is damaged'):
+    checkpointing.load_config(str(workdir))
+  done = subprocess.run([sys.executable, '-m', 'experiments.evaluate', f'--workdir={workdir}',
+                         f'--out={tmp_path / "e.json"}'], cwd=tmp_path, capture_output=True,
+                        text=True, timeout=120, env=dict(os.environ, PYTHONPATH=REPO))
+  lines = [l for l in done.stderr.splitlines() if l.startswith('error: ')]
+  assert done.returncode == 2 and 'Traceback' not in done.stderr, done.stderr[-3000:]
+  assert len(lines) == 1 and 'config.json is damaged' in lines[0]
+
+
+def test_a_hand_edited_config_is_blamed_not_the_checkpoints(tmp_path):
+  """A valid JSON config with an invalid setting: the line names config.json and the setting,
+  and does not advise moving the (intact) checkpoints aside."""
+  from ld_mpc_jax.configs import door_open
+  from ld_mpc_jax.learn import checkpointing
+  config = door_open.get_config('smoke')
+  config.model.width = -3
+  checkpointing.save_config(config, str(tmp_path))
+  with pytest.raises(checkpointing.WorkdirError) as err:
+    checkpointing.load_for_evaluation(str(tmp_path))
+  assert 'config.json is not a valid config' in str(err.value)
+  assert 'config.model.width' in str(err.value) and 'aside' not in str(err.value)

@@ -312,8 +312,15 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
   path = os.path.join(workdir, CONFIG_FILE)
   if not os.path.exists(path):
     raise FileNotFoundError(f'no {CONFIG_FILE} in {workdir}: is it a training workdir?')
-  with open(path) as f:
-    raw = json.load(f)
+  try:
+    with open(path, encoding='utf-8') as f:
+      raw = json.load(f)
+  except (UnicodeDecodeError, json.JSONDecodeError) as err:
+    raise WorkdirError(f'{path} is damaged (not JSON: {err}); put back a good copy, or move '
+                       'the workdir aside and start the run again') from None
+  if not isinstance(raw, dict):
+    raise WorkdirError(f'{path} is damaged (holds a {type(raw).__name__}, not a config); put '
+                       'back a good copy, or move the workdir aside and start the run again')
   return migrate_config(ml_collections.ConfigDict(raw))
 
 
@@ -426,6 +433,12 @@ def load_for_evaluation(workdir: str):
   """(config, ema_params, step) from a training workdir's config and newest intact checkpoint
   (a newer damaged one is skipped with a warning line, and left as it is)."""
   config = load_config(workdir)
+  from ld_mpc_jax.model.config_checks import validate_config  # pylint: disable=g-import-not-at-top
+  try:  # A hand-edited config is its own fault, not the checkpoints'.
+    validate_config(config)
+  except ValueError as err:
+    raise WorkdirError(f'{os.path.join(workdir, CONFIG_FILE)} is not a valid config ({err}); '
+                       'undo the edit (the checkpoints were not read)') from None
   manager = checkpoint_manager(workdir)
   state = restore_latest(manager, config)
   if state is None:
