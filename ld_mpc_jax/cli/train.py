@@ -13,6 +13,7 @@ can be overridden, e.g. --config.task=drawer-open-v3 --config.train.num_steps=20
 """
 
 import os
+import signal
 import sys
 
 from absl import app, flags, logging
@@ -33,6 +34,26 @@ _COORDINATOR = flags.DEFINE_string('coordinator_address', None, 'host:port of pr
 _NUM_PROCESSES = flags.DEFINE_integer('num_processes', None, 'Number of processes.')
 _PROCESS_ID = flags.DEFINE_integer('process_id', None, 'This process, 0..num_processes-1.')
 flags.mark_flags_as_required(['config', 'workdir'])
+
+
+def _on_interrupt(signum, frame):
+  """SIGINT: remembered (`loop.INTERRUPTED`, checked after every step of the run, so that an
+  interrupt a library swallows still stops it), then raised as usual."""
+  del signum, frame
+  from ld_mpc_jax.runs import loop  # pylint: disable=g-import-not-at-top
+  loop.INTERRUPTED.set()
+  if not loop.SAVING.is_set():  # Else the loop stops once the checkpoint is complete.
+    raise KeyboardInterrupt
+
+
+def _interrupted(workdir: str):
+  """One line, exit code 130; the library's worker threads, cut short, stay quiet."""
+  import threading  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.learn.checkpointing import interrupted_message  # pylint: disable=g-import-not-at-top
+  threading.excepthook = lambda args: None
+  sys.unraisablehook = lambda args: None
+  print(f'\n{interrupted_message(workdir)}', file=sys.stderr, flush=True)
+  sys.exit(130)
 
 
 def main(argv):
@@ -63,11 +84,17 @@ def main(argv):
       check_init_from(_CONFIG.value)
   except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
     cli.fail(' '.join(str(err).split()))
+  from ld_mpc_jax.runs import loop
+  signal.signal(signal.SIGINT, _on_interrupt)
   try:
     train_and_evaluate(_CONFIG.value, _WORKDIR.value, _CONTINUE.value)
   except (DatasetError, WorkdirError) as err:  # Data that do not fit, another run's workdir.
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
+  except KeyboardInterrupt:  # Ctrl-C: one line, what is kept, exit code 130.
+    _interrupted(_WORKDIR.value)
+  if loop.INTERRUPTED.is_set():  # Swallowed somewhere (a library's thread or callback).
+    _interrupted(_WORKDIR.value)
   if jax.process_index() == 0:  # The one process that writes the report.
     name = 'report.md' if _CONFIG.value.train.num_seeds == 1 else 'pooled.md'
     print(open(os.path.join(_WORKDIR.value, name)).read())

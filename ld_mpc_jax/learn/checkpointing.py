@@ -158,16 +158,32 @@ def stop_when_disk_full(workdir: str) -> Iterator[None]:
     raise DiskFullError(disk_full_message(workdir, _failed_write(err))) from None
 
 
-def disk_full_message(workdir: str, where: Optional[str]) -> str:
-  """The one line of a full disk: the file whose write failed (relative to `workdir` when in it),
-  and the checkpoint the same command resumes from (every seed's, for <workdir>/seed<n>/)."""
+def kept_checkpoint(workdir: str) -> Tuple[Optional[int], str]:
+  """(the newest checkpoint step every seed of the run in `workdir` has complete, or None; the
+  checkpoints folder to name: <workdir>/checkpoints, or <workdir>/seed*/checkpoints)."""
   folders = ([workdir] if os.path.isdir(os.path.join(workdir, 'checkpoints')) else
              sorted(glob.glob(os.path.join(workdir, 'seed*'))))
   common = set.intersection(*[set(complete_steps(f)) for f in folders]) if folders else set()
   shown = os.path.join(workdir if folders == [workdir] else os.path.join(workdir, 'seed*'),
                        'checkpoints')
-  kept = (f'checkpoint step {max(common)} and those before it are kept in {shown}; free some '
-          'space and rerun the same command to resume from it' if common else
+  return (max(common) if common else None), shown
+
+
+def interrupted_message(workdir: str) -> str:
+  """The one line of an interrupted run (Ctrl-C): what is kept and how to resume."""
+  step, shown = kept_checkpoint(workdir)
+  if step is None:
+    return 'interrupted before the first checkpoint; the same command starts the run again'
+  return (f'interrupted: checkpoint step {step} is kept in {shown}; the same command resumes '
+          'from it')
+
+
+def disk_full_message(workdir: str, where: Optional[str]) -> str:
+  """The one line of a full disk: the file whose write failed (relative to `workdir` when in it),
+  and the checkpoint the same command resumes from (every seed's, for <workdir>/seed<n>/)."""
+  step, shown = kept_checkpoint(workdir)
+  kept = (f'checkpoint step {step} and those before it are kept in {shown}; free some '
+          'space and rerun the same command to resume from it' if step is not None else
           'no checkpoint was written yet; free some space and rerun the same command')
   inside = where and os.path.abspath(where).startswith(os.path.abspath(workdir) + os.sep)
   disk = (f'the device of {workdir} (writing {os.path.relpath(where, workdir)})' if inside else

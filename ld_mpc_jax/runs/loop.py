@@ -10,6 +10,7 @@ and evaluating at the same crossings for both.
 
 import json
 import os
+import threading
 from typing import Any, Dict, List, Optional, Protocol, Sequence
 
 import jax
@@ -285,6 +286,13 @@ def seed_source(path: str, seed: int) -> str:
   return path
 
 
+# Set by the launcher's SIGINT handler (experiments.train): `loop` stops after the step it is in.
+INTERRUPTED = threading.Event()
+# Set while a checkpoint is written: the handler then only sets INTERRUPTED, and `loop` stops
+# once the checkpoint is complete (a save cut in half would leave orbax's threads failing).
+SAVING = threading.Event()
+
+
 def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:
   """Advances `job` until its progress reaches `total`.
 
@@ -299,9 +307,17 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
   while job.progress < total:
     before = job.progress
     job.advance()
+    if INTERRUPTED.is_set():  # Ctrl-C that a library swallowed: stop here, as it asked.
+      raise KeyboardInterrupt
     job.log(before)
     if crossed(before, job.progress, checkpoint_every) or job.progress >= total:
-      job.checkpoint()
+      SAVING.set()
+      try:
+        job.checkpoint()
+      finally:
+        SAVING.clear()
+      if INTERRUPTED.is_set():
+        raise KeyboardInterrupt
     if crossed(before, job.progress, eval_every) and job.progress < total:
       run.periodic_eval(job.eval_params(), job.progress)
 
