@@ -77,7 +77,7 @@ def _flops(config: ml_collections.ConfigDict) -> Dict[str, float]:
   from ld_mpc_jax.plan import planner  # pylint: disable=g-import-not-at-top
   act = acting_config(config)
   decision = flops.xla_plan_flops(act, planner.make_plan(act))['total']
-  update = training.benchmark_update('update', config, repeats=1, warmup=0)
+  update = training.benchmark_update('update', config, repeats=1, warmup=0)  # One seed's.
   return dict(decision_gflop=decision / 1e9, update_gflop=update['gflop'])
 
 
@@ -113,6 +113,7 @@ def breakdown(config: ml_collections.ConfigDict, num_seeds: int, waves: int) -> 
       wall = time.perf_counter() - start
     job.bar.close()
   steps = (job.progress - steps0) * num_seeds  # Every seed's simulator steps.
+  totals['update'] -= totals['buffer sampling']  # Sampled inside `_updates`: counted once.
   totals['host, other'] = wall - sum(v for k, v in totals.items() if k != 'host, other')
   return dict(num_seeds=num_seeds, waves=waves, sim_steps=steps, wall_s=wall,
               decisions=counts['decisions'],

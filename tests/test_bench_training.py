@@ -63,3 +63,21 @@ def test_finish_bound_ratio():
   # FLOP-bound time: 2 GFLOP / (100 GFLOP/s x 2 devices) = 10 ms; measured 20 ms.
   np.testing.assert_allclose(entry['bound_ratio'], 2.0)
   np.testing.assert_allclose(entry['achieved_gflops'], 100.0)
+
+
+def test_online_breakdown_parts_add_up_to_the_timed_waves():
+  """benchmarks.online_breakdown on the :smoke online preset, one timed wave: every part took
+  time, the parts (host = the rest) add up to the wall time, and the counts are the wave's."""
+  from benchmarks import online_breakdown
+  from ld_mpc_jax.configs import door_open_online
+  config = door_open_online.get_config('smoke')
+  o = config.online
+  e = online_breakdown.breakdown(config, num_seeds=1, waves=1)
+  assert e['sim_steps'] == o.num_envs * o.episode_steps
+  assert e['decisions'] == e['sim_steps'] // config.eval.action_repeat  # One per environment.
+  assert e['updates'] == int(o.update_ratio * e['sim_steps'])
+  ms = e['ms_per_sim_step']
+  assert set(ms) == set(online_breakdown.PARTS)
+  assert all(ms[p] > 0 for p in ('environments', 'plan', 'update', 'buffer sampling'))
+  np.testing.assert_allclose(sum(ms.values()) * e['sim_steps'] / 1e3, e['wall_s'], rtol=1e-6)
+  assert 0 < e['share']['update'] < 1
