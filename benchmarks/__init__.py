@@ -5,8 +5,9 @@ Installed with the project (pyproject.toml), so that the launchers that use them
 """
 
 
-def write_results(out: str, entries: list, table: str) -> None:
-  """Writes benchmark entries to `out` (JSON) and their markdown table beside it (.md)."""
+def write_results(out: str, entries: list, table: str, quiet: bool = False) -> None:
+  """Writes benchmark entries to `out` (JSON) and their markdown table beside it (.md); says so
+  unless `quiet`."""
   import json
   import os
   os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
@@ -14,4 +15,5 @@ def write_results(out: str, entries: list, table: str) -> None:
     json.dump(entries, f, indent=1)
   with open(os.path.splitext(out)[0] + '.md', 'w') as f:
     f.write(table)
-  print(f'wrote {out} and {os.path.splitext(out)[0]}.md')
+  if not quiet:
+    print(f'wrote {out} and {os.path.splitext(out)[0]}.md')

@@ -23,10 +23,12 @@ def finish(entries: list, peak_gflops: float, device: dict) -> list:
   return entries
 
 
-def write_partial(out: str, entries: list, peak_gflops: float, device: dict) -> list:
-  """Writes the configurations measured so far (finished copies; `entries` is left as it is)."""
+def write_partial(out: str, entries: list, peak_gflops: float, device: dict,
+                  quiet: bool = True) -> list:
+  """Writes the configurations measured so far (finished copies; `entries` is left as it is);
+  says where only when not `quiet` (the last write)."""
   done = finish(copy.deepcopy(entries), peak_gflops, device)
-  write_results(out, done, markdown(done))
+  write_results(out, done, markdown(done), quiet=quiet)
   return done
 
 

@@ -125,3 +125,14 @@ def test_intervals_and_kept_checkpoints_must_be_positive(field, value):
   with pytest.raises(ValueError, match=rf'^config.train.{field} must be an integer >= 1, '
                                        rf'got {value}$'):
     config_checks.validate_config(config)
+
+
+@pytest.mark.parametrize('field', ['train.learning_rate', 'plan.temperature', 'loss.w_dyn'])
+def test_a_nan_setting_is_refused_naming_it(field):
+  """Issue 102: --config.train.learning_rate=nan passed every `<= 0` check and failed 58 s
+  later with 'step None'."""
+  config = door_open_online.get_config('smoke')
+  section, name = field.split('.')
+  config[section][name] = float('nan')
+  with pytest.raises(ValueError, match=f'config.{field} is NaN'):
+    config_checks.validate_config(config)

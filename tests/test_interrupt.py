@@ -1,5 +1,5 @@
 """Ctrl-C during training: one line saying which checkpoint is kept, exit code 130, and the same
-command resumes from it (issues 102 and 104)."""
+command resumes from it; the stage lines on the way (issues 102 and 104)."""
 
 import os
 import signal
@@ -36,6 +36,10 @@ def test_ctrl_c_is_one_line_keeps_the_checkpoint_and_the_rerun_resumes(tmp_path)
   assert last == (f'interrupted: checkpoint step {kept} is kept in '
                   f'{os.path.join(workdir, "checkpoints")}; the same command resumes from it')
   assert not os.path.exists(os.path.join(workdir, '.lock'))  # Released.
+  lines = err.splitlines()  # The stage lines (issue 104), before the bar's.
+  assert any(l.startswith('data: ') and 'episodes' in l for l in lines), err[-3000:]
+  assert any(l.startswith('training from step 0 to 100000 (the first step compiles')
+             for l in lines), err[-3000:]
   resumed = subprocess.run(cmd[:-3] + [f'--config.train.num_steps={kept + 5}',
                                        '--config.train.checkpoint_every=5',
                                        '--config.train.eval_every=100000',
@@ -43,3 +47,6 @@ def test_ctrl_c_is_one_line_keeps_the_checkpoint_and_the_rerun_resumes(tmp_path)
                            cwd=tmp_path, capture_output=True, text=True, env=env, timeout=300)
   assert resumed.returncode == 0, resumed.stderr[-3000:]
   assert _steps(workdir)[-1] == kept + 5
+  lines = resumed.stderr.splitlines()
+  assert f'resumed from step {kept} ({workdir})' in lines, resumed.stderr[-3000:]
+  assert any(l.startswith(f'wrote in {workdir}: ') and 'report.md' in l for l in lines)

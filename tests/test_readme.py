@@ -162,3 +162,16 @@ python -m experiments.train --config=door_open.py:cpu --workdir=DIR --no_such_fl
   assert errors[9] is not None  # selection: fields are checked only where the mode loads a
   assert errors[10] is None     # config; the sweep mode (--seeds) takes --config.x itself.
   assert errors[11] is None  # A field the first command set too: each command parses afresh.
+
+
+def test_the_plan_snippet_runs_as_written_and_prints_what_it_computes(readme, tmp_path):
+  """Issue 104: the README's `plan()` snippet printed nothing when run as a file."""
+  snippet = re.search(r'```python\n(.*?)```', readme, re.S).group(1)
+  (tmp_path / 'snippet.py').write_text(snippet)
+  done = subprocess.run([sys.executable, 'snippet.py'], cwd=tmp_path, capture_output=True,
+                        text=True, timeout=300, env=dict(os.environ, PYTHONPATH=REPO))
+  assert done.returncode == 0, done.stderr[-3000:]
+  action, shape, kind = done.stdout.strip().splitlines()[-3:]
+  assert len(action.strip('[]').split()) == 4  # The first action [4].
+  assert re.fullmatch(r'\(\d+,\)', shape)
+  assert kind.split()[0] in ('proposal', 'actor_prior', 'gaussian', 'refined')

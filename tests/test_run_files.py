@@ -100,3 +100,29 @@ def test_provenance_names_the_checkout_and_package_versions():
   assert {'jax', 'flax', 'metaworld', 'mujoco', 'numpy', 'device'} <= set(v)
   assert v['numpy'] == metadata.version('numpy') and v['jax'] == metadata.version('jax')
   assert run_files.primary()  # A single process is process 0.
+
+
+def test_each_start_of_a_run_writes_its_provenance_and_records_copy_it(tmp_path):
+  """Issue 102: a run's commit, dirty flag and command line are written by the run at each
+  start, and `report records` copies them beside the records (no provenance by hand)."""
+  import json
+  import subprocess
+  from ld_mpc_jax.cli import records
+  from ld_mpc_jax.eval import run_files
+  root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+  head = subprocess.run(['git', 'rev-parse', 'HEAD'], cwd=root, capture_output=True,
+                        text=True).stdout.strip()
+  argv = [os.path.join(root, 'experiments', 'train.py'), '--config=door_open.py:smoke',
+          '--workdir=my run']
+  for _ in range(2):  # A start and a resume.
+    run_files.write_provenance(str(tmp_path), argv)
+  lines = [json.loads(l) for l in (tmp_path / run_files.PROVENANCE).read_text().splitlines()]
+  assert len(lines) == 2
+  assert lines[0]['commit'] == (head or None) and isinstance(lines[0]['dirty'], bool)
+  assert lines[0]['command'] == ("python -m experiments.train --config=door_open.py:smoke "
+                                 "'--workdir=my run'")
+  (tmp_path / 'episodes.csv').write_text('run,policy,success\n0,plan,1\n')
+  written = records.write_records(str(tmp_path), str(tmp_path / 'out'))
+  assert str(tmp_path / 'out' / run_files.PROVENANCE) in written
+  assert (tmp_path / 'out' / run_files.PROVENANCE).read_text() == (
+      tmp_path / run_files.PROVENANCE).read_text()

@@ -239,3 +239,20 @@ def test_training_into_a_workdir_of_another_config_writes_nothing(tmp_path, data
     train.train_and_evaluate(smoke(data_dir, learning_rate=0.5), str(workdir))
   assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]
   assert (workdir / checkpointing.CONFIG_FILE).read_text() == before
+
+
+def test_rerunning_a_finished_run_changes_nothing(unevaluated_runs, tmp_path, data_dir,
+                                                  monkeypatch, capsys):
+  """Issue 102: a finished run run again appended a duplicate final row and replaced its
+  steps/s; now it says it is finished, returns its report, and writes nothing."""
+  import shutil
+  workdir = tmp_path / 'a'
+  shutil.copytree(unevaluated_runs['a'][0], workdir)
+  before = {p: p.read_bytes() for p in workdir.rglob('*') if p.is_file()}
+  monkeypatch.setattr(train, 'make_update', lambda *a, **k: pytest.fail('trained again'))
+  c = smoke(data_dir)
+  c.eval.episodes = 0
+  report = train.train_and_evaluate(c, str(workdir))
+  assert report.pop('records') == [] and report == unevaluated_runs['a'][1]  # Not evaluated.
+  assert 'finished: nothing to do, nothing changed' in capsys.readouterr().err
+  assert {p: p.read_bytes() for p in workdir.rglob('*') if p.is_file()} == before

@@ -79,4 +79,10 @@ def dispatch(doc: str, modes: Dict[str, str], default: str,
   main_module.__doc__ = f'{doc.strip()}\n\nThis mode ({name}): {(module.__doc__ or "").strip()}'
   for flag in flags.FLAGS.get_key_flags_for_module(module.__name__):
     flags.FLAGS.register_key_flag_for_module(sys.argv[0], flag)  # Shown by --help.
-  app.run(module.main, flags_parser=errors.parse_flags)
+  asked_help = any(a in ('--help', '-h', '-?', '--helpshort', '--helpfull') for a in argv[1:])
+  try:
+    app.run(module.main, flags_parser=errors.parse_flags)
+  except SystemExit as exit_:
+    if asked_help and exit_.code == 1:  # absl exits 1 after printing the help asked for.
+      sys.exit(0)
+    raise

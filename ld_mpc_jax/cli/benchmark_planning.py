@@ -3,7 +3,7 @@
   python -m experiments.benchmark_planning                                    # everything
   python -m experiments.benchmark_planning --widths=cpu --variants=reference,fast,mppi
   python -m experiments.benchmark_planning --config=door_open.py --repeats=20 \
-      --out=benchmark_planning.json
+      --out=runs/benchmark/benchmark_planning.json
 
 Every LD-MPC variant is a set of config overrides of the same model, run at the reference width
 (the config file without preset) and/or at the `:cpu` preset's width (the trained model's size);
@@ -75,7 +75,8 @@ _CONFIG = config_flags.DEFINE_config_file(
     lock_config=True)
 _REPEATS = flags.DEFINE_integer('repeats', 20, 'Timed calls per configuration (after warm-up).')
 _WARMUP = flags.DEFINE_integer('warmup', 2, 'Untimed calls after compilation.')
-_OUT = flags.DEFINE_string('out', 'benchmark_planning.json', 'JSON output; .md written beside.')
+_OUT = flags.DEFINE_string('out', 'runs/benchmark/benchmark_planning.json',
+                           'JSON output; .md written beside.')
 _VARIANTS = flags.DEFINE_list('variants', list(VARIANTS), f'Subset of {list(VARIANTS)}.')
 _WIDTHS = flags.DEFINE_list('widths', list(WIDTHS), f'Subset of {list(WIDTHS)}.')
 _PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
@@ -193,10 +194,12 @@ def main(argv):
   peak = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak: {peak:.1f} GFLOP/s ({_PEAK_SIZE.value}^2 float32 matmul)')
   entries = []
+  total = sum(1 if name == 'mppi' else len(_WIDTHS.value) for name in _VARIANTS.value)
 
   def add(entry):
     entries.append(entry)
-    print(f"{entry['name']}: median {np.median(entry['latencies_ms']) * 1e3:.1f} ms, compile "
+    print(f"[{len(entries)}/{total}] {entry['name']}: median "
+          f"{np.median(entry['latencies_ms']) * 1e3:.1f} ms, compile "
           f"{entry['compile_s']:.1f} s, {entry['gflop']:.2f} GFLOP (XLA {entry['gflop_xla']:.2f})",
           flush=True)
     planning.write_partial(_OUT.value, entries, peak, device)  # A cut run keeps these.
@@ -207,10 +210,12 @@ def main(argv):
       continue
     if name == 'warm_start' and 'warm_start_steps' not in base.plan:
       print('skipping warm_start: this config has no plan.warm_start_steps')
+      total -= len(_WIDTHS.value)
       continue
     for width in _WIDTHS.value:
       config, resolved = variant_config(base, load_preset(WIDTHS[width]), VARIANTS[name])
       add(run_ldmpc(name, width, config, resolved, _REPEATS.value, _WARMUP.value))
   peak_end = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak at the end: {peak_end:.1f} GFLOP/s')
-  print(planning.markdown(planning.write_partial(_OUT.value, entries, max(peak, peak_end), device)))
+  print(planning.markdown(planning.write_partial(_OUT.value, entries, max(peak, peak_end), device,
+                                                quiet=False)))

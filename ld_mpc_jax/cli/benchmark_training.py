@@ -28,7 +28,7 @@ first config (environments, plan, update, buffer sampling, host), for each N see
 import importlib.util
 import os
 
-from absl import app, flags, logging
+from absl import flags, logging
 
 from ld_mpc_jax.cli import errors as cli
 from ld_mpc_jax.configs import CONFIG_DIR
@@ -38,7 +38,8 @@ _CONFIGS = flags.DEFINE_list('configs', ['door_open.py:cpu', 'door_open.py'],
 _REPEATS = flags.DEFINE_integer('repeats', 10, 'Timed update steps per config (after warm-up).')
 _WARMUP = flags.DEFINE_integer('warmup', 2, 'Untimed steps after compilation.')
 _DATA_PARALLEL = flags.DEFINE_bool('data_parallel', False, 'Split the batch over all devices.')
-_OUT = flags.DEFINE_string('out', 'benchmark_training.json', 'JSON output; .md written beside.')
+_OUT = flags.DEFINE_string('out', 'runs/benchmark/benchmark_training.json',
+                           'JSON output; .md written beside.')
 _PEAK_SIZE = flags.DEFINE_integer('peak_size', 2048, 'Square float32 matmul for the peak.')
 _PEAK_REPEATS = flags.DEFINE_integer('peak_repeats', 10, 'Timed matmuls for the peak.')
 _ONLINE_SEEDS = flags.DEFINE_list('online_seeds', [], 'Numbers of training seeds in one online '
@@ -77,7 +78,7 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the output.
   if _REPEATS.value < 1 or _WAVES.value < 1:
-    raise app.UsageError('--repeats and --online_waves must be at least 1')
+    cli.fail('--repeats and --online_waves must be at least 1')
   devices = max(int(d) for d in _ONLINE_DEVICES.value)
   if _BREAKDOWN.value:  # One device per seed, as runs train by default.
     devices = max(devices, *(int(n) for n in _BREAKDOWN.value))

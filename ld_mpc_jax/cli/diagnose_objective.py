@@ -41,6 +41,9 @@ def main(argv):
     ks = sorted({int(k) for k in _KS.value})
     if not ks or ks[0] < 1:
       raise ValueError(f'--ks must be integers >= 1, got {_KS.value}')
+    for flag in (_EPISODES, _DATA_EPISODES, _STRIDE):
+      if flag.value < 1:
+        raise ValueError(f'--{flag.name} must be >= 1, got {flag.value}')
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
   obs, actions, returns = held_out_windows(config, _DATA_EPISODES.value, _STRIDE.value)
   report = dict(workdir=_WORKDIR.value, step=step, k=config.plan.num_candidates,

@@ -1,5 +1,6 @@
 """Launcher helpers: bad input gives one line on stderr and exit code 2, never a traceback."""
 
+import ast
 import contextlib
 import os
 import re
@@ -72,11 +73,24 @@ def parse_flags(argv):
 def _unknown_field(argv, err) -> str:
   """One line for a `--config.a.b=v` override that names a field the config does not have."""
   from ld_mpc_jax.ops.legacy import renamed_hint  # pylint: disable=g-import-not-at-top
-  name = str(err).strip('"\'')
+  text = str(err.args[0]) if err.args else str(err)
+  for _ in range(3):  # ml_collections nests reprs of the KeyError's message: unwrap them.
+    try:
+      inner = ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+      break
+    if not isinstance(inner, str):
+      break
+    text = inner
+  first, _, rest = text.partition('\n')
+  name = first.strip('"\'')
+  suggestion = re.search(r'Did you mean "([\w.]+)"', rest)
   for arg in argv:
     flag = arg.split('=', 1)[0]
     parts = flag[2:].split('.')
     if flag.startswith('--') and name in parts[1:]:
       missing = '.'.join(parts[:parts.index(name, 1) + 1])
-      return f'{flag}: the config has no field {missing!r}{renamed_hint(missing)}'
+      near = '.'.join(parts[:parts.index(name, 1)] + [suggestion.group(1)]) if suggestion else ''
+      hint = renamed_hint(missing) or (f' (did you mean {near!r}?)' if near else '')
+      return f'{flag}: the config has no field {missing!r}{hint}'
   return f'a config override names a field the config does not have ({name!r})'

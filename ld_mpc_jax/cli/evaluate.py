@@ -19,6 +19,7 @@ rendering needs MUJOCO_GL=osmesa and libosmesa6 on a headless machine).
 
 import json
 import os
+import sys
 
 from absl import app, flags, logging
 
@@ -28,6 +29,7 @@ _WORKDIR = flags.DEFINE_string('workdir', None, 'Training run directory.')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
 _SPLITS = flags.DEFINE_list('splits', ['held_out', 'train'], 'Goal splits, held_out first.')
 _SEEDS = flags.DEFINE_list('seeds', ['0'], 'Evaluation seeds (pooled).')
+MAX_EPISODES = 100_000  # Per policy, split and seed: days of evaluation here already.
 _EPISODES = flags.DEFINE_integer('episodes', None, 'Episodes per policy, split and seed '
                                  '(default: config).')
 _NOISE = flags.DEFINE_bool('noise_sweep', False, 'Observation-noise sweep of every --modes '
@@ -56,6 +58,8 @@ def main(argv):
   from ld_mpc_jax.configs.overrides import parse_items, with_overrides
   with cli.one_line_errors():
     seeds = [int(s) for s in _SEEDS.value]
+    if _EPISODES.value is not None and not 1 <= _EPISODES.value <= MAX_EPISODES:
+      raise ValueError(f'--episodes must be between 1 and {MAX_EPISODES:,}, got {_EPISODES.value}')
     path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
     cli.check_new_output(path, _OVERWRITE.value)  # Before the long work: exists, or unwritable.
     video = _VIDEO_OUT.value or os.path.join(_WORKDIR.value, 'planner.mp4')
@@ -103,12 +107,28 @@ def main(argv):
       out['video_error'] = f'{type(err).__name__}: {err}'
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
   _write(path, out)
-  print(f'wrote {path}')
+  print(f'wrote {path} and {os.path.splitext(path)[0]}.md')
 
 
 def _write(path: str, out: dict) -> None:
-  """`out` as JSON at `path`, atomically (a file that exists is always whole)."""
-  os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-  with open(path + '.tmp', 'w') as f:
-    json.dump(out, f, indent=1)
-  os.replace(path + '.tmp', path)
+  """`out` as JSON at `path`, and its tables as markdown beside it (.md), atomically (a file that
+  exists is always whole). A write that fails (a full disk) is one line, exit code 1, and leaves
+  no partial file."""
+  from ld_mpc_jax.eval import evaluation_suite  # pylint: disable=g-import-not-at-top
+  md = os.path.splitext(path)[0] + '.md'
+  texts = [(path, json.dumps(out, indent=1)),
+           (md, f"Evaluation at step {out['step']}, {out['episodes']} episodes per policy, goal "
+                f"split and evaluation seed (seeds {out['seeds']}); git commit "
+                f"{out['git_commit']}.\n\n{evaluation_suite.markdown(out['summary'])}\n")]
+  try:
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    for target, text in texts:
+      with open(target + '.tmp', 'w') as f:
+        f.write(text)
+      os.replace(target + '.tmp', target)
+  except OSError as err:
+    for target, _ in texts:
+      if os.path.exists(target + '.tmp'):
+        os.remove(target + '.tmp')
+    print(f'error: could not write {path}: {err.strerror or err}', file=sys.stderr)
+    sys.exit(1)

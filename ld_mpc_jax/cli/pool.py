@@ -26,7 +26,6 @@ episode in both (the deterministic actor prior, say) counts once, and must have 
 in both.
 """
 
-import csv
 import gzip
 import json
 import os
@@ -64,11 +63,6 @@ def read_json(path: str) -> dict:
     cli.fail(f'cannot read {path}: {err}')
 
 
-_INT_FIELDS = ('run', 'eval_seed', 'episode', 'reset_seed', 'success', 'first_success',
-               'length', 'env_steps')
-_FLOAT_FIELDS = ('return',)
-
-
 def _tagged(path: str):
   """(the file's path, its tag): PATH#TAG names every policy of the file POLICY#TAG, so that two
   evaluations of the same checkpoints with other settings pair as different policies."""
@@ -101,15 +95,7 @@ def _read_records(path: str) -> list:
     return records
   if not os.path.exists(path):
     cli.fail(f'cannot read {path}: no such file')
-  if path.endswith('.gz'):
-    with gzip.open(path, 'rt', newline='') as f:
-      rows = list(csv.DictReader(f))
-  else:
-    rows = run_files.read_csv(path)
-  for r in rows:
-    r.update({k: int(r[k]) for k in _INT_FIELDS if r.get(k) not in (None, '')})
-    r.update({k: float(r[k]) for k in _FLOAT_FIELDS if r.get(k) not in (None, '')})
-  return rows
+  return run_files.read_records(path)
 
 
 def _key(r: dict) -> tuple:

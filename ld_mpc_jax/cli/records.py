@@ -6,8 +6,9 @@ each seed's episodes, periodic evaluations, acting log and losses gzipped (`seed
 
 A run of several seeds (`<workdir>/seed0`, ...) gives `seed0_*`, `seed1_*`, ...; a run of one seed
 its files unprefixed. The gzip headers carry no name or time, so the same run packs to the same
-bytes. Checkpoints, TensorBoard logs and plots stay behind; the command that made the run goes
-beside the records by hand (`run.sh`, with its commit).
+bytes. Checkpoints, TensorBoard logs and plots stay behind. Each start of the run (resumes too)
+wrote a line of `provenance.jsonl` (commit, dirty flag, command line, folder), copied beside the
+records, so no command or commit is written there by hand.
 """
 
 import gzip
@@ -19,7 +20,7 @@ from typing import List
 from absl import flags
 
 GZIPPED = ('episodes.csv', 'eval.csv', 'online.csv', 'losses.csv')
-COPIED = ('report.md',)
+COPIED = ('report.md', 'provenance.jsonl')
 RUN_FILES = ('pooled.md', 'pooled.json')
 
 

@@ -65,6 +65,9 @@ def main(argv):
     eval_seeds = tuple(int(s) for s in _EVAL_SEEDS.value)
   except ValueError as err:
     cli.fail(f'--seeds and --eval_seeds take integers ({err})')
+  if _CONFIG.value.train.num_seeds != 1:  # Each --seeds entry is one run of one seed.
+    cli.fail(f'--seeds runs one seed per run; drop --config.train.num_seeds='
+             f'{_CONFIG.value.train.num_seeds} (or drop --seeds for N seeds in one process)')
   config_arg = os.path.basename(
       next(a for a in sys.argv if a.startswith('--config='))[len('--config='):])
   overrides = [a[len('--config.'):] for a in sys.argv if a.startswith('--config.')]

@@ -24,6 +24,8 @@ from ld_mpc_jax.cli import errors as cli
 _CONFIG = config_flags.DEFINE_config_file('config', None, 'Config file (optionally :preset).',
                                           lock_config=True)
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Run directory (checkpoints, logs, report).')
+_QUIET = flags.DEFINE_bool('quiet', False, 'No stage lines (data, compiling, evaluating at step '
+                           'N, resumed, what was written) on stderr.')
 _CONTINUE = flags.DEFINE_bool('continue_with_changes', False, 'Continue the run in --workdir '
                               'although its config.json differs from this config (kept as '
                               'config.<n>.json); without it such a workdir is refused.')
@@ -34,6 +36,20 @@ _COORDINATOR = flags.DEFINE_string('coordinator_address', None, 'host:port of pr
 _NUM_PROCESSES = flags.DEFINE_integer('num_processes', None, 'Number of processes.')
 _PROCESS_ID = flags.DEFINE_integer('process_id', None, 'This process, 0..num_processes-1.')
 flags.mark_flags_as_required(['config', 'workdir'])
+
+
+def _config_file_error(err: OSError) -> str:
+  """One line for a --config that did not load: the file not found (and the shipped files), or
+  the error inside it."""
+  from ld_mpc_jax.configs import CONFIG_DIR  # pylint: disable=g-import-not-at-top
+  text = ' '.join(str(err).split())
+  spec = flags.FLAGS['config'].serialize().partition('=')[2] if flags.FLAGS['config'].present else ''
+  if 'No such file or directory' in text:
+    shipped = sorted(n for n in os.listdir(CONFIG_DIR) if n.endswith('.py') and n[0] != '_'
+                     and n not in ('base.py', 'overrides.py', 'variants.py'))
+    return (f'--config={spec}: no such config file; the shipped ones: {", ".join(shipped)} '
+            '(or a path to your own)')
+  return f'--config={spec}: {text}'
 
 
 def _on_interrupt(signum, frame):
@@ -61,7 +77,10 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
   import jax
   from ld_mpc_jax.ops.seed_groups import SeedGroups, cpu_devices_wanted
-  t = _CONFIG.value.train
+  try:
+    t = _CONFIG.value.train
+  except OSError as err:  # A config file that failed to load (ml_collections defers the error).
+    cli.fail(_config_file_error(err))
   devices = t.get('seed_devices', 1)
   if isinstance(devices, int) and cpu_devices_wanted(t.num_seeds, devices) > 1:  # Before JAX
     # starts: the CPU as one device per group of seeds (train.seed_devices).
@@ -85,6 +104,8 @@ def main(argv):
   except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
     cli.fail(' '.join(str(err).split()))
   from ld_mpc_jax.runs import loop
+  if _QUIET.value:
+    loop.QUIET.set()
   signal.signal(signal.SIGINT, _on_interrupt)
   try:
     train_and_evaluate(_CONFIG.value, _WORKDIR.value, _CONTINUE.value)

@@ -4,6 +4,7 @@ Only process 0 of a multi-process run writes them (`primary`).
 """
 
 import csv
+import json
 import os
 import subprocess
 from importlib import metadata as importlib_metadata
@@ -40,6 +41,41 @@ def git_commit() -> str | None:
                           text=True, check=True).stdout.strip()
   except (OSError, subprocess.CalledProcessError):
     return None
+
+
+PROVENANCE = 'provenance.jsonl'
+
+
+def git_dirty() -> bool | None:
+  """Whether the checkout has uncommitted changes to tracked files (None outside a checkout)."""
+  try:
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    out = subprocess.run(['git', 'status', '--porcelain', '--untracked-files=no'], cwd=root,
+                         capture_output=True, text=True, check=True).stdout
+    return bool(out.strip())
+  except (OSError, subprocess.CalledProcessError):
+    return None
+
+
+def write_provenance(workdir: str, argv: list | None = None) -> dict:
+  """Appends one line to <workdir>/provenance.jsonl at each start of a run (resumes included):
+  the time, the commit of the code this process runs, whether the checkout was dirty, the
+  command line and the folder it ran in. Returns the entry."""
+  import datetime  # pylint: disable=g-import-not-at-top
+  import shlex  # pylint: disable=g-import-not-at-top
+  import sys  # pylint: disable=g-import-not-at-top
+  argv = list(sys.argv if argv is None else argv)
+  root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+  prog = os.path.abspath(argv[0]) if argv else ''
+  if prog.endswith('.py') and prog.startswith(root + os.sep):  # python -m experiments.train
+    argv[:1] = ['-m', os.path.relpath(prog, root)[:-3].replace(os.sep, '.')]
+  entry = dict(started=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds'),
+               commit=git_commit(), dirty=git_dirty(),
+               command=' '.join(shlex.quote(a) for a in ['python', *argv]), cwd=os.getcwd())
+  if primary():
+    with open(os.path.join(workdir, PROVENANCE), 'a') as f:
+      f.write(json.dumps(entry) + '\n')
+  return entry
 
 
 def primary() -> bool:
@@ -97,6 +133,24 @@ def read_csv(path: str):
     return []
   with open(path) as f:
     return list(csv.DictReader(f))
+
+
+RECORD_INTS = ('run', 'eval_seed', 'episode', 'reset_seed', 'success', 'first_success',
+               'length', 'env_steps')
+RECORD_FLOATS = ('return',)
+
+
+def read_records(path: str) -> list:
+  """The per-episode records of an episodes.csv (`write_records`; gzip-compressed when it ends
+  in .gz), with their numeric fields as numbers."""
+  import gzip  # pylint: disable=g-import-not-at-top
+  with (gzip.open(path, 'rt', newline='') if path.endswith('.gz') else open(path, newline='')
+        ) as f:
+    rows = list(csv.DictReader(f))
+  for r in rows:
+    r.update({k: int(r[k]) for k in RECORD_INTS if r.get(k) not in (None, '')})
+    r.update({k: float(r[k]) for k in RECORD_FLOATS if r.get(k) not in (None, '')})
+  return rows
 
 
 def write_records(path: str, records) -> None:

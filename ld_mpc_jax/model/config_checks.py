@@ -1,5 +1,6 @@
 """Checks that a config makes sense, so bad values fail with a message naming the field."""
 
+import math
 import os
 
 import ml_collections
@@ -34,12 +35,24 @@ def _get(config, dotted: str):
   return node
 
 
+def _leaves(config, prefix: str = ''):
+  """(dotted name, value) of every field of a ConfigDict, depth first."""
+  for k, v in config.items():
+    if isinstance(v, ml_collections.ConfigDict):
+      yield from _leaves(v, f'{prefix}{k}.')
+    else:
+      yield f'{prefix}{k}', v
+
+
 def validate_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work."""
   for old_name in legacy.RENAMED_SECTIONS:  # Only a saved config is migrated (on load).
     if old_name in config:
       raise ValueError(f'the config has a section {old_name!r}'
                        f'{legacy.renamed_hint(old_name)}; rename it')
+  for name, v in _leaves(config):  # NaN passes every comparison below: refused here.
+    if isinstance(v, float) and math.isnan(v):
+      raise ValueError(f'config.{name} is NaN; give it a number')
   for name in _POSITIVE_INTS:
     v = _get(config, name)
     if not isinstance(v, int) or isinstance(v, bool) or v < 1:

@@ -10,7 +10,9 @@ and evaluating at the same crossings for both.
 
 import json
 import os
+import sys
 import threading
+import time
 from typing import Any, Dict, List, Optional, Protocol, Sequence
 
 import jax
@@ -113,6 +115,7 @@ class Run:
     self.commit = run_files.git_commit()  # The code this process runs: HEAD may move later.
     os.makedirs(workdir, exist_ok=True)
     checkpointing.record_config(config, workdir)  # Checked first: checkpointing.check_workdir.
+    run_files.write_provenance(workdir)  # Commit, dirty flag and command of this start.
     self.manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
     self.writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
                    else run_files.NoWriter())
@@ -131,6 +134,8 @@ class Run:
       # lowers to another program): a resumed run then compiles the update a fresh run compiled
       # (one entry in JAX's persistent cache, not two).
       state = jax.tree.map(_uncommitted, state)
+    if self.step is not None:
+      stage(f'resumed from step {self.step} ({self.workdir})')
     last = -1 if self.step is None else self.step  # From scratch (checkpoints moved aside):
     for name, column in STEP_LOGS:  # every row goes.
       run_files.drop_rows_after(os.path.join(self.workdir, name), column, last)
@@ -183,6 +188,8 @@ class Run:
       return None
     if missing_since is not None and self.last_eval_step() >= missing_since:
       return None
+    stage(f'evaluating at step {step}: the planner on {c.eval.periodic_episodes} held-out '
+          'episodes')
     result = run_evaluation(c, params, 'plan', c.eval.periodic_episodes, c.eval.seeds[0],
                             split='held_out')
     self.log_eval(step, result)
@@ -206,6 +213,9 @@ class Run:
       return final, {}, {}, []
     modes = ('plan',) + tuple(m for m in c.eval.baselines if m != 'plan')
     splits, evaluate = multitask_eval.grid(c, c.eval.splits)
+    stage(f'final evaluation at step {step} ({self.workdir}): {", ".join(modes)} on '
+          f'{c.eval.episodes} episodes per goal split ({", ".join(splits)}) and evaluation seed '
+          f'({len(c.eval.seeds)})')
     if splits != tuple(c.eval.splits):
       tqdm.tqdm.write(f'goal splits {list(splits)} only: the data were not collected on MT1 '
                       'goals, so there is no train split')
@@ -234,6 +244,9 @@ class Run:
     if report.get('per_task') and run_files.primary():
       multitask_eval.plot(os.path.join(self.workdir, 'tasks.png'), report['per_task'],
                           report['tasks'])
+    written = sorted(n for n in os.listdir(self.workdir)
+                     if os.path.isfile(os.path.join(self.workdir, n)) and not n.startswith('.'))
+    stage(f'wrote in {self.workdir}: {", ".join(written)}; checkpoints/, tb/')
     return dict(report, records=records)
 
 
@@ -286,11 +299,76 @@ def seed_source(path: str, seed: int) -> str:
   return path
 
 
+# Set by the launchers' --quiet: no stage lines (`stage`).
+QUIET = threading.Event()
+
+
+def stage(message: str) -> None:
+  """One line on stderr saying what the run does now (its data, compiling, evaluating at step N,
+  resumed from step N, what it wrote), above any progress bar; none under --quiet, and only from
+  the process that writes the run's files."""
+  if not QUIET.is_set() and run_files.primary():
+    tqdm.tqdm.write(message, file=sys.stderr)
+
+
+def progress_bar(total: int, initial: int, desc: str, unit: str = 'step') -> tqdm.tqdm:
+  """A run's progress bar without tqdm's own rate and ETA (its first interval holds the
+  compilation, and it knows nothing of evaluations): `loop` writes one ETA into the
+  description, `Eta`."""
+  return tqdm.tqdm(total=total, initial=initial, desc=desc, unit=unit, dynamic_ncols=True,
+                   bar_format='{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}{postfix}]')
+
+
+class Eta:
+  """Time left of a run: the steps left at the rate measured after the first advance (which
+  compiles) and without evaluation time, plus the periodic evaluations left at the measured
+  time of one (and the final evaluation, counted as one more of them until one is timed)."""
+
+  def __init__(self, total: int, eval_every: int, evaluates: bool):
+    self.total, self.eval_every, self.evaluates = total, eval_every, evaluates
+    self.start_progress, self.train_s, self.eval_s = None, 0.0, []
+
+  def advanced(self, after: int, seconds: float) -> None:
+    if self.start_progress is None:  # The first advance compiles: not a rate.
+      self.start_progress = after
+      return
+    self.train_s += seconds
+
+  def evaluated(self, seconds: float) -> None:
+    self.eval_s.append(seconds)
+
+  def text(self, progress: int) -> str:
+    done = progress - (self.start_progress if self.start_progress is not None else progress)
+    if done <= 0 or self.train_s <= 0:
+      return 'eta: after the first steps'
+    left = (self.total - progress) * self.train_s / done
+    evals = sum(1 for s in range(progress + 1, self.total) if s % self.eval_every == 0) + 1
+    if self.evaluates and self.eval_s:
+      left += evals * float(np.median(self.eval_s))
+      return f'eta {_minutes(left)}'
+    return f'eta {_minutes(left)} + evaluations' if self.evaluates else f'eta {_minutes(left)}'
+
+
+def _minutes(seconds: float) -> str:
+  return f'{seconds / 60:.0f} min' if seconds < 5400 else f'{seconds / 3600:.1f} h'
+
+
 # Set by the launcher's SIGINT handler (experiments.train): `loop` stops after the step it is in.
 INTERRUPTED = threading.Event()
 # Set while a checkpoint is written: the handler then only sets INTERRUPTED, and `loop` stops
 # once the checkpoint is complete (a save cut in half would leave orbax's threads failing).
 SAVING = threading.Event()
+
+
+def _evaluates(run) -> bool:
+  """Whether the run evaluates (eval.episodes > 0; a run of seeds: its first seed's)."""
+  for first in (lambda: run.config, lambda: run.seats[0].config,
+                lambda: run.seed_runs[0].config):
+    try:
+      return first().eval.episodes > 0
+    except AttributeError:
+      continue
+  return True
 
 
 def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:
@@ -301,12 +379,19 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
   end (the final evaluation follows). A run resumed from a checkpoint whose periodic evaluation
   never logged (killed during it) makes that evaluation first.
   """
+  if job.progress < total:
+    stage(f'training from step {job.progress} to {total} (the first step compiles; '
+          f'a checkpoint every {checkpoint_every}, an evaluation every {eval_every})')
   due = job.progress // eval_every * eval_every
   if 0 < due and job.progress < total:
     run.periodic_eval(job.eval_params(), job.progress, missing_since=due)
+  bar = getattr(job, 'bar', None)
+  desc = bar.desc if bar is not None else ''
+  eta = Eta(total, eval_every, evaluates=_evaluates(run))
   while job.progress < total:
-    before = job.progress
+    before, start = job.progress, time.perf_counter()
     job.advance()
+    eta.advanced(job.progress, time.perf_counter() - start)
     if INTERRUPTED.is_set():  # Ctrl-C that a library swallowed: stop here, as it asked.
       raise KeyboardInterrupt
     job.log(before)
@@ -319,7 +404,11 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
       if INTERRUPTED.is_set():
         raise KeyboardInterrupt
     if crossed(before, job.progress, eval_every) and job.progress < total:
+      start = time.perf_counter()
       run.periodic_eval(job.eval_params(), job.progress)
+      eta.evaluated(time.perf_counter() - start)
+    if bar is not None:
+      bar.set_description_str(f'{desc} ({eta.text(job.progress)})', refresh=False)
 
 
 def summary_md(title: str, intro: Sequence[str], report: Dict[str, Any], lead: str,

@@ -39,7 +39,6 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
-import tqdm
 
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data, envs
@@ -142,8 +141,8 @@ class OnlineJob:
     self.act_config = acting_config(config)
     self.metrics, self.last, self.noise_std, self.intrinsic = [], None, 0.0, None
     self.runs = SeatRuns(self.seats)
-    self.bar = tqdm.tqdm(total=o.env_steps, initial=self.counters['env_steps'], desc='online',
-                         unit='env step', dynamic_ncols=True)
+    self.bar = runs.progress_bar(o.env_steps, self.counters['env_steps'], 'online',
+                                 unit='env step')
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, with its buffer

@@ -4,14 +4,15 @@ The run directory, checkpoints, evaluations and report files are `ld_mpc_jax.run
 `config.online.enabled` the job is online (`ld_mpc_jax.runs.online`) instead.
 """
 
+import json
 import os
+import sys
 import time
-from typing import Any, Dict
+from typing import Any, Dict, Optional
 
 import jax
 import ml_collections
 import numpy as np
-import tqdm
 
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data
@@ -43,6 +44,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   with `train.num_seeds` = N > 1, N seeds in one process (`ld_mpc_jax.runs.train_seeds`), each in
   <workdir>/seed<seed>, and the returned report is the pooled one.
 
+  Rerunning a finished run (the same config, its report written) changes nothing: it says so
+  on one line and returns the saved report.
+
   The workdir is locked for the whole run (`checkpointing.workdir_lock`): a second run on it
   stops at once on one line naming the first one's pid.
 
@@ -50,7 +54,33 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   a WorkdirError) naming the checkpoint the same command resumes from once space is freed.
   """
   with checkpointing.workdir_lock(workdir), checkpointing.stop_when_disk_full(workdir):
+    finished = finished_report(config, workdir)
+    if finished is not None:  # Rerun of a finished run: nothing is appended or replaced.
+      print(f'{workdir} holds this run, finished: nothing to do, nothing changed (to train it '
+            'further, raise its step count and pass --continue_with_changes)', file=sys.stderr)
+      return finished
     return _train_and_evaluate(config, workdir, continue_with_changes)
+
+
+def finished_report(config: ml_collections.ConfigDict, workdir: str) -> Optional[Dict[str, Any]]:
+  """The report of the run in `workdir` when it has finished under this very config (its
+  report.json, or pooled.json for several seeds, is written last), else None."""
+  path = os.path.join(workdir, 'report.json' if config.train.num_seeds == 1 else 'pooled.json')
+  if not os.path.exists(path) or not os.path.exists(
+      os.path.join(workdir, checkpointing.CONFIG_FILE)):
+    return None
+  if checkpointing.config_changes(checkpointing.load_config(workdir), config):
+    return None  # Another config (refused later) or one continued with changes.
+  try:
+    with open(path) as f:
+      report = json.load(f)
+    if config.train.num_seeds == 1:  # As a run returns it: with its per-episode records.
+      episodes = os.path.join(workdir, 'episodes.csv')
+      return dict(report, records=run_files.read_records(episodes)
+                  if os.path.exists(episodes) else [])
+    return report
+  except (OSError, ValueError):
+    return None  # A damaged report: the run finishes again and rewrites it.
 
 
 def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
@@ -64,6 +94,8 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
     checkpointing.check_workdir(seed_config, seed_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
+  runs.stage(f'data: {dataset.num_episodes:,} episodes, {dataset.num_transitions:,} transitions '
+             f'({config.data.source}, {config.task})')
   runs.check_config_for_data(config, dataset)
   if config.train.num_seeds > 1:  # N seeds in one process, vmapped (ld_mpc_jax.runs.train_seeds).
     from ld_mpc_jax.runs import train_seeds  # pylint: disable=g-import-not-at-top
@@ -129,8 +161,7 @@ class OfflineJob:
     self.buffer.skip(self.progress, self.batch_size)
     self.key = jax.random.key(config.seed + 1)
     self.timer = _Timer(self.progress)
-    self.bar = tqdm.tqdm(total=t.num_steps, initial=self.progress, desc='train',
-                         dynamic_ncols=True)
+    self.bar = runs.progress_bar(t.num_steps, self.progress, 'train')
 
   def advance(self) -> None:
     self.state, self.metrics = self.update(self.state, self.put(self.buffer.sample(
@@ -146,9 +177,7 @@ class OfflineJob:
     self.timer.tick(done)
     metrics = jax.device_get(self.metrics)
     self.run.check_loss(metrics['loss'], f'step {done}')
-    eta = (t.num_steps - done) / self.timer.steps_per_s if self.timer.seconds else float('nan')
-    self.bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=f'{self.timer.steps_per_s:.2f}',
-                         eta_min=f'{eta / 60:.1f}')
+    self.bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=f'{self.timer.steps_per_s:.2f}')
     row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
            'steps_per_s': self.timer.steps_per_s}
     run_files.append_csv(os.path.join(self.run.workdir, run_files.METRICS_CSV), row)

@@ -17,7 +17,6 @@ from typing import Any, Dict, List
 import jax
 import ml_collections
 import numpy as np
-import tqdm
 
 from ld_mpc_jax import data
 from ld_mpc_jax.eval import run_files
@@ -67,8 +66,7 @@ class OfflineSeedsJob:
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.seconds, self._last = 0.0, None  # Timed from the second logged interval.
     self._timed_steps = 0
-    self.bar = tqdm.tqdm(total=t.num_steps, initial=self.progress, desc=f'train x{len(pairs)}',
-                         dynamic_ncols=True)
+    self.bar = runs.progress_bar(t.num_steps, self.progress, f'train x{len(pairs)}')
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, or None."""
