@@ -46,6 +46,13 @@ flags.mark_flag_as_required('workdir')
 OVERRIDES = []  # 'field=value' items of --config.field=value (ld_mpc_jax.cli.dispatch).
 
 
+def _checked_seeds() -> list:
+  """--seeds as integers, after checking --episodes (before any work)."""
+  if _EPISODES.value is not None and not 1 <= _EPISODES.value <= MAX_EPISODES:
+    raise ValueError(f'--episodes must be between 1 and {MAX_EPISODES:,}, got {_EPISODES.value}')
+  return [int(s) for s in _SEEDS.value]
+
+
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
@@ -57,9 +64,7 @@ def main(argv):
   from ld_mpc_jax.runs.loop import run_evaluation
   from ld_mpc_jax.configs.overrides import parse_items, with_overrides
   with cli.one_line_errors():
-    seeds = [int(s) for s in _SEEDS.value]
-    if _EPISODES.value is not None and not 1 <= _EPISODES.value <= MAX_EPISODES:
-      raise ValueError(f'--episodes must be between 1 and {MAX_EPISODES:,}, got {_EPISODES.value}')
+    seeds = _checked_seeds()
     path = _OUT.value or os.path.join(_WORKDIR.value, 'evaluation.json')
     cli.check_new_output(path, _OVERWRITE.value)  # Before the long work: exists, or unwritable.
     video = _VIDEO_OUT.value or os.path.join(_WORKDIR.value, 'planner.mp4')

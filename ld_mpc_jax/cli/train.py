@@ -53,19 +53,19 @@ def _config_file_error(err: OSError) -> str:
 
 
 def _on_interrupt(signum, frame):
-  """SIGINT: remembered (`loop.INTERRUPTED`, checked after every step of the run, so that an
+  """SIGINT: remembered (`progress.INTERRUPTED`, checked after every step of the run, so that an
   interrupt a library swallows still stops it), then raised as usual."""
   del signum, frame
-  from ld_mpc_jax.runs import loop  # pylint: disable=g-import-not-at-top
-  loop.INTERRUPTED.set()
-  if not loop.SAVING.is_set():  # Else the loop stops once the checkpoint is complete.
+  from ld_mpc_jax.runs import progress  # pylint: disable=g-import-not-at-top
+  progress.INTERRUPTED.set()
+  if not progress.SAVING.is_set():  # Else the loop stops once the checkpoint is complete.
     raise KeyboardInterrupt
 
 
 def _interrupted(workdir: str):
   """One line, exit code 130; the library's worker threads, cut short, stay quiet."""
   import threading  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.learn.checkpointing import interrupted_message  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs.progress import interrupted_message  # pylint: disable=g-import-not-at-top
   threading.excepthook = lambda args: None
   sys.unraisablehook = lambda args: None
   print(f'\n{interrupted_message(workdir)}', file=sys.stderr, flush=True)
@@ -103,9 +103,9 @@ def main(argv):
       check_init_from(_CONFIG.value)
   except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
     cli.fail(' '.join(str(err).split()))
-  from ld_mpc_jax.runs import loop
+  from ld_mpc_jax.runs import progress
   if _QUIET.value:
-    loop.QUIET.set()
+    progress.QUIET.set()
   signal.signal(signal.SIGINT, _on_interrupt)
   try:
     train_and_evaluate(_CONFIG.value, _WORKDIR.value, _CONTINUE.value)
@@ -114,7 +114,7 @@ def main(argv):
     sys.exit(2)
   except KeyboardInterrupt:  # Ctrl-C: one line, what is kept, exit code 130.
     _interrupted(_WORKDIR.value)
-  if loop.INTERRUPTED.is_set():  # Swallowed somewhere (a library's thread or callback).
+  if progress.INTERRUPTED.is_set():  # Swallowed somewhere (a library's thread or callback).
     _interrupted(_WORKDIR.value)
   if jax.process_index() == 0:  # The one process that writes the report.
     name = 'report.md' if _CONFIG.value.train.num_seeds == 1 else 'pooled.md'

@@ -85,60 +85,6 @@ def complete_steps(workdir: str) -> List[int]:
   return sorted(int(n) for n in os.listdir(folder) if n.isdigit()) if os.path.isdir(folder) else []
 
 
-LOCK_FILE = '.lock'
-
-
-class WorkdirBusyError(WorkdirError):
-  """Another live process holds the workdir's lock (one line naming its pid, exit code 2)."""
-
-
-@contextlib.contextmanager
-def workdir_lock(workdir: str) -> Iterator[None]:
-  """Holds an exclusive lock on `workdir` (<workdir>/.lock, `fcntl.flock`) inside the block.
-
-  A second process on the same workdir raises WorkdirBusyError at once, naming the holder's pid.
-  The kernel releases the lock whenever the holder exits, a SIGKILL included, so a lock file
-  left behind is stale by construction and is simply taken over. A workdir this call created
-  is removed again when nothing but the lock was written to it (a run refused at its checks).
-  """
-  import fcntl  # pylint: disable=g-import-not-at-top (POSIX only; imported where used)
-  created = not os.path.exists(workdir)
-  os.makedirs(workdir, exist_ok=True)
-  path = os.path.join(workdir, LOCK_FILE)
-  while True:
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-      fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-      with os.fdopen(fd) as f:
-        holder = f.read().strip() or 'unknown'
-      raise WorkdirBusyError(f'{workdir} is in use by another run (pid {holder}, lock '
-                             f'{path}): wait for it to finish or choose another --workdir'
-                             ) from None
-    try:  # The file may have been removed by its last holder between our open and flock.
-      same = os.path.samestat(os.fstat(fd), os.stat(path))
-    except FileNotFoundError:
-      same = False
-    if same:
-      break
-    os.close(fd)
-  try:
-    os.ftruncate(fd, 0)
-    os.write(fd, f'{os.getpid()}\n'.encode())
-    yield
-  finally:
-    try:
-      os.remove(path)
-    except OSError:
-      pass
-    os.close(fd)
-    if created:
-      try:
-        os.rmdir(workdir)  # Only when empty: nothing of the run was written.
-      except OSError:
-        pass
-
-
 @contextlib.contextmanager
 def stop_when_disk_full(workdir: str) -> Iterator[None]:
   """Turns a write that failed for want of space inside the block into one line
@@ -167,15 +113,6 @@ def kept_checkpoint(workdir: str) -> Tuple[Optional[int], str]:
   shown = os.path.join(workdir if folders == [workdir] else os.path.join(workdir, 'seed*'),
                        'checkpoints')
   return (max(common) if common else None), shown
-
-
-def interrupted_message(workdir: str) -> str:
-  """The one line of an interrupted run (Ctrl-C): what is kept and how to resume."""
-  step, shown = kept_checkpoint(workdir)
-  if step is None:
-    return 'interrupted before the first checkpoint; the same command starts the run again'
-  return (f'interrupted: checkpoint step {step} is kept in {shown}; the same command resumes '
-          'from it')
 
 
 def disk_full_message(workdir: str, where: Optional[str]) -> str:

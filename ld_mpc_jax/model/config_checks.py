@@ -46,13 +46,18 @@ def _leaves(config, prefix: str = ''):
 
 def validate_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work."""
+  _validate_sections(config)
+  for name, v in _leaves(config):  # NaN passes every `<=` check: the rest refused here.
+    if isinstance(v, float) and math.isnan(v):
+      raise ValueError(f'config.{name} is NaN; give it a number')
+
+
+def _validate_sections(config: ml_collections.ConfigDict) -> None:
+  """validate_config's checks of each section's values."""
   for old_name in legacy.RENAMED_SECTIONS:  # Only a saved config is migrated (on load).
     if old_name in config:
       raise ValueError(f'the config has a section {old_name!r}'
                        f'{legacy.renamed_hint(old_name)}; rename it')
-  for name, v in _leaves(config):  # NaN passes every comparison below: refused here.
-    if isinstance(v, float) and math.isnan(v):
-      raise ValueError(f'config.{name} is NaN; give it a number')
   for name in _POSITIVE_INTS:
     v = _get(config, name)
     if not isinstance(v, int) or isinstance(v, bool) or v < 1:

@@ -43,6 +43,7 @@ import numpy as np
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data, envs
 from ld_mpc_jax.runs import loop as runs, online_report
+from ld_mpc_jax.runs.progress import progress_bar
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.exploration import (acting_config, acting_intrinsic, executed_noise,
                                           plan_start)
@@ -141,8 +142,7 @@ class OnlineJob:
     self.act_config = acting_config(config)
     self.metrics, self.last, self.noise_std, self.intrinsic = [], None, 0.0, None
     self.runs = SeatRuns(self.seats)
-    self.bar = runs.progress_bar(o.env_steps, self.counters['env_steps'], 'online',
-                                 unit='env step')
+    self.bar = progress_bar(o.env_steps, self.counters['env_steps'], 'online', unit='env step')
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, with its buffer

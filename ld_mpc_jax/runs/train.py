@@ -18,6 +18,8 @@ from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data
 from ld_mpc_jax.eval import multitask_eval, run_files
 from ld_mpc_jax.runs import loop as runs
+from ld_mpc_jax.runs.lock import workdir_lock
+from ld_mpc_jax.runs.progress import progress_bar, stage
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.model import tasks
 from ld_mpc_jax.model.config_checks import online_enabled, validate_config
@@ -47,13 +49,13 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   Rerunning a finished run (the same config, its report written) changes nothing: it says so
   on one line and returns the saved report.
 
-  The workdir is locked for the whole run (`checkpointing.workdir_lock`): a second run on it
+  The workdir is locked for the whole run (`ld_mpc_jax.runs.lock.workdir_lock`): a second run on it
   stops at once on one line naming the first one's pid.
 
   A write that fails for want of space stops the run on one line (`checkpointing.DiskFullError`,
   a WorkdirError) naming the checkpoint the same command resumes from once space is freed.
   """
-  with checkpointing.workdir_lock(workdir), checkpointing.stop_when_disk_full(workdir):
+  with workdir_lock(workdir), checkpointing.stop_when_disk_full(workdir):
     finished = finished_report(config, workdir)
     if finished is not None:  # Rerun of a finished run: nothing is appended or replaced.
       print(f'{workdir} holds this run, finished: nothing to do, nothing changed (to train it '
@@ -94,7 +96,7 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
     checkpointing.check_workdir(seed_config, seed_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
   dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
-  runs.stage(f'data: {dataset.num_episodes:,} episodes, {dataset.num_transitions:,} transitions '
+  stage(f'data: {dataset.num_episodes:,} episodes, {dataset.num_transitions:,} transitions '
              f'({config.data.source}, {config.task})')
   runs.check_config_for_data(config, dataset)
   if config.train.num_seeds > 1:  # N seeds in one process, vmapped (ld_mpc_jax.runs.train_seeds).
@@ -161,7 +163,7 @@ class OfflineJob:
     self.buffer.skip(self.progress, self.batch_size)
     self.key = jax.random.key(config.seed + 1)
     self.timer = _Timer(self.progress)
-    self.bar = runs.progress_bar(t.num_steps, self.progress, 'train')
+    self.bar = progress_bar(t.num_steps, self.progress, 'train')
 
   def advance(self) -> None:
     self.state, self.metrics = self.update(self.state, self.put(self.buffer.sample(

@@ -24,6 +24,7 @@ from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, 
 from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
+from ld_mpc_jax.runs.progress import progress_bar
 
 
 class _SeedRuns:
@@ -66,7 +67,7 @@ class OfflineSeedsJob:
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.seconds, self._last = 0.0, None  # Timed from the second logged interval.
     self._timed_steps = 0
-    self.bar = runs.progress_bar(t.num_steps, self.progress, f'train x{len(pairs)}')
+    self.bar = progress_bar(t.num_steps, self.progress, f'train x{len(pairs)}')
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, or None."""

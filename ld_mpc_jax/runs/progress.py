@@ -1,0 +1,81 @@
+"""What a run tells its user while it works, and how it stops when asked: stage lines, the progress
+bar and its ETA, and the interrupt flags the launcher's SIGINT handler sets."""
+
+import sys
+import threading
+
+import numpy as np
+import tqdm
+
+from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.learn.checkpointing import kept_checkpoint
+
+
+# Set by the launchers' --quiet: no stage lines (`stage`).
+QUIET = threading.Event()
+
+
+def stage(message: str) -> None:
+  """One line on stderr saying what the run does now (its data, compiling, evaluating at step N,
+  resumed from step N, what it wrote), above any progress bar; none under --quiet, and only from
+  the process that writes the run's files."""
+  if not QUIET.is_set() and run_files.primary():
+    tqdm.tqdm.write(message, file=sys.stderr)
+
+
+def progress_bar(total: int, initial: int, desc: str, unit: str = 'step') -> tqdm.tqdm:
+  """A run's progress bar without tqdm's own rate and ETA (its first interval holds the
+  compilation, and it knows nothing of evaluations): `loop` writes one ETA into the
+  description, `Eta`."""
+  return tqdm.tqdm(total=total, initial=initial, desc=desc, unit=unit, dynamic_ncols=True,
+                   bar_format='{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}{postfix}]')
+
+
+class Eta:
+  """Time left of a run: the steps left at the rate measured after the first advance (which
+  compiles) and without evaluation time, plus the periodic evaluations left at the measured
+  time of one (and the final evaluation, counted as one more of them until one is timed)."""
+
+  def __init__(self, total: int, eval_every: int, evaluates: bool):
+    self.total, self.eval_every, self.evaluates = total, eval_every, evaluates
+    self.start_progress, self.train_s, self.eval_s = None, 0.0, []
+
+  def advanced(self, after: int, seconds: float) -> None:
+    if self.start_progress is None:  # The first advance compiles: not a rate.
+      self.start_progress = after
+      return
+    self.train_s += seconds
+
+  def evaluated(self, seconds: float) -> None:
+    self.eval_s.append(seconds)
+
+  def text(self, progress: int) -> str:
+    done = progress - (self.start_progress if self.start_progress is not None else progress)
+    if done <= 0 or self.train_s <= 0:
+      return 'eta: after the first steps'
+    left = (self.total - progress) * self.train_s / done
+    evals = sum(1 for s in range(progress + 1, self.total) if s % self.eval_every == 0) + 1
+    if self.evaluates and self.eval_s:
+      left += evals * float(np.median(self.eval_s))
+      return f'eta {_minutes(left)}'
+    return f'eta {_minutes(left)} + evaluations' if self.evaluates else f'eta {_minutes(left)}'
+
+
+def _minutes(seconds: float) -> str:
+  return f'{seconds / 60:.0f} min' if seconds < 5400 else f'{seconds / 3600:.1f} h'
+
+
+# Set by the launcher's SIGINT handler (experiments.train): `loop` stops after the step it is in.
+INTERRUPTED = threading.Event()
+# Set while a checkpoint is written: the handler then only sets INTERRUPTED, and `loop` stops
+# once the checkpoint is complete (a save cut in half would leave orbax's threads failing).
+SAVING = threading.Event()
+
+
+def interrupted_message(workdir: str) -> str:
+  """The one line of an interrupted run (Ctrl-C): what is kept and how to resume."""
+  step, shown = kept_checkpoint(workdir)
+  if step is None:
+    return 'interrupted before the first checkpoint; the same command starts the run again'
+  return (f'interrupted: checkpoint step {step} is kept in {shown}; the same command resumes '
+          'from it')
