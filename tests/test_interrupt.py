@@ -50,3 +50,6 @@ def test_ctrl_c_is_one_line_keeps_the_checkpoint_and_the_rerun_resumes(tmp_path)
   lines = resumed.stderr.splitlines()
   assert f'resumed from step {kept} ({workdir})' in lines, resumed.stderr[-3000:]
   assert any(l.startswith(f'wrote in {workdir}: ') and 'report.md' in l for l in lines)
+  report = open(os.path.join(workdir, 'report.md')).read()  # Names its command and plots.
+  assert 'command: `python -m experiments.train --config=door_open.py:smoke' in report
+  assert 'Plots: [losses.png](losses.png)' in report

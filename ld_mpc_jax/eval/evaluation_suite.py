@@ -267,8 +267,8 @@ def markdown(summary: Dict[str, Any]) -> str:
   """Tables of `summarize`'s output: one row per split and policy, then the paired tests."""
   # Episodes end at their first success, so a return does not compare across policies whose
   # success differs: a solved episode's return is short.
-  lines = ['| goals | policy | success | 95% CI (Wilson) | per run | mean return to first '
-           'success | decisions/s |', '| --- | --- | --- | --- | --- | --- | --- |']
+  lines = ['| goals | policy | success | 95% CI (Wilson) | per run | mean return (an episode '
+           'stops at its success) | decisions/s |', '| --- | --- | --- | --- | --- | --- | --- |']
   for split, s in summary.items():
     for mode, p in s['policies'].items():
       lo, hi = p['success_ci95']

@@ -57,21 +57,29 @@ def git_dirty() -> bool | None:
     return None
 
 
-def write_provenance(workdir: str, argv: list | None = None) -> dict:
-  """Appends one line to <workdir>/provenance.jsonl at each start of a run (resumes included):
-  the time, the commit of the code this process runs, whether the checkout was dirty, the
-  command line and the folder it ran in. Returns the entry."""
-  import datetime  # pylint: disable=g-import-not-at-top
+def command_line(argv: list | None = None) -> str:
+  """This process's command line as one would type it (`python -m experiments.train ...`): as
+  given to Python (`sys.orig_argv`; the launchers rewrite sys.argv), or `argv` (sys.argv's form)."""
   import shlex  # pylint: disable=g-import-not-at-top
   import sys  # pylint: disable=g-import-not-at-top
+  if argv is None and getattr(sys, 'orig_argv', None):
+    return ' '.join(shlex.quote(a) for a in ['python', *sys.orig_argv[1:]])
   argv = list(sys.argv if argv is None else argv)
   root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
   prog = os.path.abspath(argv[0]) if argv else ''
   if prog.endswith('.py') and prog.startswith(root + os.sep):  # python -m experiments.train
     argv[:1] = ['-m', os.path.relpath(prog, root)[:-3].replace(os.sep, '.')]
+  return ' '.join(shlex.quote(a) for a in ['python', *argv])
+
+
+def write_provenance(workdir: str, argv: list | None = None) -> dict:
+  """Appends one line to <workdir>/provenance.jsonl at each start of a run (resumes included):
+  the time, the commit of the code this process runs, whether the checkout was dirty, the
+  command line and the folder it ran in. Returns the entry."""
+  import datetime  # pylint: disable=g-import-not-at-top
   entry = dict(started=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec='seconds'),
-               commit=git_commit(), dirty=git_dirty(),
-               command=' '.join(shlex.quote(a) for a in ['python', *argv]), cwd=os.getcwd())
+               commit=git_commit(), dirty=git_dirty(), command=command_line(argv),
+               cwd=os.getcwd())
   if primary():
     with open(os.path.join(workdir, PROVENANCE), 'a') as f:
       f.write(json.dumps(entry) + '\n')

@@ -234,12 +234,15 @@ class Run:
     """report.json, report.md and the plots (tasks.png for a per-task report); returns the
     report with the per-episode records under 'records' (in episodes.csv, not report.json)."""
     self.writer.close()
+    run_files.write_plots(self.workdir)
+    plots = sorted(n for n in os.listdir(self.workdir) if n.endswith('.png'))
+    if plots:
+      markdown += '\nPlots: ' + ', '.join(f'[{n}]({n})' for n in plots) + '.\n'
     if run_files.primary():
       with open(os.path.join(self.workdir, 'report.json'), 'w') as f:
         json.dump(report, f, indent=2)
       with open(os.path.join(self.workdir, 'report.md'), 'w') as f:
         f.write(markdown)
-    run_files.write_plots(self.workdir)
     if report.get('per_task') and run_files.primary():
       multitask_eval.plot(os.path.join(self.workdir, 'tasks.png'), report['per_task'],
                           report['tasks'])
@@ -374,11 +377,13 @@ def evaluation_md_lines(report: Dict[str, Any], lead: str, trained_on: str) -> L
     lines.append(evaluation_suite.markdown(report['evaluation']))
   else:
     lines = ['Not evaluated (eval.episodes = 0).']
-  return lines + ['', f"git commit {report['git_commit']}."]
+  command = f"; command: `{report['command']}`" if report.get('command') else ''
+  return lines + ['', f"git commit {report['git_commit']}{command}."]
 
 
 def provenance(config: ml_collections.ConfigDict, commit: Optional[str]) -> Dict[str, Any]:
   """The report's closing fields: the config, package versions and the commit."""
   return {'config': json.loads(config.to_json_best_effort()),
-          'versions': run_files.versions(), 'git_commit': commit}
+          'versions': run_files.versions(), 'git_commit': commit,
+          'command': run_files.command_line()}
 

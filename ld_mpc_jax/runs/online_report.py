@@ -190,8 +190,8 @@ def summary_md(report: Dict[str, Any]) -> str:
            f"evaluations excluded); {report['num_params']:,} parameters.", '']
   if report['curve']:
     lines += ['Planner (EMA parameters, no exploration noise) on held-out goals during training:',
-              '', '| environment steps | episodes | success | 95% CI | mean return to first '
-              'success |',
+              '', '| environment steps | episodes | success | 95% CI | mean return (an episode '
+              'stops at its success) |',
               '| --- | --- | --- | --- | --- |']
     lines += [f"| {r['env_steps']:,} | {r['episodes']} | {r['success_rate']:.2f} | "
               f"[{r['ci95'][0]:.2f}, {r['ci95'][1]:.2f}] | {r['mean_return']:.1f} |"
