@@ -1,0 +1,36 @@
+"""ld_mpc_jax.runs.progress: the ETA leaves out the compiling first step and counts the
+evaluations left; stage lines go to stderr unless quiet."""
+
+from ld_mpc_jax.runs import progress
+
+
+def test_eta_leaves_out_compilation_and_counts_the_evaluations_left():
+  eta = progress.Eta(total=1000, eval_every=250, evaluates=True)
+  assert eta.text(0) == 'eta: after the first steps'
+  eta.advanced(100, seconds=600.0)  # The first advance compiles: not part of the rate.
+  assert eta.text(100) == 'eta: after the first steps'
+  eta.advanced(200, seconds=10.0)  # 100 steps in 10 s.
+  # 800 steps left at 10 steps/s = 80 s, and the evaluations are not timed yet.
+  assert eta.text(200) == 'eta 1 min + evaluations'
+  eta.evaluated(60.0)
+  # 80 s of steps + 3 evaluations left at 60 s (at 250 is past: 500, 750, and the final one).
+  assert eta.text(300) == f'eta {round((700 / 10 + 3 * 60) / 60)} min'
+  quiet = progress.Eta(total=1000, eval_every=250, evaluates=False)
+  quiet.advanced(100, 600.0)
+  quiet.advanced(200, 10.0)
+  assert quiet.text(200) == 'eta 1 min'
+  long = progress.Eta(total=10 ** 6, eval_every=10 ** 6, evaluates=False)
+  long.advanced(1, 1.0)
+  long.advanced(2, 1.0)
+  assert long.text(2) == 'eta 277.8 h'
+
+
+def test_stage_lines_go_to_stderr_unless_quiet(capsys):
+  progress.stage('data: 3 episodes')
+  assert capsys.readouterr().err == 'data: 3 episodes\n'
+  progress.QUIET.set()
+  try:
+    progress.stage('evaluating at step 4')
+    assert capsys.readouterr().err == ''
+  finally:
+    progress.QUIET.clear()
