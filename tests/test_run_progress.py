@@ -34,3 +34,14 @@ def test_stage_lines_go_to_stderr_unless_quiet(capsys):
     assert capsys.readouterr().err == ''
   finally:
     progress.QUIET.clear()
+
+
+def test_eta_of_an_online_run_starts_after_its_seed_waves():
+  """Random seed waves step far faster than the planner's: not the run's rate."""
+  eta = progress.Eta(total=10_000, eval_every=10_000, evaluates=False, warm_from=1600)
+  for after in (800, 1600):
+    eta.advanced(after, seconds=1.0)  # Random waves.
+  eta.advanced(2400, seconds=300.0)  # The first planner wave compiles.
+  assert eta.text(2400) == 'eta: after the first steps'
+  eta.advanced(3200, seconds=80.0)  # 800 steps in 80 s.
+  assert eta.text(3200) == f'eta {round(6800 * 0.1 / 60)} min'

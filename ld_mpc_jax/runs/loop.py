@@ -328,7 +328,8 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
     run.periodic_eval(job.eval_params(), job.progress, missing_since=due)
   bar = getattr(job, 'bar', None)
   desc = bar.desc if bar is not None else ''
-  eta = Eta(total, eval_every, evaluates=_evaluates(run))
+  eta = Eta(total, eval_every, evaluates=_evaluates(run),
+            warm_from=max(job.progress, getattr(job, 'learn_start', 0)))
   while job.progress < total:
     before, start = job.progress, time.perf_counter()
     job.advance()

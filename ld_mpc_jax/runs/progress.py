@@ -32,15 +32,19 @@ def progress_bar(total: int, initial: int, desc: str, unit: str = 'step') -> tqd
 
 
 class Eta:
-  """Time left of a run: the steps left at the rate measured after the first advance (which
-  compiles) and without evaluation time, plus the periodic evaluations left at the measured
-  time of one (and the final evaluation, counted as one more of them until one is timed)."""
+  """Time left of a run: the steps left at the rate measured after the first advance past
+  `warm_from` (that one compiles; an online run's random seed waves before it are not its rate)
+  and without evaluation time, plus the periodic evaluations left at the measured time of one
+  (and the final evaluation, counted as one more of them)."""
 
-  def __init__(self, total: int, eval_every: int, evaluates: bool):
+  def __init__(self, total: int, eval_every: int, evaluates: bool, warm_from: int = 0):
     self.total, self.eval_every, self.evaluates = total, eval_every, evaluates
+    self.warm_from = warm_from
     self.start_progress, self.train_s, self.eval_s = None, 0.0, []
 
   def advanced(self, after: int, seconds: float) -> None:
+    if after <= self.warm_from:  # Seed waves: another rate than the run's.
+      return
     if self.start_progress is None:  # The first advance compiles: not a rate.
       self.start_progress = after
       return
