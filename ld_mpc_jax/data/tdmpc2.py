@@ -28,9 +28,11 @@ classes, TensorDict, numpy's array pickling and the tensor-rebuilding
 functions), never anything else: no prefix or module-wide rule, no dotted
 attribute path (`numpy.f2py` + `os.system` reached os.system through a module's
 attribute before), no module is even imported unless the pair is listed. A
-malicious file is refused on one line instead of run. Not tested here against
-real torch files (the extra is not installed on the CI machine): a chunk that
-names another global fails on one line naming it.
+malicious file is refused on one line instead of run. The CI machine has no
+torch; with torch 2.13.0 and tensordict 0.15.3 installed, tests/test_tdmpc2.py
+passes whole (real chunks written by torch.save), and TensorDicts of float32,
+float16 and bfloat16, nested, consolidated and in torch's legacy format load
+(2026-12-06). A chunk that names another global fails on one line naming it.
 """
 
 import glob
@@ -94,12 +96,17 @@ _TORCH_STORAGES = ('UntypedStorage', 'DoubleStorage', 'FloatStorage', 'HalfStora
                    'CharStorage', 'ByteStorage', 'BoolStorage', 'ComplexFloatStorage',
                    'ComplexDoubleStorage')
 _TENSORDICTS = ('TensorDict', 'LazyStackedTensorDict')
+# Names that older tensordicts pickled (<= 0.4, as TD-MPC2's chunks may be) and that newer ones
+# read as plain types, as tensordict's own weights-only allowlist does.
+_RENAMED = {('tensordict.utils', '_StringOnlyDict'): dict}
 
 
 class _RestrictedUnpickler(pickle.Unpickler):
   """pickle.Unpickler whose globals are limited to `SafePickle.allowed`."""
 
   def find_class(self, module, name):
+    if (module, name) in _RENAMED:
+      return _RENAMED[module, name]
     if not SafePickle.allowed(module, name):
       raise pickle.UnpicklingError(f'refused to load {module}.{name}: a TD-MPC2 chunk holds '
                                    'tensors only (the file may run code)')
@@ -121,7 +128,8 @@ class SafePickle:
       + [('torch._tensor', '_rebuild_from_type_v2'), ('torch.serialization', '_get_layout')]
       + [(m, n) for m in ('tensordict', 'tensordict._td', 'tensordict.tensordict',
                           'tensordict._lazy') for n in _TENSORDICTS]
-      + [('tensordict._reductions', '_rebuild_tensordict_files')]
+      + [('tensordict._reductions', n) for n in ('_make_td', '_rebuild_tensordict_files',
+                                                 '_rebuild_tensordict_files_consolidated')]
       + [(m, n) for m in ('numpy.core.multiarray', 'numpy._core.multiarray')
          for n in ('_reconstruct', 'scalar')]
       + [('numpy', 'ndarray'), ('numpy', 'dtype'), ('collections', 'OrderedDict')]
