@@ -1,4 +1,4 @@
-"""Trains LD-MPC: one run, several training seeds, or the ablation ladder.
+r"""Trains LD-MPC: one run, several training seeds, or the ablation ladder.
 
   python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_cpu
   python -m experiments.train --config=door_open_online.py:cpu --workdir=runs/online  # online

@@ -58,6 +58,20 @@ def split_config_overrides(argv: Sequence[str]) -> Tuple[list, list]:
   return rest, items
 
 
+def _own_lines(mode_doc: str, command_doc: str) -> str:
+  """The mode's docstring less the example lines the command's docstring already shows (--help
+  printed them twice)."""
+  shown = {l.strip() for l in command_doc.splitlines() if l.strip().startswith('python -m')}
+  kept, dropped, previous = [], False, ''
+  for line in (mode_doc or '').strip().splitlines():
+    continued = dropped and previous.rstrip().endswith('\\')  # The rest of a dropped example.
+    dropped = line.strip() in shown or continued
+    if not dropped:
+      kept.append(line)
+    previous = line
+  return '\n'.join(kept)
+
+
 def dispatch(doc: str, modes: Dict[str, str], default: str,
              by_flag: Optional[Dict[str, str]] = None) -> None:
   """Runs the chosen mode's `main` under absl (bad flags: one line, exit code 2).
@@ -76,7 +90,7 @@ def dispatch(doc: str, modes: Dict[str, str], default: str,
       argv, module.OVERRIDES = split_config_overrides(argv)
   sys.argv = argv
   main_module = sys.modules['__main__']
-  main_module.__doc__ = f'{doc.strip()}\n\nThis mode ({name}): {(module.__doc__ or "").strip()}'
+  main_module.__doc__ = f'{doc.strip()}\n\nThis mode ({name}): {_own_lines(module.__doc__, doc)}'
   for flag in flags.FLAGS.get_key_flags_for_module(module.__name__):
     flags.FLAGS.register_key_flag_for_module(sys.argv[0], flag)  # Shown by --help.
   asked_help = any(a in ('--help', '-h', '-?', '--helpshort', '--helpfull') for a in argv[1:])

@@ -1,4 +1,4 @@
-"""Evaluation speed: episodes one at a time against environments in lockstep, in the same run.
+r"""Evaluation speed: episodes one at a time against environments in lockstep, in the same run.
 
   python -m experiments.benchmark_planning evaluation --workdir=runs/sweep/door_open_cpu/seed0 \
       --modes=plan,actor,proposal --episodes=50 --repeats=3 \

@@ -1,4 +1,4 @@
-"""Planning benchmark: latency, compile time, FLOPs and fraction of peak, LD-MPC vs MPPI.
+r"""Planning benchmark: latency, compile time, FLOPs and fraction of peak, LD-MPC vs MPPI.
 
   python -m experiments.benchmark_planning                                    # everything
   python -m experiments.benchmark_planning --widths=cpu --variants=reference,fast,mppi

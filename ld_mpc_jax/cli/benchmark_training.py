@@ -1,4 +1,4 @@
-"""Training benchmark: time and FLOPs of one update step, and the bound ratio against the peak.
+r"""Training benchmark: time and FLOPs of one update step, and the bound ratio against the peak.
 
   python -m experiments.benchmark_training                       # :cpu preset and reference
   python -m experiments.benchmark_training --configs=door_open.py:cpu --repeats=20

@@ -1,4 +1,4 @@
-"""Compares planner selection settings against the actor prior, on the same held-out episodes.
+r"""Compares planner selection settings against the actor prior, on the same held-out episodes.
 
   python -m experiments.evaluate selection --workdir=runs/obj/door_open_weak/seed0,... \\
       --variant=argmax: \\

@@ -1,4 +1,4 @@
-"""What the planner's departures from its actor prior gain, and where the gain comes from.
+r"""What the planner's departures from its actor prior gain, and where the gain comes from.
 
   python -m experiments.diagnose departures --workdir=runs/obj/door_open_weak/seed0 \\
       --episodes=11,29,39,0,1 [--variant=safe2x:plan.safe_selection=True,...] [--seed=0] \\

@@ -1,4 +1,4 @@
-"""What happened inside chosen held-out episodes: the reward terms of the environment per step,
+r"""What happened inside chosen held-out episodes: the reward terms of the environment per step,
 for the actor prior and planner variants, on the same episodes as compare_selection.
 
   python -m experiments.diagnose trace --workdir=runs/obj2/door_open_weak/seed0 \\

@@ -1,4 +1,4 @@
-"""Online learning curves against TD-MPC2's published per-seed curves, on the same axes.
+r"""Online learning curves against TD-MPC2's published per-seed curves, on the same axes.
 
   python -m experiments.report curves --workdir=runs/online/door_seed0 \
       --anchor=docs/anchors/tdmpc2_mw-door-open.csv --out=online_door_open.png

@@ -1,4 +1,4 @@
-"""Trains and evaluates LD-MPC.
+r"""Trains and evaluates LD-MPC.
 
   python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_cpu
   python -m experiments.train --config=mt10.py:cpu --workdir=runs/mt10_cpu   # one agent, MT10
