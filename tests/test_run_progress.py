@@ -5,7 +5,7 @@ from ld_mpc_jax.runs import progress
 
 
 def test_eta_leaves_out_compilation_and_counts_the_evaluations_left():
-  eta = progress.Eta(total=1000, eval_every=250, evaluates=True)
+  eta = progress.Eta(total=1000, eval_every=250)
   assert eta.text(0) == 'eta: after the first steps'
   eta.advanced(100, seconds=600.0)  # The first advance compiles: not part of the rate.
   assert eta.text(100) == 'eta: after the first steps'
@@ -15,13 +15,10 @@ def test_eta_leaves_out_compilation_and_counts_the_evaluations_left():
   eta.evaluated(60.0)
   # 80 s of steps + 3 evaluations left at 60 s (at 250 is past: 500, 750, and the final one).
   assert eta.text(300) == f'eta {round((700 / 10 + 3 * 60) / 60)} min'
-  quiet = progress.Eta(total=1000, eval_every=250, evaluates=False)
-  quiet.advanced(100, 600.0)
-  quiet.advanced(200, 10.0)
-  assert quiet.text(200) == 'eta 1 min'
-  long = progress.Eta(total=10 ** 6, eval_every=10 ** 6, evaluates=False)
+  long = progress.Eta(total=10 ** 6, eval_every=10 ** 6)
   long.advanced(1, 1.0)
   long.advanced(2, 1.0)
+  long.evaluated(0.0)  # eval.episodes = 0: its evaluations take no time.
   assert long.text(2) == 'eta 277.8 h'
 
 
@@ -38,10 +35,10 @@ def test_stage_lines_go_to_stderr_unless_quiet(capsys):
 
 def test_eta_of_an_online_run_starts_after_its_seed_waves():
   """Random seed waves step far faster than the planner's: not the run's rate."""
-  eta = progress.Eta(total=10_000, eval_every=10_000, evaluates=False, warm_from=1600)
+  eta = progress.Eta(total=10_000, eval_every=10_000, warm_from=1600)
   for after in (800, 1600):
     eta.advanced(after, seconds=1.0)  # Random waves.
   eta.advanced(2400, seconds=300.0)  # The first planner wave compiles.
   assert eta.text(2400) == 'eta: after the first steps'
   eta.advanced(3200, seconds=80.0)  # 800 steps in 80 s.
-  assert eta.text(3200) == f'eta {round(6800 * 0.1 / 60)} min'
+  assert eta.text(3200) == f'eta {round(6800 * 0.1 / 60)} min + evaluations'

@@ -301,17 +301,6 @@ def seed_source(path: str, seed: int) -> str:
   return path
 
 
-def _evaluates(run) -> bool:
-  """Whether the run evaluates (eval.episodes > 0; a run of seeds: its first seed's)."""
-  for first in (lambda: run.config, lambda: run.seats[0].config,
-                lambda: run.seed_runs[0].config):
-    try:
-      return first().eval.episodes > 0
-    except AttributeError:
-      continue
-  return True
-
-
 def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:
   """Advances `job` until its progress reaches `total`.
 
@@ -328,8 +317,7 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
     run.periodic_eval(job.eval_params(), job.progress, missing_since=due)
   bar = getattr(job, 'bar', None)
   desc = bar.desc if bar is not None else ''
-  eta = Eta(total, eval_every, evaluates=_evaluates(run),
-            warm_from=max(job.progress, getattr(job, 'learn_start', 0)))
+  eta = Eta(total, eval_every, warm_from=max(job.progress, getattr(job, 'learn_start', 0)))
   while job.progress < total:
     before, start = job.progress, time.perf_counter()
     job.advance()

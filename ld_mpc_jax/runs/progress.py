@@ -35,11 +35,11 @@ class Eta:
   """Time left of a run: the steps left at the rate measured after the first advance past
   `warm_from` (that one compiles; an online run's random seed waves before it are not its rate)
   and without evaluation time, plus the periodic evaluations left at the measured time of one
-  (and the final evaluation, counted as one more of them)."""
+  (and the final evaluation, counted as one more of them); '+ evaluations' until one is timed
+  (a run with `eval.episodes = 0` times its empty ones at about 0 s)."""
 
-  def __init__(self, total: int, eval_every: int, evaluates: bool, warm_from: int = 0):
-    self.total, self.eval_every, self.evaluates = total, eval_every, evaluates
-    self.warm_from = warm_from
+  def __init__(self, total: int, eval_every: int, warm_from: int = 0):
+    self.total, self.eval_every, self.warm_from = total, eval_every, warm_from
     self.start_progress, self.train_s, self.eval_s = None, 0.0, []
 
   def advanced(self, after: int, seconds: float) -> None:
@@ -58,11 +58,10 @@ class Eta:
     if done <= 0 or self.train_s <= 0:
       return 'eta: after the first steps'
     left = (self.total - progress) * self.train_s / done
-    evals = sum(1 for s in range(progress + 1, self.total) if s % self.eval_every == 0) + 1
-    if self.evaluates and self.eval_s:
-      left += evals * float(np.median(self.eval_s))
-      return f'eta {_minutes(left)}'
-    return f'eta {_minutes(left)} + evaluations' if self.evaluates else f'eta {_minutes(left)}'
+    if not self.eval_s:
+      return f'eta {_minutes(left)} + evaluations'
+    evals = (self.total - 1) // self.eval_every - progress // self.eval_every + 1  # + the final.
+    return f'eta {_minutes(left + evals * float(np.median(self.eval_s)))}'
 
 
 def _minutes(seconds: float) -> str:
