@@ -8,10 +8,12 @@ A run of several seeds (`<workdir>/seed0`, ...) gives `seed0_*`, `seed1_*`, ...;
 its files unprefixed. The gzip headers carry no name or time, so the same run packs to the same
 bytes. Checkpoints, TensorBoard logs and plots stay behind. Each start of the run (resumes too)
 wrote a line of `provenance.jsonl` (commit, dirty flag, command line, folder), copied beside the
-records, so no command or commit is written there by hand.
+records (with the run directory written `<run>` and the folder `<checkout>`, in it and in
+report.md), so no command or commit is written there by hand.
 """
 
 import gzip
+import json
 import os
 import re
 import shutil
@@ -36,6 +38,18 @@ def _seed_dirs(workdir: str) -> List[str]:
   return sorted(names, key=lambda n: int(n[4:]))
 
 
+def _copy_without_machine_paths(src: str, dst: str, workdir: str) -> None:
+  """Copies a text record with this machine's paths replaced: the run directory by `<run>`, and in
+  provenance.jsonl the folder the command ran in by `<checkout>` (a checkout at its `commit`)."""
+  with open(src) as f:
+    text = f.read().replace(os.path.abspath(workdir), '<run>')
+  if src.endswith('.jsonl'):
+    text = ''.join(json.dumps(dict(json.loads(line), cwd='<checkout>')) + '\n'
+                   for line in text.splitlines() if line.strip())
+  with open(dst, 'w') as f:
+    f.write(text)
+
+
 def write_records(workdir: str, out: str) -> List[str]:
   """The record files of run `workdir` written under `out` (created); their paths, sorted.
 
@@ -58,7 +72,7 @@ def write_records(workdir: str, out: str) -> List[str]:
         _gzip(path, dst)
       else:
         dst = os.path.join(out, f'{prefix}{name}')
-        shutil.copyfile(path, dst)
+        _copy_without_machine_paths(path, dst, workdir)
       written.append(dst)
   src, prefix = sources[0]  # The first seed's config stands for the run's.
   if os.path.isfile(os.path.join(src, 'config.json')):
