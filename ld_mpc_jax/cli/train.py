@@ -43,10 +43,11 @@ def _config_file_error(err: OSError) -> str:
   the error inside it."""
   from ld_mpc_jax.configs import CONFIG_DIR  # pylint: disable=g-import-not-at-top
   text = ' '.join(str(err).split())
-  spec = flags.FLAGS['config'].serialize().partition('=')[2] if flags.FLAGS['config'].present else ''
+  flag = flags.FLAGS['config']
+  spec = flag.serialize().partition('=')[2] if flag.present else ''
   if 'No such file or directory' in text:
-    shipped = sorted(n for n in os.listdir(CONFIG_DIR) if n.endswith('.py') and n[0] != '_'
-                     and n not in ('base.py', 'overrides.py', 'variants.py'))
+    takes_preset = lambda n: 'def get_config(preset' in open(os.path.join(CONFIG_DIR, n)).read()
+    shipped = sorted(n for n in os.listdir(CONFIG_DIR) if n.endswith('.py') and takes_preset(n))
     return (f'--config={spec}: no such config file; the shipped ones: {", ".join(shipped)} '
             '(or a path to your own)')
   return f'--config={spec}: {text}'
