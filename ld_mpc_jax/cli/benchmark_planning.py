@@ -188,7 +188,14 @@ def main(argv):
     cli.check_subset('widths', _WIDTHS.value, WIDTHS)
     if _REPEATS.value < 1:
       raise ValueError(f'--repeats must be >= 1, got {_REPEATS.value}')
-  base = _CONFIG.value
+    cli.check_new_output(_OUT.value, overwrite=True)  # A benchmark replaces its last result.
+  spec = config_flags.get_config_filename(flags.FLAGS['config'])
+  try:
+    if not os.path.exists(spec.partition(':')[0]):
+      raise FileNotFoundError(spec)
+    base = _CONFIG.value
+  except OSError as err:  # ml_collections defers a config file's failure to here.
+    cli.fail(cli.config_file_error('--config', spec, err))
   device = device_info()
   print(f"device: {device['name']}; load average {device['loadavg_1min_at_start']:.2f}")
   peak = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)

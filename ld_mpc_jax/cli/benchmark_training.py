@@ -60,6 +60,39 @@ _ONLINE_STEPS = flags.DEFINE_integer('online_env_steps', 4000, 'Environment step
                                      'steps) of each timed online run, seed waves included.')
 
 
+def _check_flags():
+  """(online seed counts, breakdown seed counts, most devices asked for), or ValueError naming the
+  flag: before JAX starts and before anything is timed."""
+  if _REPEATS.value < 1 or _WAVES.value < 1:
+    raise ValueError('--repeats and --online_waves must be at least 1')
+  if _ONLINE_STEPS.value < 1:
+    raise ValueError(f'--online_env_steps must be at least 1, got {_ONLINE_STEPS.value}')
+  seeds = cli.int_list('--online_seeds', _ONLINE_SEEDS.value, least=1)
+  breakdown = cli.int_list('--online_breakdown', _BREAKDOWN.value, least=1)
+  devices = cli.int_list('--online_seed_devices', _ONLINE_DEVICES.value, least=0)
+  cli.check_new_output(_OUT.value, overwrite=True)  # A benchmark replaces its last result.
+  return seeds, breakdown, max(devices or [1])
+
+
+def _load_configs(online: bool) -> dict:
+  """{spec: config} of --configs with the --config.field=value overrides, each validated; the
+  first one online when `online`. ValueError naming the flag."""
+  from ld_mpc_jax.configs.overrides import parse_items, with_overrides
+  from ld_mpc_jax.model.config_checks import online_enabled, validate_config
+  configs = {}
+  for spec in _CONFIGS.value:
+    try:
+      configs[spec] = with_overrides(load_config(spec), parse_items(OVERRIDES))
+    except OSError as err:
+      raise ValueError(cli.config_file_error('--configs', spec, err)) from None
+    validate_config(configs[spec])
+  if online and not online_enabled(configs[_CONFIGS.value[0]]):
+    raise ValueError(f'--online_seeds and --online_breakdown time online training: the first '
+                     f'--configs ({_CONFIGS.value[0]}) is offline; e.g. '
+                     '--configs=door_open_online.py:cpu')
+  return configs
+
+
 def load_config(spec: str):
   """'door_open.py:cpu' (or a path) -> get_config('cpu') of that file."""
   path, _, preset = spec.partition(':')
@@ -77,25 +110,19 @@ OVERRIDES = []  # 'field=value' items of --config.field=value, for every config.
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the output.
-  if _REPEATS.value < 1 or _WAVES.value < 1:
-    cli.fail('--repeats and --online_waves must be at least 1')
-  devices = max(int(d) for d in _ONLINE_DEVICES.value)
-  if _BREAKDOWN.value:  # One device per seed, as runs train by default.
-    devices = max(devices, *(int(n) for n in _BREAKDOWN.value))
-  if _ONLINE_SEEDS.value and 0 in [int(d) for d in _ONLINE_DEVICES.value]:  # One per seed.
-    devices = max(devices, *(int(n) for n in _ONLINE_SEEDS.value))
+  with cli.one_line_errors():
+    seeds, breakdown, devices = _check_flags()
+  if breakdown:  # One device per seed, as runs train by default.
+    devices = max(devices, *breakdown)
+  if seeds and 0 in cli.int_list('--online_seed_devices', _ONLINE_DEVICES.value):  # One a seed.
+    devices = max(devices, *seeds)
   if (_ONLINE_SEEDS.value or _BREAKDOWN.value) and devices > 1:  # Before JAX starts: the CPU as that many devices.
     import jax
     jax.config.update('jax_num_cpu_devices', devices)
-  from ld_mpc_jax.configs.overrides import parse_items, with_overrides
   import benchmarks as bench
   from benchmarks import hardware, training
-  from ld_mpc_jax.model.config_checks import validate_config
-  configs = {}
   with cli.one_line_errors():
-    for spec in _CONFIGS.value:
-      configs[spec] = with_overrides(load_config(spec), parse_items(OVERRIDES))
-      validate_config(configs[spec])
+    configs = _load_configs(online=bool(seeds or breakdown))
   device = hardware.device_info()
   print(f"device: {device['name']} x {device['device_count']}; load average "
         f"{device['loadavg_1min_at_start']:.2f}")
@@ -103,7 +130,7 @@ def main(argv):
     from benchmarks import online_breakdown
     spec = _CONFIGS.value[0]
     peak = hardware.measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
-    entries = online_breakdown.run(configs[spec], [int(n) for n in _BREAKDOWN.value],
+    entries = online_breakdown.run(configs[spec], breakdown,
                                    _WAVES.value, peak, _REPEATS.value)
     table = online_breakdown.markdown(entries, spec, device['name'])
     print(table)
@@ -113,7 +140,7 @@ def main(argv):
     from benchmarks import online_seeds
     spec = _CONFIGS.value[0]
     overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
-    entries = online_seeds.benchmark_seeds(configs[spec], [int(n) for n in _ONLINE_SEEDS.value],
+    entries = online_seeds.benchmark_seeds(configs[spec], seeds,
                                            _ONLINE_STEPS.value, overlaps=overlaps,
                                            seed_devices=[int(d) for d in _ONLINE_DEVICES.value])
     table = online_seeds.markdown(entries, spec, _ONLINE_STEPS.value, device['name'])

@@ -52,7 +52,7 @@ def main(argv):
   with cli.one_line_errors():
     if not _WORKDIR.value or not _EPISODES.value:
       raise ValueError('give --workdir and --episodes (or --summarize=JSON)')
-    indices = [int(i) for i in _EPISODES.value]
+    indices = cli.int_list('--episodes', _EPISODES.value)
     if not indices or min(indices) < 0 or max(indices) >= _NUM_EPISODES.value:
       raise ValueError(f'--episodes must be indices in [0, {_NUM_EPISODES.value}), '
                        f'got {_EPISODES.value}')

@@ -40,7 +40,7 @@ def main(argv):
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval import diagnostics
   with cli.one_line_errors():
-    indices = [int(i) for i in _EPISODES.value]
+    indices = cli.int_list('--episodes', _EPISODES.value)
     if not indices or min(indices) < 0 or max(indices) >= _NUM_EPISODES.value:
       raise ValueError(f'--episodes must be indices in [0, {_NUM_EPISODES.value}), '
                        f'got {_EPISODES.value}')

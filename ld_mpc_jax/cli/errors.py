@@ -52,6 +52,32 @@ def check_new_output(path: str, overwrite: bool, flag: str = '--out') -> None:
     raise ValueError(f'{path} cannot be written ({err}); choose another {flag}') from None
 
 
+def config_file_error(flag: str, spec: str, err: OSError) -> str:
+  """One line for a config file that did not load (`flag`=`spec`): the file not found, with the
+  shipped config files that take a :preset, or the error inside it."""
+  from ld_mpc_jax.configs import CONFIG_DIR  # pylint: disable=g-import-not-at-top
+  text = ' '.join(str(err).split())
+  if isinstance(err, FileNotFoundError) or 'No such file or directory' in text:
+    takes_preset = lambda n: 'def get_config(preset' in open(os.path.join(CONFIG_DIR, n)).read()
+    shipped = sorted(n for n in os.listdir(CONFIG_DIR) if n.endswith('.py') and takes_preset(n))
+    return (f'{flag}={spec}: no such config file; the shipped ones: {", ".join(shipped)} '
+            '(or a path to your own)')
+  return f'{flag}={spec}: {text}'
+
+
+def int_list(flag: str, values: Iterable[str], least: int = 0) -> list:
+  """The integers of a list flag, or ValueError naming the flag and the first bad entry."""
+  out = []
+  for v in values:
+    try:
+      out.append(int(v))
+    except ValueError:
+      raise ValueError(f'{flag}: {v!r} is not an integer') from None
+    if out[-1] < least:
+      raise ValueError(f'{flag}: {v} is below {least}')
+  return out
+
+
 def parse_flags(argv):
   """absl's flag parsing for `app.run(main, flags_parser=parse_flags)`, a bad flag failing in one
   line. A config file's own error (an unknown :preset) is reported without the traceback that

@@ -50,7 +50,7 @@ def _checked_seeds() -> list:
   """--seeds as integers, after checking --episodes (before any work)."""
   if _EPISODES.value is not None and not 1 <= _EPISODES.value <= MAX_EPISODES:
     raise ValueError(f'--episodes must be between 1 and {MAX_EPISODES:,}, got {_EPISODES.value}')
-  return [int(s) for s in _SEEDS.value]
+  return cli.int_list('--seeds', _SEEDS.value)
 
 
 def main(argv):
@@ -70,13 +70,11 @@ def main(argv):
     video = _VIDEO_OUT.value or os.path.join(_WORKDIR.value, 'planner.mp4')
     if _VIDEO.value:
       cli.check_new_output(video, _OVERWRITE.value, flag='--video_out')
+    cli.check_subset('--splits', _SPLITS.value, ['held_out', 'train'])
+    cli.check_subset('--modes', _MODES.value, ['plan', 'actor', 'proposal', 'mppi'])
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
     config = with_overrides(config, parse_items(OVERRIDES))
     validate_config(config)
-    bad = set(_SPLITS.value) - {'held_out', 'train'} or set(_MODES.value) - {
-        'plan', 'actor', 'proposal', 'mppi'}
-    if bad:
-      raise ValueError(f'unknown split or mode {sorted(bad)}')
     splits, evaluate = multitask_eval.grid(config, _SPLITS.value)  # No train split for
     if splits != tuple(_SPLITS.value):  # TD-MPC2 data: its goals were random per episode.
       print(f'goal splits {list(splits)} only: the data were not collected on MT1 goals')

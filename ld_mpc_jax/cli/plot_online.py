@@ -13,6 +13,7 @@ docs/anchors/README.md says how their protocol differs.
 """
 
 import csv
+import glob
 import gzip
 import os
 
@@ -72,6 +73,8 @@ def main(argv):
     if not _workdirs():
       raise ValueError('name at least one run with --workdir')
     for run in _workdirs():
+      if not os.path.isdir(run) and not glob.glob(glob.escape(run) + 'eval.csv*'):
+        raise ValueError(f'--workdir={run}: no run directory, nor records {run}eval.csv[.gz]')
       for name in ('eval.csv', 'online.csv'):
         read_csv(run_file(run, name))
     if FLAGS.anchor:

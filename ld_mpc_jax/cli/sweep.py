@@ -61,8 +61,8 @@ def main(argv):
   from ld_mpc_jax.runs.train import train_and_evaluate
   from ld_mpc_jax.configs.overrides import with_overrides
   try:
-    seeds = [int(s) for s in _SEEDS.value]
-    eval_seeds = tuple(int(s) for s in _EVAL_SEEDS.value)
+    seeds = cli.int_list('--seeds', _SEEDS.value)
+    eval_seeds = tuple(cli.int_list('--eval_seeds', _EVAL_SEEDS.value))
   except ValueError as err:
     cli.fail(f'--seeds and --eval_seeds take integers ({err})')
   if _CONFIG.value.train.num_seeds != 1:  # Each --seeds entry is one run of one seed.

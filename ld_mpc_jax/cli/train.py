@@ -38,21 +38,6 @@ _PROCESS_ID = flags.DEFINE_integer('process_id', None, 'This process, 0..num_pro
 flags.mark_flags_as_required(['config', 'workdir'])
 
 
-def _config_file_error(err: OSError) -> str:
-  """One line for a --config that did not load: the file not found (and the shipped files), or
-  the error inside it."""
-  from ld_mpc_jax.configs import CONFIG_DIR  # pylint: disable=g-import-not-at-top
-  text = ' '.join(str(err).split())
-  flag = flags.FLAGS['config']
-  spec = flag.serialize().partition('=')[2] if flag.present else ''
-  if 'No such file or directory' in text:
-    takes_preset = lambda n: 'def get_config(preset' in open(os.path.join(CONFIG_DIR, n)).read()
-    shipped = sorted(n for n in os.listdir(CONFIG_DIR) if n.endswith('.py') and takes_preset(n))
-    return (f'--config={spec}: no such config file; the shipped ones: {", ".join(shipped)} '
-            '(or a path to your own)')
-  return f'--config={spec}: {text}'
-
-
 def _on_interrupt(signum, frame):
   """SIGINT: remembered (`progress.INTERRUPTED`, checked after every step of the run, so that an
   interrupt a library swallows still stops it), then raised as usual."""
@@ -91,7 +76,8 @@ def main(argv):
   try:
     t = _CONFIG.value.train
   except OSError as err:  # A config file that failed to load (ml_collections defers the error).
-    cli.fail(_config_file_error(err))
+    flag = flags.FLAGS['config']
+    cli.fail(cli.config_file_error('--config', flag.serialize().partition('=')[2], err))
   devices = t.get('seed_devices', 1)
   if isinstance(devices, int) and cpu_devices_wanted(t.num_seeds, devices) > 1:  # Before JAX
     # starts: the CPU as one device per group of seeds (train.seed_devices).
