@@ -473,7 +473,7 @@ def markdown(rows: List[Dict[str, Any]]) -> str:
       outcome += (f"; evaluate: checkpoint {row['eval_checkpoint']}" if row['eval_rc'] == 0 else
                   f"; evaluate: exit {row['eval_rc']}")
     traceback = ('yes' if row['traceback'] or row.get('eval_traceback')
-                 or row.get('first_traceback') else 'no')
+                 or row.get('first_traceback') or row.get('second_traceback') else 'no')
     lines.append(f"| {row['trial']} | {row['kind']} | {row['fault']} | {row['point']} | "
                  f"{outcome} | {_cell(row)} | {traceback} |")
   return '\n'.join(lines) + '\n'
@@ -483,6 +483,9 @@ def group_of(row: Dict[str, Any]) -> str:
   """'kill', 'disk full' (a small disk), 'disk filled' (by another file) or 'damage'."""
   if 'SIGKILL' in row['fault']:
     return 'kill'
+  for word, group in (('SIGINT', 'interrupt'), ('second copy', 'twin'), ('crafted', 'pickle')):
+    if word in row['fault']:
+      return group
   if 'disk_kib' in row:
     return 'disk filled' if 'fill_s' in row else 'disk full'
   return 'damage'
@@ -497,8 +500,8 @@ def summary(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
         trials=len(group), ok=sum(r['ok'] for r in group),
         identical=sum(bool(r['identical']) for r in group),
         stopped_one_line=sum(r['rc'] != 0 and bool(r.get('one_line')) for r in group),
-        tracebacks=sum(bool(r['traceback'] or r.get('eval_traceback') or r.get('first_traceback'))
-                       for r in group),
+        tracebacks=sum(bool(r['traceback'] or r.get('eval_traceback') or r.get('first_traceback')
+                            or r.get('second_traceback')) for r in group),
         checkpoint_not_as_uninterrupted=sum(r.get('restored_as_reference') is False
                                             for r in group),
         resumed_from={str(s): sum(r['resumed_from'] == s and r['rc'] == 0 for r in group)
@@ -547,6 +550,11 @@ def parse(argv: Optional[List[str]] = None) -> argparse.Namespace:
                  'fills up (needs root to mount it)')
   p.add_argument('--disk_filled', type=int, default=0, help='runs per kind on a tmpfs that '
                  'another file fills from a random moment on (needs root)')
+  p.add_argument('--interrupts', type=int, default=0, help='SIGINTs (Ctrl-C) per kind of run')
+  p.add_argument('--twins', type=int, default=0, help='second copies on one workdir, per kind')
+  p.add_argument('--pickles', type=int, default=0, help='crafted TD-MPC2 chunk files')
+  p.add_argument('--pickle_python', default=sys.executable, help='an interpreter with torch and '
+                 'tensordict for --pickles (this checkout and its packages go on its path)')
   p.add_argument('--kinds', default='offline,online')
   p.add_argument('--seed', type=int, default=0)
   p.add_argument('--out', default='results/faults/faults.json')
@@ -582,12 +590,17 @@ def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
   plan += [('damage', kinds[i % len(kinds)], i) for i in range(args.damages)]
   plan += [('disk', k, i) for k in kinds for i in range(args.disk_full)]
   plan += [('filled', k, i) for k in kinds for i in range(args.disk_filled)]
+  plan += [(what, k, i) for what, n in (('interrupt', args.interrupts), ('twin', args.twins))
+           for k in kinds for i in range(n)]
+  plan += [('pickle', 'offline', i) for i in range(args.pickles)]
   rows = []
   for what, kind, i in plan:
     if time.time() - start > 60 * args.max_minutes:
       header['stopped_early'] = f'--max_minutes={args.max_minutes} reached; {len(rows)} trials run'
       break
-    if what == 'kill':
+    if what in ('interrupt', 'twin', 'pickle'):
+      trial = _case(what, runner, refs[kind], i, rng, args.pickle_python)
+    elif what == 'kill':
       trial = kill_trial(runner, refs[kind], i, rng)
     elif what == 'disk':
       trial = fault_disk.disk_full_trial(runner, refs[kind], i, rng)
@@ -604,6 +617,16 @@ def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
   write(args.out, header, rows)
   print(summary_line(rows))
   return rows
+
+
+def _case(what: str, runner: Runner, ref: Dict[str, Any], index: int, rng: random.Random,
+          python: str) -> Dict[str, Any]:
+  """A trial of issue 102's faults (benchmarks/fault_cases.py)."""
+  from benchmarks import fault_cases  # pylint: disable=g-import-not-at-top (it imports this one)
+  if what == 'pickle':
+    return fault_cases.pickle_trial(runner, index, python)
+  trial = fault_cases.interrupt_trial if what == 'interrupt' else fault_cases.twin_trial
+  return trial(runner, ref, index, rng)
 
 
 def _commit() -> Optional[str]:

@@ -1,0 +1,182 @@
+"""The faults of issue 102 in benchmarks.fault_injection: Ctrl-C (SIGINT to the process group, as a
+terminal sends it) at random moments, a second copy of the same command on the same workdir, and
+crafted TD-MPC2 chunk files whose unpickling would run a shell command.
+
+  python -m benchmarks.fault_injection --kills=0 --damages=0 --disk_full=0 --interrupts=10 \
+      --twins=4 --pickles=6 --pickle_python=PYTHON_WITH_TORCH --out=results/faults/faults_102.json
+
+- Interrupt: exit code 130, no traceback, the last line `interrupted: ...` (or the run had
+  finished), then the same command resumes to the uninterrupted run's final TrainState.
+- Twin: the second copy exits 2 within 30 s on one line naming the first's pid and writes
+  nothing; the first ends on the uninterrupted run's final TrainState, no CSV row twice.
+- Pickle: `experiments.train --config.data.source=tdmpc2 --config.data.path=EVIL.pt` exits 2 on
+  one line and the payload's marker file does not exist. The chunk loader needs torch and
+  tensordict: `--pickle_python` names an interpreter that has them (with this checkout on its
+  path); with the project's own (no torch) the run stops at the missing extra, which the row says.
+"""
+
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from typing import Any, Dict
+
+from benchmarks.fault_injection import (Runner, commands, complete_steps, judge, phase,
+                                        read_stderr, restored, total_of, verdict)
+
+# (module, name) a crafted chunk names, and the pickle opcode that looks it up.
+PAYLOADS = [('numpy.f2py', 'os.system', 'stack'), ('os', 'system', 'global'),
+            ('builtins', 'eval', 'global'), ('posix', 'system', 'stack'),
+            ('subprocess', 'getoutput', 'stack'), ('numpy.testing', 'os.system', 'stack')]
+
+
+def _last_line(text: str) -> str:
+  lines = [l.strip() for l in text.replace('\r', '\n').splitlines() if l.strip()]
+  return lines[-1] if lines else ''
+
+
+def interrupt_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Random):
+  """SIGINT to a fresh run of ref's kind at a random moment, then the same command again."""
+  kind = ref['kind']
+  name = f'{kind}_interrupt_{index}'
+  workdir = os.path.join(runner.scratch, name)
+  shutil.rmtree(workdir, ignore_errors=True)
+  cmd = commands(kind, workdir, runner.scratch)
+  delay = rng.uniform(0.03, 0.97) * ref['duration']
+  start = time.perf_counter()
+  proc = runner.start(cmd, name)
+  while proc.poll() is None and time.perf_counter() < start + delay:
+    time.sleep(0.02)
+  sent, where = proc.poll() is None, 'finished before the interrupt'
+  if sent:
+    with open(runner.log(name)) as f:
+      where = phase(workdir, f.read(), total_of(kind))
+    os.killpg(proc.pid, signal.SIGINT)
+  try:
+    rc = proc.wait(timeout=120)
+  except subprocess.TimeoutExpired:  # The interrupt did not stop it.
+    os.killpg(proc.pid, signal.SIGKILL)
+    rc = proc.wait()
+  with open(runner.log(name)) as f:
+    text = f.read()
+  last = _last_line(text)
+  first_ok = (rc == 0 and not sent) or (rc == 130 and 'Traceback' not in text and
+                                        last.startswith('interrupted'))
+  before, kept = complete_steps(workdir), restored(workdir, ref)
+  rerun = runner.run(cmd, name + '_rerun')
+  row = dict(kind=kind, fault='SIGINT (Ctrl-C)', delay_s=round(delay, 2), first_rc=rc,
+             first_traceback='Traceback' in text, first_line=last[:200], first_stop_ok=first_ok,
+             point=f'{time.perf_counter() - start:.1f} s: {where}', steps_before_rerun=before,
+             **kept, **judge(workdir, before, rerun, ref))
+  row['outcome'] = (f"exit {rc}, {'one line' if first_ok else 'NOT one clean line'}; then "
+                    + row['outcome'])
+  row['ok'] = first_ok and verdict(row)
+  shutil.rmtree(workdir, ignore_errors=True)
+  return row
+
+
+def _rows_twice(workdir: str) -> int:
+  """CSV rows that appear more than once in any CSV of the workdir (duplicate appends)."""
+  twice = 0
+  for folder, _, files in os.walk(workdir):
+    for name in files:
+      if name.endswith('.csv'):
+        with open(os.path.join(folder, name)) as f:
+          lines = f.read().splitlines()
+        twice += len(lines) - len(set(lines))
+  return twice
+
+
+def twin_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Random):
+  """The same command started again on the same workdir while the first runs."""
+  kind = ref['kind']
+  name = f'{kind}_twin_{index}'
+  workdir = os.path.join(runner.scratch, name)
+  shutil.rmtree(workdir, ignore_errors=True)
+  cmd = commands(kind, workdir, runner.scratch)
+  delay = rng.uniform(0.05, 0.6) * ref['duration']
+  start = time.perf_counter()
+  first = runner.start(cmd, name)
+  while first.poll() is None and time.perf_counter() < start + delay:
+    time.sleep(0.02)
+  running = first.poll() is None
+  second = runner.run(cmd, name + '_second')
+  try:
+    rc = first.wait(timeout=runner.timeout)
+  except subprocess.TimeoutExpired:
+    os.killpg(first.pid, signal.SIGKILL)
+    rc = first.wait()
+  with open(runner.log(name)) as f:
+    first_out = dict(rc=rc, seconds=round(time.perf_counter() - start, 1), **read_stderr(f.read()))
+  refused = (second['rc'] == 2 and len(second['errors']) == 1 and not second['traceback']
+             and f'pid {first.pid}' in second['errors'][0] and second['seconds'] < 30)
+  row = dict(kind=kind, fault='a second copy on the same workdir', delay_s=round(delay, 2),
+             point=f"{delay:.1f} s: {'first running' if running else 'first finished'}",
+             second_rc=second['rc'], second_s=second['seconds'], second_errors=second['errors'],
+             second_traceback=second['traceback'], rows_twice=_rows_twice(workdir),
+             **judge(workdir, [], first_out, ref))
+  row['outcome'] = (f"second: exit {second['rc']} in {second['seconds']} s"
+                    f"{', one line naming the pid' if refused else ''}; first: {row['outcome']}"
+                    f"{'' if not row['rows_twice'] else ', CSV rows twice'}")
+  row['ok'] = (refused or not running) and verdict(row) and not row['rows_twice']
+  shutil.rmtree(workdir, ignore_errors=True)
+  return row
+
+
+def crafted_chunk(module: str, name: str, opcode: str, command: str) -> bytes:
+  """A pickle that looks `module`/`name` up and calls it with `command` (what `pickle.dumps`
+  never writes, e.g. a dotted name through a module)."""
+  def text(s):
+    b = s.encode()
+    return b'\x8c' + bytes([len(b)]) + b  # SHORT_BINUNICODE.
+  if opcode == 'stack':  # Protocol 4: STACK_GLOBAL.
+    head = b'\x80\x04' + text(module) + text(name) + b'\x93'
+  else:  # Protocol 0's GLOBAL.
+    head = b'c' + module.encode() + b'\n' + name.encode() + b'\n'
+  return head + text(command) + b'\x85R.'  # TUPLE1, REDUCE, STOP.
+
+
+def pickle_trial(runner: Runner, index: int, python: str):
+  """A crafted chunk file through experiments.train: one line, exit 2, nothing run."""
+  module, name, opcode = PAYLOADS[index % len(PAYLOADS)]
+  folder = os.path.join(runner.scratch, f'pickle_{index}')
+  shutil.rmtree(folder, ignore_errors=True)
+  os.makedirs(folder)
+  marker, evil = os.path.join(folder, 'ran'), os.path.join(folder, 'chunk_0.pt')
+  call = f"touch {marker}" if name != 'eval' else f"open({marker!r}, 'w')"
+  with open(evil, 'wb') as f:
+    f.write(crafted_chunk(module, name, opcode, call))
+  workdir = os.path.join(folder, 'run')
+  cmd = [python, '-m', 'experiments.train', '--config=door_open.py:smoke',
+         '--config.data.source=tdmpc2', f'--config.data.path={evil}', f'--workdir={workdir}']
+  saved, runner.env = runner.env, pickle_environment(runner, python)
+  try:
+    got = runner.run(cmd, f'pickle_{index}')
+  finally:
+    runner.env = saved
+  line = got['errors'][0] if len(got['errors']) == 1 else ''
+  ran = os.path.exists(marker)
+  row = dict(kind='offline', fault=f'crafted chunk: {module}.{name} ({opcode})',
+             point='data loading', rc=got['rc'], traceback=got['traceback'], errors=got['errors'],
+             payload_ran=ran, torch_checked='refused to load' in line, identical=None,
+             max_abs_diff=None, final_hash=None, resumed_from=0,
+             one_line=len(got['errors']) == 1 and not got['traceback'])
+  row['outcome'] = (f"exit {got['rc']}, {'one line' if row['one_line'] else 'NOT one line'}, "
+                    f"payload {'RAN' if ran else 'not run'}: {line[:120]}")
+  row['ok'] = got['rc'] == 2 and row['one_line'] and not ran
+  shutil.rmtree(folder, ignore_errors=True)
+  return row
+
+
+def pickle_environment(runner: Runner, python: str) -> Dict[str, str]:
+  """The runner's environment, with this checkout and the project's own packages after
+  `python`'s when it is another interpreter (one that has torch)."""
+  if os.path.abspath(python) == os.path.abspath(sys.executable):  # A venv links the same binary.
+    return runner.env
+  import sysconfig  # pylint: disable=g-import-not-at-top
+  extra = [os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+           sysconfig.get_paths()['purelib']]
+  return dict(runner.env, PYTHONPATH=os.pathsep.join(extra))
