@@ -1,9 +1,11 @@
 """The faults of issue 102 in benchmarks.fault_injection: Ctrl-C (SIGINT to the process group, as a
-terminal sends it) at random moments, a second copy of the same command on the same workdir, and
-crafted TD-MPC2 chunk files whose unpickling would run a shell command.
+terminal sends it) at random moments, a second copy of the same command on the same workdir,
+crafted TD-MPC2 chunk files whose unpickling would run a shell command, and evaluate's and
+collect's result written onto a full disk.
 
-  python -m benchmarks.fault_injection --kills=0 --damages=0 --disk_full=0 --interrupts=10 \
-      --twins=4 --pickles=6 --pickle_python=PYTHON_WITH_TORCH --out=results/faults/faults_102.json
+  python -m benchmarks.fault_injection --kills=0 --damages=0 --disk_full=0 --interrupts=5 \
+      --twins=3 --pickles=6 --outputs_full=4 --pickle_python=PYTHON_WITH_TORCH \
+      --out=results/faults/faults_102.json
 
 - Interrupt: exit code 130, no traceback, the last line `interrupted: ...` (or the run had
   finished), then the same command resumes to the uninterrupted run's final TrainState.
@@ -13,6 +15,7 @@ crafted TD-MPC2 chunk files whose unpickling would run a shell command.
   one line and the payload's marker file does not exist. The chunk loader needs torch and
   tensordict: `--pickle_python` names an interpreter that has them (with this checkout on its
   path); with the project's own (no torch) the run stops at the missing extra, which the row says.
+- Output on a full disk (root: a tmpfs): exit 1 on one line naming the full disk, no file left.
 """
 
 import os
@@ -180,3 +183,38 @@ def pickle_environment(runner: Runner, python: str) -> Dict[str, str]:
   extra = [os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
            sysconfig.get_paths()['purelib']]
   return dict(runner.env, PYTHONPATH=os.pathsep.join(extra))
+
+
+def output_full_trial(runner: Runner, ref: Dict[str, Any], index: int):
+  """`evaluate --out` (even index; on the offline reference's workdir) or `collect --out` (odd)
+  onto a full tmpfs: exit 1 on one line naming the full disk, nothing left there but what filled
+  it."""
+  from benchmarks.fault_disk import mount_disk, top_up  # pylint: disable=g-import-not-at-top
+  mount = os.path.join(runner.scratch, f'output_full_{index}')
+  subprocess.run(['umount', mount], capture_output=True, check=False)
+  mount_disk(mount, 256)
+  try:
+    ballast = os.path.join(mount, 'ballast')
+    top_up(ballast, 0)
+    if index % 2 == 0:
+      what, out = 'evaluate', os.path.join(mount, 'evaluation.json')
+      cmd = [sys.executable, '-m', 'experiments.evaluate', f"--workdir={ref['workdir']}",
+             '--modes=plan', '--splits=held_out', '--episodes=1', f'--out={out}']
+    else:
+      what, out = 'collect', os.path.join(mount, 'data.npz')
+      cmd = [sys.executable, '-m', 'experiments.collect', '--task=door-open-v3', '--episodes=2',
+             f'--out={out}']
+    got = runner.run(cmd, f'output_full_{index}')
+    left = sorted(set(os.listdir(mount)) - {'ballast'})
+  finally:
+    subprocess.run(['umount', mount], capture_output=True, check=False)
+  line = got['errors'][0] if len(got['errors']) == 1 else ''
+  one_line = bool(line) and not got['traceback']
+  row = dict(kind='offline', fault=f'{what} --out on a full disk', point='writing the result',
+             rc=got['rc'], traceback=got['traceback'], errors=got['errors'], left=left,
+             one_line=one_line, identical=None, max_abs_diff=None, final_hash=None,
+             resumed_from=0)
+  row['outcome'] = (f"exit {got['rc']}, {'one line' if one_line else 'NOT one line'}"
+                    f"{', left ' + ', '.join(left) if left else ', nothing left'}: {line[:120]}")
+  row['ok'] = got['rc'] == 1 and one_line and 'space' in line and not left
+  return row

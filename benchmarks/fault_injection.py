@@ -483,7 +483,8 @@ def group_of(row: Dict[str, Any]) -> str:
   """'kill', 'disk full' (a small disk), 'disk filled' (by another file) or 'damage'."""
   if 'SIGKILL' in row['fault']:
     return 'kill'
-  for word, group in (('SIGINT', 'interrupt'), ('second copy', 'twin'), ('crafted', 'pickle')):
+  for word, group in (('SIGINT', 'interrupt'), ('second copy', 'twin'), ('crafted', 'pickle'),
+                      ('--out on a full disk', 'output disk full')):
     if word in row['fault']:
       return group
   if 'disk_kib' in row:
@@ -553,6 +554,8 @@ def parse(argv: Optional[List[str]] = None) -> argparse.Namespace:
   p.add_argument('--interrupts', type=int, default=0, help='SIGINTs (Ctrl-C) per kind of run')
   p.add_argument('--twins', type=int, default=0, help='second copies on one workdir, per kind')
   p.add_argument('--pickles', type=int, default=0, help='crafted TD-MPC2 chunk files')
+  p.add_argument('--outputs_full', type=int, default=0, help='evaluate/collect --out onto a full '
+                 'tmpfs, alternating (needs root and the offline kind)')
   p.add_argument('--pickle_python', default=sys.executable, help='an interpreter with torch and '
                  'tensordict for --pickles (this checkout and its packages go on its path)')
   p.add_argument('--kinds', default='offline,online')
@@ -593,12 +596,13 @@ def main(argv: Optional[List[str]] = None) -> List[Dict[str, Any]]:
   plan += [(what, k, i) for what, n in (('interrupt', args.interrupts), ('twin', args.twins))
            for k in kinds for i in range(n)]
   plan += [('pickle', 'offline', i) for i in range(args.pickles)]
+  plan += [('output', 'offline', i) for i in range(args.outputs_full)]
   rows = []
   for what, kind, i in plan:
     if time.time() - start > 60 * args.max_minutes:
       header['stopped_early'] = f'--max_minutes={args.max_minutes} reached; {len(rows)} trials run'
       break
-    if what in ('interrupt', 'twin', 'pickle'):
+    if what in ('interrupt', 'twin', 'pickle', 'output'):
       trial = _case(what, runner, refs[kind], i, rng, args.pickle_python)
     elif what == 'kill':
       trial = kill_trial(runner, refs[kind], i, rng)
@@ -625,6 +629,8 @@ def _case(what: str, runner: Runner, ref: Dict[str, Any], index: int, rng: rando
   from benchmarks import fault_cases  # pylint: disable=g-import-not-at-top (it imports this one)
   if what == 'pickle':
     return fault_cases.pickle_trial(runner, index, python)
+  if what == 'output':
+    return fault_cases.output_full_trial(runner, ref, index)
   trial = fault_cases.interrupt_trial if what == 'interrupt' else fault_cases.twin_trial
   return trial(runner, ref, index, rng)
 
