@@ -137,7 +137,8 @@ class BatchAgentPolicy:
   """
 
   def __init__(self, config: ml_collections.ConfigDict, params, mode: str = 'plan',
-               seed: int = 0, chunk: Optional[int] = None, mesh: Optional[Mesh] = None):
+               seed: int = 0, chunk: Optional[int] = None, mesh: Optional[Mesh] = None,
+               action_noise: float = 0.0, intrinsic=None):
     self.seed, self.mesh = seed, mesh
     self.set_params(params)
     if mesh is not None:
@@ -155,7 +156,7 @@ class BatchAgentPolicy:
     self.act = _BATCH_ACTS[key]
     self.keys = self.prev = None
     # The executed action's noise std and the planner's objective.Intrinsic (acting only).
-    self.action_noise, self.intrinsic = 0.0, None
+    self.action_noise, self.intrinsic = action_noise, intrinsic
     self.last_info = None  # [N, 6] float32 of the last decision (NO_PLAN_INFO's fields).
 
   def set_params(self, params) -> None:

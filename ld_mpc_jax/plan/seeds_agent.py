@@ -39,7 +39,7 @@ class SeedsAgentPolicy:
   tolerance: the vmapped plan may round differently)."""
 
   def __init__(self, config: ml_collections.ConfigDict, params, mode: str, seeds: Sequence[int],
-               groups: Optional[SeedGroups] = None):
+               groups: Optional[SeedGroups] = None, action_noise: float = 0.0, intrinsic=None):
     """params: the agents' parameters stacked [S, ...], or one stack per group of `groups`."""
     self.seeds = list(seeds)
     self.groups = groups or SeedGroups(len(self.seeds))
@@ -52,7 +52,7 @@ class SeedsAgentPolicy:
       _SEEDS_ACTS[key] = make_seeds_act(config, mode)
     self.act = _SEEDS_ACTS[key]
     self.keys = self.prev = None
-    self.action_noise, self.intrinsic = 0.0, None  # As agent.BatchAgentPolicy's.
+    self.action_noise, self.intrinsic = action_noise, intrinsic  # As agent.BatchAgentPolicy's.
     self.last_info = None  # [S, N, 6] float32 of the last decision.
 
   def set_params(self, params) -> None:

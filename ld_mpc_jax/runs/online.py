@@ -53,7 +53,7 @@ from ld_mpc_jax.ops.seed_groups import SeedGroups
 
 from ld_mpc_jax.data.demos import demo_share, sparse_dataset
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
-from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy
+from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy, WaveSchedule
 
 
 
@@ -140,7 +140,7 @@ class OnlineJob:
     # Each seed's update key at an update count: one jitted call, not one per seed.
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.act_config = acting_config(config)
-    self.metrics, self.last, self.noise_std, self.intrinsic = [], None, 0.0, None
+    self.metrics, self.last = [], None  # `last`: (mode, seconds, WaveRecords) of the last wave.
     self.runs = SeatRuns(self.seats)
     self.bar = progress_bar(o.env_steps, self.counters['env_steps'], 'online', unit='env step')
 
@@ -244,12 +244,13 @@ class OnlineJob:
   def advance(self) -> None:
     """One wave: its episodes into the buffers, its acting and update time into the counters."""
     start = time.perf_counter()
-    mode = self.wave()
-    for seat in self.seats:
-      seat.buffer.add(seat.episodes)
+    schedule = self.schedule()
+    records = self.wave(schedule)
+    for seat, record in zip(self.seats, records):
+      seat.buffer.add(record.episodes)
     seconds = time.perf_counter() - start
     self.counters['train_seconds'] += seconds
-    self.last = (mode, seconds)
+    self.last = (schedule.mode, seconds, records)
 
   def acting_mode(self) -> str:
     """Who acts in the next wave: 'random' (seed waves from scratch), 'actor' (seed waves with
@@ -262,19 +263,23 @@ class OnlineJob:
       return 'actor'
     return o.act_mode
 
-  def wave(self) -> str:
-    """One episode per environment of every seed, in lockstep, by the `acting_mode`; each
-    seat's `episodes` are dicts of obs [L+1, obs_dim], action [L, A], reward [L], success [L].
-    Returns the acting mode."""
+  def schedule(self) -> WaveSchedule:
+    """What the next wave acts with: who acts, the executed noise and the planner's intrinsic
+    term at the environment steps so far."""
+    steps = self.counters['env_steps']
+    return WaveSchedule(self.acting_mode(),
+                        executed_noise(self.config, steps, self.learn_start),
+                        acting_intrinsic(self.config, steps, self.plan_start))
+
+  def wave(self, schedule: WaveSchedule) -> list:
+    """One episode per environment of every seed, in lockstep, as `schedule` says; returns each
+    seat's `WaveRecord`."""
     o, first = self.config.online, self.counters['episodes']
-    mode = self.acting_mode()
-    planner = mode != 'random'
-    self.noise_std = executed_noise(self.config, self.counters['env_steps'], self.learn_start)
-    self.intrinsic = acting_intrinsic(self.config, self.counters['env_steps'], self.plan_start)
+    planner = schedule.mode != 'random'
     if planner:
       self.catch_up()
-    acting = [SeatWave(self, seat, first) for seat in self.seats]
-    policy = WavePolicy(self, mode, acting) if planner else None
+    acting = [SeatWave(self, seat, first, schedule) for seat in self.seats]
+    policy = WavePolicy(self, schedule, acting) if planner else None
     t, none = 0, [None] * len(acting)
     while acting[0].active.any():  # The seeds' episodes have the same lengths.
       actions, infos = (policy([w.obs for w in acting], t, acting[0].active) if planner
@@ -289,9 +294,7 @@ class OnlineJob:
         self.catch_up()
         policy.refresh()
     self.counters['episodes'] += o.num_envs
-    for w in acting:
-      w.seat.episodes = w.finish()
-    return mode
+    return [w.finish() for w in acting]
 
   def checkpoint(self) -> None:
     """Each seed's buffer file, then its orbax step (environment steps); older buffer files
@@ -312,11 +315,11 @@ class OnlineJob:
     return self.views()
 
   def log(self, before: int) -> None:
-    mode, seconds = self.last
-    for seat in self.seats:
-      seat.log(self, before, mode, seconds)
+    mode, seconds, records = self.last
+    for seat, record in zip(self.seats, records):
+      seat.log(self, before, record, mode, seconds)
     self.bar.set_postfix(updates=self.counters['updates'], success=np.mean(
-        [e['success'].any() for seat in self.seats for e in seat.episodes]))
+        [e['success'].any() for record in records for e in record.episodes]))
 
 
 def train_online(config: ml_collections.ConfigDict, workdir: str,

@@ -1,9 +1,12 @@
 """The training seeds of an online run (ld_mpc_jax.runs.online, `train.num_seeds`): each seed's
-config, run directory, buffer and environments (`Seat`), and its episodes of a wave while they
-run (`SeatWave`). The seeds' parameters live stacked in the job's TrainState."""
+config, run directory, buffer and environments (`Seat`), its episodes of a wave while they run
+(`SeatWave`) and what the wave left (`WaveRecord`). What a wave acts with is fixed at its start
+(`WaveSchedule`) and passed in: nothing of the job, a seat or a policy is set during a wave. The
+seeds' parameters live stacked in the job's TrainState."""
 
+import dataclasses
 import os
-from typing import Optional
+from typing import Any, List, Optional
 
 import jax
 import numpy as np
@@ -24,6 +27,27 @@ from ld_mpc_jax.envs import goals
 from ld_mpc_jax.model.search import CANDIDATES
 
 
+@dataclasses.dataclass(frozen=True)
+class WaveSchedule:
+  """What a wave acts with, fixed at its start from the environment steps so far."""
+  mode: str  # 'random' (seed waves), 'actor' or 'plan' (OnlineJob.acting_mode).
+  noise_std: float  # Std of the noise on the executed action (exploration.executed_noise).
+  intrinsic: Any = None  # The planner's intrinsic term's weights (exploration.acting_intrinsic).
+
+
+@dataclasses.dataclass(frozen=True)
+class WaveRecord:
+  """One seed's wave once it ended: its episodes (dicts of obs [L+1, obs_dim], action [L, A],
+  reward [L], success [L]), which kind of candidate won each planned decision (counts per
+  CANDIDATES kind, the last entry counting departures from the actor prior), the first-action
+  spreads [D, 2] of the planned decisions (agent.NO_PLAN_INFO), and the largest dense step
+  reward."""
+  episodes: List[dict]
+  winners: np.ndarray
+  spreads: np.ndarray
+  dense_max: float
+
+
 class Seat:
   """One training seed of an online run: its config, run directory, buffer, environments and
   what its last wave did; the parameters live in the job's stacked TrainState."""
@@ -39,33 +63,30 @@ class Seat:
                                random_goals=o.train_goals == 'random')
                  for _ in range(o.num_envs)]
     self.update_key = jax.random.key(config.seed + 1)
-    self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
-    self.spreads = []  # Each planned decision's first-action spreads [2] (agent.NO_PLAN_INFO).
-    self.dense_max, self.episodes, self.policy = 0.0, [], None
 
   def ema_params(self, job):
     return job.views()[self.index]
 
-  def log(self, job, before: int, mode: str, seconds: float) -> None:
+  def log(self, job, before: int, wave: WaveRecord, mode: str, seconds: float) -> None:
     """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
     metrics = {k: float(v[self.index]) for k, v in sorted(job.seed_metrics().items())}
-    step, episodes, c = job.counters['env_steps'], self.episodes, job.counters
+    step, episodes, c = job.counters['env_steps'], wave.episodes, job.counters
     if metrics:
       self.run.check_loss(metrics['loss'], f'environment step {step}')
     # Shares of planned decisions: NaN where nothing was planned (random waves, the actor acting).
-    decisions = int(self.winners[:-1].sum()) or float('nan')
+    decisions = int(wave.winners[:-1].sum()) or float('nan')
     row = dict(env_steps=step, episodes=c['episodes'], updates=c['updates'],
                acting={'plan': 'planner', 'actor': 'actor', 'random': 'random'}[mode],
                episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
                episode_success=float(np.mean([e['success'].any() for e in episodes])),
-               max_step_reward=self.dense_max,  # Dense reward, also under a sparse one.
-               **{f'won_{k}': float(self.winners[j] / decisions)
+               max_step_reward=wave.dense_max,  # Dense reward, also under a sparse one.
+               **{f'won_{k}': float(wave.winners[j] / decisions)
                   for j, k in enumerate(CANDIDATES.names())},
-               departed=float(self.winners[-1] / decisions),
+               departed=float(wave.winners[-1] / decisions),
                exec_noise=executed_noise(self.config, before, job.learn_start)
                if mode != 'random' else float('nan'),
                env_steps_per_s=(step - before) / seconds,
-               **self._acting_columns(job, before, mode))
+               **self._acting_columns(job, before, wave, mode))
     run_files.append_csv(os.path.join(self.run.workdir, ONLINE_CSV), row)
     if metrics:  # Losses of the wave's last update, from the first update on.
       run_files.append_csv(os.path.join(self.run.workdir, LOSSES_CSV),
@@ -74,16 +95,16 @@ class Seat:
       if k != 'acting' and np.isfinite(v):  # NaN marks "not measured" in the CSV only.
         self.run.writer.add_scalar(f'online/{k}', v, step)
 
-  def _acting_columns(self, job, before: int, mode: str) -> dict:
+  def _acting_columns(self, job, before: int, wave: WaveRecord, mode: str) -> dict:
     """The wave's planned decisions, the mean spread of their candidates' first actions (of
     the first round's, and of the proposal's alone) and the intrinsic term's scheduled weights;
     NaN where nothing was planned. (Last in the row: a run resumed from code without them keeps
     its earlier columns in place.)"""
-    spreads = np.asarray(self.spreads, np.float64).reshape(-1, 2)
+    spreads = np.asarray(wave.spreads, np.float64).reshape(-1, 2)
     mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
     pessimism, disagreement = (acting_exploration(self.config, before, job.plan_start)
                                if mode == 'plan' else (float('nan'),) * 2)
-    out = dict(planned=int(self.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
+    out = dict(planned=int(wave.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
                spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
                act_disagreement=disagreement)
     if novelty.enabled(self.config):  # Only runs with the exploration value have the column.
@@ -109,23 +130,24 @@ class WavePolicy:
   act in one call per environment and device, vmapped over the device's seeds
   (`SeedsAgentPolicy`)."""
 
-  def __init__(self, job, mode: str, waves):
+  def __init__(self, job, schedule: WaveSchedule, waves):
     o, self.job = job.config.online, job
     self.single = len(job.seats) == 1
+    # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
+    knobs = dict(action_noise=0.0 if o.exec_noise_corr > 0 else schedule.noise_std,
+                 intrinsic=schedule.intrinsic)  # The planner's intrinsic term's weights.
     if self.single:
       mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
               if job.act_config.eval.data_parallel else None)
-      self.inner = BatchAgentPolicy(job.act_config, job.views()[0], mode,
+      self.inner = BatchAgentPolicy(job.act_config, job.views()[0], schedule.mode,
                                     seed=job.seats[0].config.seed, chunk=o.plan_chunk,
-                                    mesh=mesh)
+                                    mesh=mesh, **knobs)
       self.inner.start(waves[0].episodes)
     else:
-      self.inner = SeedsAgentPolicy(job.act_config, job.group_ema_params(), mode,
-                                    [seat.config.seed for seat in job.seats], job.groups)
+      self.inner = SeedsAgentPolicy(job.act_config, job.group_ema_params(), schedule.mode,
+                                    [seat.config.seed for seat in job.seats], job.groups,
+                                    **knobs)
       self.inner.start([w.episodes for w in waves])
-    # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
-    self.inner.action_noise = 0.0 if o.exec_noise_corr > 0 else job.noise_std
-    self.inner.intrinsic = job.intrinsic  # The planner's intrinsic term, this wave's weights.
 
   def __call__(self, obs, t: int, active: np.ndarray):
     """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 6] or None)."""
@@ -144,9 +166,9 @@ class SeatWave:
   """One seed's episodes of a wave while they run: its environments, observations, policy,
   noise and what each episode recorded."""
 
-  def __init__(self, job, seat: Seat, first: int):
+  def __init__(self, job, seat: Seat, first: int, schedule: WaveSchedule):
     n, seed = len(seat.envs), seat.config.seed
-    self.job, self.seat = job, seat
+    self.job, self.seat, self.schedule = job, seat, schedule
     seeds = envs.episode_seeds(seed, first + n, 'online')[first:]
     self.episodes = [goals.Episode('online', first + i, 0, int(s), '', None)
                      for i, s in enumerate(seeds)]
@@ -157,8 +179,8 @@ class SeatWave:
     self.active = np.ones(n, bool)
     self.noise = np.zeros((n, job.config.action_dim))
     self.noise_rng = np.random.default_rng([seed, first, 29])
-    seat.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
-    seat.spreads, seat.dense_max = [], 0.0
+    self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
+    self.spreads, self.dense_max = [], 0.0  # Each planned decision's first-action spreads [2].
 
   def upcoming(self) -> int:
     """Environment steps the next `step` will take, summed over the active environments (0 when
@@ -176,7 +198,7 @@ class SeatWave:
     if actions is not None:
       self._count_winners(infos)
       if o.exec_noise_corr > 0:
-        self.noise = ar1_noise(self.noise, self.job.noise_std, o.exec_noise_corr,
+        self.noise = ar1_noise(self.noise, self.schedule.noise_std, o.exec_noise_corr,
                                self.noise_rng)
         actions = np.clip(actions + self.noise, -1.0, 1.0).astype(np.float32)
     else:
@@ -184,7 +206,7 @@ class SeatWave:
     substeps = 0
     for i in np.flatnonzero(self.active):
       self.obs[i], reward, terminated, truncated, info = seat.envs[i].step(actions[i])
-      seat.dense_max = max(seat.dense_max, float(reward))
+      self.dense_max = max(self.dense_max, float(reward))
       if o.reward == 'sparse':  # Success only: the case the idea was made for.
         reward = float(info['success'])
       for name, value in (('obs', self.obs[i]), ('action', actions[i]), ('reward', reward),
@@ -201,12 +223,14 @@ class SeatWave:
       return
     for info_i in infos[self.active]:
       if info_i[0] >= 0:
-        self.seat.winners[int(info_i[0])] += 1
-        self.seat.spreads.append(info_i[4:6])
-      self.seat.winners[-1] += int(info_i[2])
+        self.winners[int(info_i[0])] += 1
+        self.spreads.append(info_i[4:6])
+      self.winners[-1] += int(info_i[2])
 
-  def finish(self):
-    return [dict(obs=np.asarray(e['obs'], np.float32),
-                 action=np.asarray(e['action'], np.float32),
-                 reward=np.asarray(e['reward'], np.float32),
-                 success=np.asarray(e['success'], bool)) for e in self.eps]
+  def finish(self) -> WaveRecord:
+    episodes = [dict(obs=np.asarray(e['obs'], np.float32),
+                     action=np.asarray(e['action'], np.float32),
+                     reward=np.asarray(e['reward'], np.float32),
+                     success=np.asarray(e['success'], bool)) for e in self.eps]
+    return WaveRecord(episodes, self.winners.copy(),
+                      np.asarray(self.spreads, np.float64).reshape(-1, 2), self.dense_max)
