@@ -44,6 +44,10 @@ _FAST_WARM = {**_DDIM_4X1, 'plan.num_prior_candidates': 16, 'plan.warm_start_ste
               'plan.warm_start_t': 0.5}
 _SAFE = {'plan.safe_selection': True, 'plan.safe_margin': 2.0,
          'plan.safe_margin_scaling': 'expected_max'}
+# Planning in observation space (D-MPC style, issue 105): the latent is the standardised
+# observation (model.encoder_type='identity'), the networks' widths unchanged.
+_OBS_SPACE = {'model.encoder_type': 'identity', 'model.latent_dim': lambda c: c.obs_dim,
+              'model.normalize_dynamics': False}
 _CHEAP_OBJECTIVE = {'model.objective_blocks': lambda c: max(1, c.model.objective_blocks // 5)}
 VARIANTS = {
     'reference': {},
@@ -66,6 +70,8 @@ VARIANTS = {
     'fast_warm_confirm': {**_FAST_WARM, **_SAFE, 'plan.safe_confirm': True},
     'fast_warm_confirm8': {**_FAST_WARM, **_SAFE, 'plan.safe_confirm': True,
                            'plan.confirm_draws': 8},
+    'obs_space': _OBS_SPACE,  # `reference` and `fast_warm` planning in observation space.
+    'fast_warm_obs_space': {**_FAST_WARM, **_OBS_SPACE},
     'mppi': None,  # The baseline; runs once, independent of the width.
 }
 WIDTHS = {'ref': None, 'cpu': 'cpu'}  # width name -> preset of the config file.

@@ -56,6 +56,11 @@ def get_config() -> ml_collections.ConfigDict:
   # RMS-normalise the dynamics model's samples like the encoder's output, so that the objective
   # scores latents on the manifold it was trained on (TD-MPC2 normalises both with SimNorm).
   m.normalize_dynamics = True
+  # 'mlp': the learned encoder above. 'identity': z is the standardised observation itself
+  # (latent_dim = obs_dim, no encoder parameters): the dynamics predict the next observation and
+  # the planner searches in observation space, as D-MPC does (issue 105's comparison); set
+  # normalize_dynamics=False with it (an observation is not on the encoder's sphere).
+  m.encoder_type = 'mlp'
   m.num_bins = 101  # Two-hot bins over symlog values on [vmin, vmax], as TD-MPC2.
   m.vmin = -10.0
   m.vmax = 10.0

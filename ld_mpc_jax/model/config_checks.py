@@ -26,6 +26,27 @@ ACT_MODES = ('plan', 'actor')
 TRAIN_GOALS = ('mt1', 'random')
 
 
+def _validate_encoder(config) -> None:
+  """`model.encoder_type`: 'mlp', or 'identity' (planning in observation space) with
+  latent_dim = obs_dim, standardised observations, no sphere for the dynamics, one task."""
+  m = config.model
+  kind = m.get('encoder_type', 'mlp')
+  if kind not in ('mlp', 'identity'):
+    raise ValueError(f"config.model.encoder_type must be 'mlp' or 'identity', got {kind!r}")
+  if kind != 'identity':
+    return
+  if m.latent_dim != config.obs_dim:
+    raise ValueError(f'config.model.encoder_type=identity: the latent is the observation, so '
+                     f'config.model.latent_dim must be config.obs_dim ({config.obs_dim}), got '
+                     f'{m.latent_dim}')
+  if not m.normalize_obs or m.normalize_dynamics:
+    raise ValueError('config.model.encoder_type=identity needs config.model.normalize_obs=True '
+                     'and config.model.normalize_dynamics=False (a standardised observation is '
+                     "not on the learned encoder's sphere)")
+  if config.get('tasks'):
+    raise ValueError('config.model.encoder_type=identity is for one task (config.tasks is set)')
+
+
 def _get(config, dotted: str):
   node = config
   for part in dotted.split('.'):
@@ -73,6 +94,7 @@ def _validate_sections(config: ml_collections.ConfigDict) -> None:
                      f'{m.num_bins}, [{m.vmin}, {m.vmax}]')
   if not 0.0 <= m.dropout < 1.0:
     raise ValueError(f'config.model.dropout must be in [0, 1), got {m.dropout}')
+  _validate_encoder(config)
   if not 0.0 < config.gamma <= 1.0:
     raise ValueError(f'config.gamma must be in (0, 1], got {config.gamma}')
   if config.diffusion.prediction not in ('x0', 'eps'):

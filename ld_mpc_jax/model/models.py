@@ -51,6 +51,32 @@ class Encoder(nn.Module):
     return rms_normalize(MLP((self.hidden, self.latent_dim), name='mlp')(obs))
 
 
+class IdentityEncoder(nn.Module):
+  """z = o (`model.encoder_type='identity'`): with `normalize_obs`, the observation standardised
+  by the data's statistics as `Encoder` does (the same `obs_mean`/`obs_std` parameters), and
+  nothing learned. The latent is then the observation, so the dynamics model predicts the next
+  one and the planner searches in observation space (D-MPC's setting)."""
+  normalize_obs: bool = False
+
+  @nn.compact
+  def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
+    if self.normalize_obs:
+      mean = self.param('obs_mean', nn.initializers.zeros, (obs.shape[-1],))
+      std = self.param('obs_std', nn.initializers.ones, (obs.shape[-1],))
+      obs = (obs - jax.lax.stop_gradient(mean)) / jax.lax.stop_gradient(std)
+    return obs
+
+
+ENCODER_TYPES = ('mlp', 'identity')
+
+
+def build_encoder(m: ml_collections.ConfigDict) -> nn.Module:
+  """The encoder `model.encoder_type` names ('mlp' for a config saved before the field)."""
+  if m.get('encoder_type', 'mlp') == 'identity':
+    return IdentityEncoder(m.normalize_obs)
+  return Encoder(m.encoder_hidden, m.latent_dim, m.normalize_obs)
+
+
 # Smallest per-feature standard deviation used for normalisation: features that are constant in
 # the data (unused object slots) are then only centred, unless they are masked (below).
 OBS_STD_FLOOR = 1e-2
@@ -144,7 +170,7 @@ def build_networks(config: ml_collections.ConfigDict) -> Networks:
   m = config.model
   common = dict(width=m.width, num_heads=m.num_heads, mlp_ratio=m.mlp_ratio, dropout=m.dropout)
   return Networks(
-      encoder=Encoder(m.encoder_hidden, m.latent_dim, m.normalize_obs),
+      encoder=build_encoder(m),
       proposal=proposals.get(config).build(config),
       dynamics=dynamics.get(config).build(config),
       objective=SequenceObjective(num_blocks=m.objective_blocks, num_bins=m.num_bins, **common),
@@ -211,11 +237,15 @@ def encode(params: dict, obs: jnp.ndarray) -> jnp.ndarray:
 
   The encoder's sizes are read off its parameters, so no config is needed.
   """
-  obs_dim = params['encoder']['mlp']['dense_0']['kernel'].shape[0]
+  enc = params['encoder']
+  identity = 'mlp' not in enc  # model.encoder_type='identity': the standardised observation.
+  obs_dim = (enc['obs_mean'] if identity else enc['mlp']['dense_0']['kernel']).shape[0]
   obs = jnp.asarray(obs, jnp.float32)
   if obs.ndim == 0 or obs.shape[-1] != obs_dim:
     raise ValueError(f'encode expects observations of shape [..., {obs_dim}], got {obs.shape}')
-  return _apply_encoder(params['encoder'], obs)
+  if identity:
+    return IdentityEncoder(normalize_obs=True).apply({'params': enc}, obs)
+  return _apply_encoder(enc, obs)
 
 
 @jax.jit

@@ -51,7 +51,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 5
+CONFIG_VERSION = 6
 
 
 def _online_fields(config: ml_collections.ConfigDict) -> dict:
@@ -121,8 +121,18 @@ def to_v5(config: ml_collections.ConfigDict) -> None:
     fill(config, section, fields)
 
 
+# Field added in version 6, with the value that changes nothing: the learned MLP encoder.
+V6_FIELDS = {'model': dict(encoder_type='mlp')}
+
+
+def to_v6(config: ml_collections.ConfigDict) -> None:
+  """Version 5 -> 6 (in place): `model.encoder_type`, 'mlp'."""
+  for section, fields in V6_FIELDS.items():
+    fill(config, section, fields)
+
+
 # version -> the step that brings a config of version - 1 to it.
-STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5}
+STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6}
 
 
 def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
