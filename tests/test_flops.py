@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import pytest
 
+from ld_mpc_jax.model import tdmpc2_world
 from ld_mpc_jax.plan import mppi
 from benchmarks import flops
 from ld_mpc_jax.nets import TransformerBlock
@@ -77,9 +78,9 @@ def test_plan_hand_count_matches_corrected_xla(small_config):
 @pytest.mark.long
 def test_mppi_hand_count_matches_corrected_xla():
   # Width 128: LayerNorm, Mish and SimNorm (not in the hand count) stay below 10%.
-  model_cfg = mppi.TDMPC2Config(latent_dim=128, enc_dim=32, mlp_dim=128, num_q=3, num_bins=11)
+  model_cfg = tdmpc2_world.TDMPC2Config(latent_dim=128, enc_dim=32, mlp_dim=128, num_q=3, num_bins=11)
   mppi_cfg = mppi.MPPIConfig(num_samples=32, num_elites=4, num_prior=4, iterations=3)
-  params = mppi.init_tdmpc2_params(model_cfg, jax.random.key(0))
+  params = tdmpc2_world.init_tdmpc2_params(model_cfg, jax.random.key(0))
   plan = mppi.make_tdmpc2_mppi(mppi_cfg, model_cfg)
   args = (params, jnp.zeros((128,)), jax.random.key(1))
   xla = flops.xla_mppi_flops(plan, args, mppi.make_tdmpc2_value_fn(model_cfg), params, mppi_cfg)

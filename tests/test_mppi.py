@@ -6,18 +6,19 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from ld_mpc_jax.model import tdmpc2_world
 from ld_mpc_jax.plan import mppi
 from ld_mpc_jax.model.models import count_params
 
-TINY_MODEL = mppi.TDMPC2Config(latent_dim=16, enc_dim=16, mlp_dim=16, num_q=3, num_bins=11)
+TINY_MODEL = tdmpc2_world.TDMPC2Config(latent_dim=16, enc_dim=16, mlp_dim=16, num_q=3, num_bins=11)
 TINY_MPPI = mppi.MPPIConfig(num_samples=32, num_elites=8, num_prior=4, iterations=2)
 
 
 @pytest.fixture(scope='module')
 def tiny():
-  params = mppi.init_tdmpc2_params(TINY_MODEL, jax.random.key(0))
-  z = mppi.TDMPC2Model(TINY_MODEL).apply({'params': params}, jnp.linspace(-1, 1, 39),
-                                          method=mppi.TDMPC2Model.encode)
+  params = tdmpc2_world.init_tdmpc2_params(TINY_MODEL, jax.random.key(0))
+  z = tdmpc2_world.TDMPC2Model(TINY_MODEL).apply({'params': params}, jnp.linspace(-1, 1, 39),
+                                          method=tdmpc2_world.TDMPC2Model.encode)
   return params, z
 
 
@@ -97,12 +98,12 @@ def _tdmpc2_size(c):
           + c.num_q * _mlp_size(za, hidden + (c.num_bins,)))
 
 
-@pytest.mark.parametrize('cfg', [mppi.TDMPC2Config(), TINY_MODEL], ids=['default', 'tiny'])
+@pytest.mark.parametrize('cfg', [tdmpc2_world.TDMPC2Config(), TINY_MODEL], ids=['default', 'tiny'])
 def test_tdmpc2_model_size(cfg):
   """The parameters are the layers the widths call for; the default is TD-MPC2's "5M"."""
-  params = jax.eval_shape(lambda k: mppi.init_tdmpc2_params(cfg, k), jax.random.key(0))
+  params = jax.eval_shape(lambda k: tdmpc2_world.init_tdmpc2_params(cfg, k), jax.random.key(0))
   assert count_params(params) == _tdmpc2_size(cfg)
-  if cfg == mppi.TDMPC2Config():
+  if cfg == tdmpc2_world.TDMPC2Config():
     assert 4.5e6 < count_params(params) < 5.5e6
 
 

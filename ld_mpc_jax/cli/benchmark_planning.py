@@ -153,13 +153,15 @@ def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warm
 
 
 def run_mppi(repeats: int, warmup: int) -> dict:
+  from ld_mpc_jax.model import tdmpc2_world
   from ld_mpc_jax.plan import mppi
   from benchmarks import flops
   from ld_mpc_jax.model.models import count_params
-  mppi_cfg, model_cfg = mppi.MPPIConfig(), mppi.TDMPC2Config()
-  params = mppi.init_tdmpc2_params(model_cfg, jax.random.key(0))
+  mppi_cfg, model_cfg = mppi.MPPIConfig(), tdmpc2_world.TDMPC2Config()
+  params = tdmpc2_world.init_tdmpc2_params(model_cfg, jax.random.key(0))
   obs = np.linspace(-1.0, 1.0, model_cfg.obs_dim, dtype=np.float32)
-  z = mppi.TDMPC2Model(model_cfg).apply({'params': params}, obs, method=mppi.TDMPC2Model.encode)
+  z = tdmpc2_world.TDMPC2Model(model_cfg).apply({'params': params}, obs,
+                                                 method=tdmpc2_world.TDMPC2Model.encode)
   plan = mppi.make_tdmpc2_mppi(mppi_cfg, model_cfg)
   keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
   carry = jnp.zeros((mppi_cfg.horizon, mppi_cfg.action_dim))
