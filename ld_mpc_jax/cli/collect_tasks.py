@@ -42,7 +42,8 @@ def main(argv):
     rows[name] = dict(**collection.summary(ds),
                       success_per_level=collection.success_per_level(ds),
                       collection_seconds=ds.metadata.get('collection_seconds'))
-    levels = ', '.join(f'{v:.2f}' for v in rows[name]['success_per_level'].values())
+    levels = ', '.join('-' if v is None else f'{v:.2f}'  # '-': no episode at that level.
+                       for v in rows[name]['success_per_level'].values())
     print(f"{name}: {ds.num_episodes} episodes, {ds.num_transitions} transitions, success "
           f"{rows[name]['success_rate']:.3f} (per level: {levels}), mean return "
           f"{rows[name]['mean_return']:.1f}", flush=True)

@@ -52,6 +52,17 @@ def check_new_output(path: str, overwrite: bool, flag: str = '--out') -> None:
     raise ValueError(f'{path} cannot be written ({err}); choose another {flag}') from None
 
 
+def check_workdir(path: str, flag: str = '--workdir') -> None:
+  """ValueError when `path` cannot be a run directory: a file, or under one. Before any work."""
+  if os.path.exists(path) and not os.path.isdir(path):
+    raise ValueError(f'{flag}={path} is a file, not a run directory; choose another {flag}')
+  where = os.path.dirname(os.path.abspath(path))
+  while not os.path.exists(where):
+    where = os.path.dirname(where)
+  if not os.path.isdir(where):
+    raise ValueError(f'{flag}={path} cannot be a run directory: {where} is a file')
+
+
 def config_file_error(flag: str, spec: str, err: OSError) -> str:
   """One line for a config file that did not load (`flag`=`spec`): the file not found, with the
   shipped config files that take a :preset, or the error inside it."""
@@ -92,8 +103,23 @@ def parse_flags(argv):
     while cause.__cause__ or cause.__context__:
       cause = cause.__cause__ or cause.__context__
     name = re.match(r'flag (--[\w.-]+)', str(err))
-    message = f'{name.group(1)}: {cause}' if name and cause is not err else str(err)
+    message = f'{name.group(1)}: {_plain(cause)}' if name and cause is not err else str(err)
     fail(' '.join(message.split()))  # One line.
+
+
+def _plain(cause: BaseException) -> str:
+  """A value error of a `--config.x=v` override in plain words, not Python's."""
+  text = str(cause)
+  found = re.match(r"invalid literal for int\(\) with base 10: ('.*')$", text)
+  if found:
+    return f'{found.group(1)} is not an integer'
+  found = re.match(r"could not convert string to float: ('.*')$", text)
+  if found:
+    return f'{found.group(1)} is not a number'
+  if 'Non-boolean argument to boolean flag' in text:
+    value = re.search(r"'Non-boolean argument to boolean flag', ('.*?')\)", text)
+    return f"{value.group(1) if value else 'the value'} is not True or False"
+  return text
 
 
 def _unknown_field(argv, err) -> str:

@@ -1,15 +1,10 @@
-r"""Trains and evaluates LD-MPC.
+r"""Trains and evaluates LD-MPC: one run (one training seed, or `train.num_seeds` in one process).
 
-  python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_cpu
   python -m experiments.train --config=mt10.py:cpu --workdir=runs/mt10_cpu   # one agent, MT10
   python -m experiments.train --config=door_open.py:cpu --workdir=runs/door_open_tdmpc2 \
       --config.data.source=tdmpc2 --config.data.path='mt80/chunk_*.pt'   # TD-MPC2's data
   python -m experiments.train --config=door_open.py --workdir=runs/door_open_dp \
       --config.train.data_parallel=True     # batch split over all devices (docs/scaling.md)
-  python -m experiments.train --config=door_open_online.py:cpu --workdir=runs/online_cpu  # online
-
-A bare config name resolves to ld_mpc_jax/configs/<name>; `:preset` selects a preset; any field
-can be overridden, e.g. --config.task=drawer-open-v3 --config.train.num_steps=2000.
 """
 
 import os
@@ -91,6 +86,7 @@ def main(argv):
   from ld_mpc_jax.model.tasks import check_tasks
   from ld_mpc_jax.runs.train import train_and_evaluate
   try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
+    cli.check_workdir(_WORKDIR.value)
     validate_config(_CONFIG.value)
     check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
     sources.check_source(_CONFIG.value)

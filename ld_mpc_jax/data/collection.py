@@ -211,13 +211,14 @@ def summary(ds: dataset_lib.Dataset) -> Dict[str, Optional[float]]:
               mean_return=float(ds.episode_returns().mean()))
 
 
-def success_per_level(ds: dataset_lib.Dataset) -> Dict[str, float]:
-  """Episode success rate of a collected dataset at each of its preset's noise levels.
+def success_per_level(ds: dataset_lib.Dataset) -> Dict[str, Optional[float]]:
+  """Episode success rate of a collected dataset at each of its preset's noise levels (None
+  for a level without episodes: JSON null, not NaN, which is no JSON).
 
   Keys are the levels as JSON (noise_std, random_prob, fraction).
   """
   out = {}
   for j, lvl in enumerate(PRESETS[ds.metadata['preset']]):
     sel = ds.episode_data['level'] == j
-    out[json.dumps(lvl)] = float(ds.episode_success()[sel].mean()) if sel.any() else float('nan')
+    out[json.dumps(lvl)] = float(ds.episode_success()[sel].mean()) if sel.any() else None
   return out

@@ -25,7 +25,11 @@ def workdir_lock(workdir: str) -> Iterator[None]:
   """
   import fcntl  # pylint: disable=g-import-not-at-top (POSIX only; imported where used)
   created = not os.path.exists(workdir)
-  os.makedirs(workdir, exist_ok=True)
+  try:
+    os.makedirs(workdir, exist_ok=True)
+  except OSError as err:  # A file there or above it, a read-only or virtual file system.
+    raise WorkdirError(f'--workdir={workdir} cannot be a run directory: '
+                       f'{err.strerror or err}') from None
   path = os.path.join(workdir, LOCK_FILE)
   while True:
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)

@@ -213,8 +213,8 @@ class Run:
     modes = ('plan',) + tuple(m for m in c.eval.baselines if m != 'plan')
     splits, evaluate = multitask_eval.grid(c, c.eval.splits)
     stage(f'final evaluation at step {step} ({self.workdir}): {", ".join(modes)} on '
-          f'{c.eval.episodes} episodes per goal split ({", ".join(splits)}) and evaluation seed '
-          f'({len(c.eval.seeds)})')
+          f'{c.eval.episodes} episode{"s" * (c.eval.episodes != 1)} per goal split '
+          f'({", ".join(splits)}) and evaluation seed (seeds {", ".join(map(str, c.eval.seeds))})')
     if splits != tuple(c.eval.splits):
       tqdm.tqdm.write(f'goal splits {list(splits)} only: the data were not collected on MT1 '
                       'goals, so there is no train split')
@@ -321,7 +321,6 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
   while job.progress < total:
     before, start = job.progress, time.perf_counter()
     job.advance()
-    eta.advanced(job.progress, time.perf_counter() - start)
     if INTERRUPTED.is_set():  # Ctrl-C that a library swallowed: stop here, as it asked.
       raise KeyboardInterrupt
     job.log(before)
@@ -333,6 +332,9 @@ def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int)
         SAVING.clear()
       if INTERRUPTED.is_set():
         raise KeyboardInterrupt
+    # The rate counts the step with its logging and checkpoint writes (a run checkpointing every
+    # few steps spends most of its time there); the evaluations are counted apart.
+    eta.advanced(job.progress, time.perf_counter() - start)
     if crossed(before, job.progress, eval_every) and job.progress < total:
       start = time.perf_counter()
       run.periodic_eval(job.eval_params(), job.progress)

@@ -33,9 +33,9 @@ def progress_bar(total: int, initial: int, desc: str, unit: str = 'step') -> tqd
 
 class Eta:
   """Time left of a run: the steps left at the rate measured after the first advance past
-  `warm_from` (that one compiles; an online run's random seed waves before it are not its rate)
-  and without evaluation time, plus the periodic evaluations left at the measured time of one
-  (and the final evaluation, counted as one more of them); '+ evaluations' until one is timed
+  `warm_from` (that one compiles; an online run's random seed waves before it are not its rate),
+  checkpoint writes in and evaluations out, plus the periodic evaluations left at the measured
+  time of one (and the final evaluation, counted as one more); '+ evaluations' until one is timed
   (a run with `eval.episodes = 0` times its empty ones at about 0 s)."""
 
   def __init__(self, total: int, eval_every: int, warm_from: int = 0):
