@@ -79,6 +79,8 @@ def main(argv):
     if splits != tuple(_SPLITS.value):  # TD-MPC2 data: its goals were random per episode.
       print(f'goal splits {list(splits)} only: the data were not collected on MT1 goals')
   episodes = _EPISODES.value or config.eval.episodes
+  print(f'evaluating checkpoint step {step} of {_WORKDIR.value}: {", ".join(_MODES.value)}; '
+        f'{episodes} per split {list(splits)} and seed {seeds}', file=sys.stderr, flush=True)
   records = evaluate(config, params, None, step, _MODES.value, splits, seeds, episodes,
                      run=config.seed)  # A multi-task agent: every task, records per task.
   summary = evaluation_suite.summarize(records)
