@@ -28,12 +28,47 @@ import time
 from typing import Any, Dict
 
 from benchmarks.fault_injection import (Runner, commands, complete_steps, judge, phase,
-                                        read_stderr, restored, total_of, verdict)
+                                        read_stderr, restored, total_of)
 
 # (module, name) a crafted chunk names, and the pickle opcode that looks it up.
 PAYLOADS = [('numpy.f2py', 'os.system', 'stack'), ('os', 'system', 'global'),
             ('builtins', 'eval', 'global'), ('posix', 'system', 'stack'),
             ('subprocess', 'getoutput', 'stack'), ('numpy.testing', 'os.system', 'stack')]
+
+
+def interrupt_ok(row: Dict[str, Any]) -> bool:
+  """The interrupt reached a running run, which stopped on one clean line (exit 130), and the
+  rerun ended on the uninterrupted run's final TrainState (a checkpoint it restored too)."""
+  return (row['first_rc'] == 130 and bool(row['first_stop_ok']) and row['rc'] == 0
+          and bool(row['identical']) and row.get('restored_as_reference') is not False)
+
+
+def twin_ok(row: Dict[str, Any]) -> bool:
+  """The second copy met a running first one and was refused at once on one line naming its
+  pid; the first ended on the uninterrupted run's final TrainState with no CSV row twice."""
+  refused = row.get('second_refused', (  # Rows written before the field: from what they hold.
+      'first running' in row['point'] and row['second_rc'] == 2 and row['second_s'] < 30
+      and len(row['second_errors']) == 1 and 'pid ' in row['second_errors'][0]
+      and not row['second_traceback']))
+  return bool(refused) and row['rc'] == 0 and bool(row['identical']) and not row['rows_twice']
+
+
+def pickle_ok(row: Dict[str, Any]) -> bool:
+  """The crafted chunk reached the restricted unpickler (torch installed), which refused it on
+  one line (exit 2); the payload's marker file does not exist."""
+  return row['rc'] == 2 and bool(row['one_line']) and bool(row['torch_checked']) and not (
+      row['payload_ran'])
+
+
+def output_ok(row: Dict[str, Any]) -> bool:
+  """The full disk stopped the command on one line naming it (exit 1), nothing left there."""
+  return (row['rc'] == 1 and bool(row['one_line']) and 'space' in ' '.join(row['errors'])
+          and not row['left'])
+
+
+# group (fault_injection.group_of) -> the verdict of its trials.
+VERDICTS = {'interrupt': interrupt_ok, 'twin': twin_ok, 'pickle': pickle_ok,
+            'output disk full': output_ok}
 
 
 def _last_line(text: str) -> str:
@@ -66,8 +101,7 @@ def interrupt_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random
   with open(runner.log(name)) as f:
     text = f.read()
   last = _last_line(text)
-  first_ok = (rc == 0 and not sent) or (rc == 130 and 'Traceback' not in text and
-                                        last.startswith('interrupted'))
+  first_ok = sent and rc == 130 and 'Traceback' not in text and last.startswith('interrupted')
   before, kept = complete_steps(workdir), restored(workdir, ref)
   rerun = runner.run(cmd, name + '_rerun')
   row = dict(kind=kind, fault='SIGINT (Ctrl-C)', delay_s=round(delay, 2), first_rc=rc,
@@ -76,7 +110,7 @@ def interrupt_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random
              **kept, **judge(workdir, before, rerun, ref))
   row['outcome'] = (f"exit {rc}, {'one line' if first_ok else 'NOT one clean line'}; then "
                     + row['outcome'])
-  row['ok'] = first_ok and verdict(row)
+  row['ok'] = interrupt_ok(row)
   shutil.rmtree(workdir, ignore_errors=True)
   return row
 
@@ -114,17 +148,19 @@ def twin_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Rand
     rc = first.wait()
   with open(runner.log(name)) as f:
     first_out = dict(rc=rc, seconds=round(time.perf_counter() - start, 1), **read_stderr(f.read()))
-  refused = (second['rc'] == 2 and len(second['errors']) == 1 and not second['traceback']
-             and f'pid {first.pid}' in second['errors'][0] and second['seconds'] < 30)
+  refused = (running and second['rc'] == 2 and len(second['errors']) == 1
+             and not second['traceback'] and f'pid {first.pid}' in second['errors'][0]
+             and second['seconds'] < 30)
   row = dict(kind=kind, fault='a second copy on the same workdir', delay_s=round(delay, 2),
              point=f"{delay:.1f} s: {'first running' if running else 'first finished'}",
              second_rc=second['rc'], second_s=second['seconds'], second_errors=second['errors'],
+             second_refused=refused,
              second_traceback=second['traceback'], rows_twice=_rows_twice(workdir),
              **judge(workdir, [], first_out, ref))
   row['outcome'] = (f"second: exit {second['rc']} in {second['seconds']} s"
                     f"{', one line naming the pid' if refused else ''}; first: {row['outcome']}"
                     f"{'' if not row['rows_twice'] else ', CSV rows twice'}")
-  row['ok'] = (refused or not running) and verdict(row) and not row['rows_twice']
+  row['ok'] = twin_ok(row)
   shutil.rmtree(workdir, ignore_errors=True)
   return row
 
@@ -169,14 +205,16 @@ def pickle_trial(runner: Runner, index: int, python: str):
              one_line=len(got['errors']) == 1 and not got['traceback'])
   row['outcome'] = (f"exit {got['rc']}, {'one line' if row['one_line'] else 'NOT one line'}, "
                     f"payload {'RAN' if ran else 'not run'}: {line[:120]}")
-  row['ok'] = got['rc'] == 2 and row['one_line'] and not ran
+  row['ok'] = pickle_ok(row)
   shutil.rmtree(folder, ignore_errors=True)
   return row
 
 
 def pickle_environment(runner: Runner, python: str) -> Dict[str, str]:
-  """The runner's environment, with this checkout and the project's own packages after
-  `python`'s when it is another interpreter (one that has torch)."""
+  """The runner's environment, with this checkout and the project's own packages on PYTHONPATH
+  (so ahead of `python`'s own) when it is another interpreter (one that has torch): it must be
+  the same Python version. A trial whose run never reached the unpickler is not ok
+  (`pickle_ok`: `torch_checked`)."""
   if os.path.abspath(python) == os.path.abspath(sys.executable):  # A venv links the same binary.
     return runner.env
   import sysconfig  # pylint: disable=g-import-not-at-top
@@ -216,5 +254,5 @@ def output_full_trial(runner: Runner, ref: Dict[str, Any], index: int):
              resumed_from=0)
   row['outcome'] = (f"exit {got['rc']}, {'one line' if one_line else 'NOT one line'}"
                     f"{', left ' + ', '.join(left) if left else ', nothing left'}: {line[:120]}")
-  row['ok'] = got['rc'] == 1 and one_line and 'space' in line and not left
+  row['ok'] = output_ok(row)
   return row

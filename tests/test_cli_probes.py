@@ -118,8 +118,13 @@ def _setup(folder):
 
 
 def _tree(folder):
-  return sorted((os.path.relpath(os.path.join(d, f), folder), open(os.path.join(d, f), 'rb').read())
-                for d, _, files in os.walk(folder) for f in files)
+  """Every folder and file under `folder`, files with their bytes."""
+  out = []
+  for d, dirs, files in os.walk(folder):
+    out += [(os.path.relpath(os.path.join(d, x), folder), None) for x in dirs]
+    out += [(os.path.relpath(os.path.join(d, f), folder), open(os.path.join(d, f), 'rb').read())
+            for f in files]
+  return sorted(out, key=lambda item: item[0])
 
 
 @pytest.fixture(scope='module')

@@ -61,6 +61,7 @@ def test_an_update_trains_the_observation_dynamics():
     ('normalize_dynamics', True, 'normalize_dynamics=False'),
     ('normalize_obs', False, 'normalize_obs=True'),
     ('encoder_type', 'conv', "'mlp' or 'identity'"),
+    ('dynamics_type', 'mlp', 'does not go with dynamics_type=mlp'),
 ])
 def test_inconsistent_settings_are_one_line(field, value, words):
   config = obs_space_config()

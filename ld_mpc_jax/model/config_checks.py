@@ -43,6 +43,10 @@ def _validate_encoder(config) -> None:
     raise ValueError('config.model.encoder_type=identity needs config.model.normalize_obs=True '
                      'and config.model.normalize_dynamics=False (a standardised observation is '
                      "not on the learned encoder's sphere)")
+  if m.dynamics_type == 'mlp' or config.plan.latent_filter > 0:  # Both put z on the sphere.
+    raise ValueError('config.model.encoder_type=identity does not go with dynamics_type=mlp nor '
+                     'plan.latent_filter > 0: both RMS-normalise the latent, which an '
+                     'observation is not')
   if config.get('tasks'):
     raise ValueError('config.model.encoder_type=identity is for one task (config.tasks is set)')
 

@@ -32,7 +32,11 @@ def workdir_lock(workdir: str) -> Iterator[None]:
                        f'{err.strerror or err}') from None
   path = os.path.join(workdir, LOCK_FILE)
   while True:
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+      fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as err:  # A folder this process may not write into.
+      raise WorkdirError(f'--workdir={workdir} cannot be a run directory: cannot write '
+                         f'{path} ({err.strerror or err})') from None
     try:
       fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
