@@ -75,6 +75,7 @@ PROBES = [  # (argv: command first, words the one line must hold)
     (['report', 'missing.json'], ['cannot read missing.json']),
     (['report', 'exists.json'], ['cannot read exists.json']),
     (['report', '--check=missing.json'], ['cannot read missing.json']),
+    (['report', '--check=exists.json'], ['cannot read exists.json']),
     (['report', 'curves', '--workdir=missing', '--out=c.png'], ['--workdir=missing', 'no run']),
     (['report', 'records', '--workdir=missing', '--out=rec'], ['no run directory missing']),
     (['diagnose'], ['--workdir', 'must have a value']),

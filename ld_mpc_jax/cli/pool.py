@@ -159,6 +159,9 @@ def check(manifest_path: str, readme_path: str = 'README.md') -> list:
   number with `obs_noise` reads the files' observation-noise sweeps at that std."""
   root = os.path.dirname(os.path.dirname(os.path.abspath(manifest_path)))
   manifest = read_json(manifest_path)
+  if not os.path.isfile(os.path.join(root, readme_path)):
+    raise ValueError(f'--check={manifest_path}: no {readme_path} in {root}, the folder above the '
+                     "manifest's (a manifest lives in its repository's results/)")
   with open(os.path.join(root, readme_path)) as f:
     readme = f.read().splitlines()
   failures = []
@@ -251,7 +254,8 @@ def main(argv: list) -> None:
   from absl import flags  # pylint: disable=g-import-not-at-top
   paths, manifests, plot_path = list(argv[1:]), flags.FLAGS.check, flags.FLAGS.noise_plot
   if manifests:
-    failures = [f for m in manifests for f in check(m)]
+    with cli.one_line_errors():
+      failures = [f for m in manifests for f in check(m)]
     print('\n'.join(failures) or f'every README number in {", ".join(manifests)} matches its records')
     sys.exit(1 if failures else 0)
   run(paths, plot_path)

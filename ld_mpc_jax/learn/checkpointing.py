@@ -392,10 +392,8 @@ def load_for_evaluation(workdir: str):
   except ValueError as err:
     raise WorkdirError(f'{os.path.join(workdir, CONFIG_FILE)} is not a valid config ({err}); '
                        'undo the edit (the checkpoints were not read)') from None
-  folder = os.path.join(workdir, 'checkpoints')
-  if not os.path.isdir(folder):  # Before the manager, which would make the folder.
-    raise FileNotFoundError(f'no checkpoint under {folder}')
-  state = restore_latest(checkpoint_manager(workdir), config)
+  folder = os.path.join(workdir, 'checkpoints')  # Not made by a manager when it is missing:
+  state = restore_latest(checkpoint_manager(workdir), config) if os.path.isdir(folder) else None
   if state is None:
     raise FileNotFoundError(f'no checkpoint under {folder}')
   return config, state.ema_params, int(state.step)
