@@ -58,9 +58,9 @@ def test_ctrl_c_is_one_line_keeps_the_checkpoint_and_the_rerun_resumes(tmp_path)
 def test_a_swallowed_interrupt_prints_no_traceback_but_other_errors_do():
   """The CI failure of stop 106: SIGINT landed inside JAX's gc callback, whose exception Python
   reports as 'Exception ignored in ...' with a traceback. That one is dropped; others are not."""
-  from ld_mpc_jax.cli.train import _quiet_unraisable
+  from ld_mpc_jax.runs.progress import quiet_unraisable
   seen = []
-  hook = _quiet_unraisable(seen.append)
+  hook = quiet_unraisable(seen.append)
   args = lambda e: type('Unraisable', (), {'exc_value': e})()
   hook(args(KeyboardInterrupt()))
   assert not seen

@@ -43,16 +43,6 @@ def _on_interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
-def _quiet_unraisable(hook):
-  """`sys.unraisablehook` that drops the KeyboardInterrupt our SIGINT handler raised inside a
-  callback that cannot raise (e.g. JAX's gc callback; the flag still stops the run) and passes
-  anything else to `hook`."""
-  def unraisable(args):
-    if not isinstance(args.exc_value, KeyboardInterrupt):
-      hook(args)
-  return unraisable
-
-
 def _interrupted(workdir: str):
   """One line, exit code 130; the library's worker threads, cut short, stay quiet."""
   import threading  # pylint: disable=g-import-not-at-top
@@ -99,7 +89,7 @@ def main(argv):
   from ld_mpc_jax.runs import progress
   if _QUIET.value:
     progress.QUIET.set()
-  sys.unraisablehook = _quiet_unraisable(sys.unraisablehook)
+  sys.unraisablehook = progress.quiet_unraisable(sys.unraisablehook)
   signal.signal(signal.SIGINT, _on_interrupt)
   try:
     train_and_evaluate(_CONFIG.value, _WORKDIR.value, _CONTINUE.value)

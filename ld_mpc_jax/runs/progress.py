@@ -82,3 +82,13 @@ def interrupted_message(workdir: str) -> str:
     return 'interrupted before the first checkpoint; the same command starts the run again'
   return (f'interrupted: checkpoint step {step} is kept in {shown}; the same command resumes '
           'from it')
+
+
+def quiet_unraisable(hook):
+  """`sys.unraisablehook` that drops the KeyboardInterrupt our SIGINT handler raised inside a
+  callback that cannot raise (e.g. JAX's gc callback; the flag still stops the run) and passes
+  anything else to `hook`."""
+  def unraisable(args):
+    if not isinstance(args.exc_value, KeyboardInterrupt):
+      hook(args)
+  return unraisable
