@@ -76,18 +76,25 @@ def _last_line(text: str) -> str:
   return lines[-1] if lines else ''
 
 
-def interrupt_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Random):
-  """SIGINT to a fresh run of ref's kind at a random moment, then the same command again."""
-  kind = ref['kind']
-  name = f'{kind}_interrupt_{index}'
+def _started(runner: Runner, ref: Dict[str, Any], what: str, index: int, delay: float):
+  """A fresh run of ref's kind into its own workdir, `delay` seconds on (or ended sooner):
+  (name, workdir, command, process, start time)."""
+  name = f"{ref['kind']}_{what}_{index}"
   workdir = os.path.join(runner.scratch, name)
   shutil.rmtree(workdir, ignore_errors=True)
-  cmd = commands(kind, workdir, runner.scratch)
-  delay = rng.uniform(0.03, 0.97) * ref['duration']
+  cmd = commands(ref['kind'], workdir, runner.scratch)
   start = time.perf_counter()
   proc = runner.start(cmd, name)
   while proc.poll() is None and time.perf_counter() < start + delay:
     time.sleep(0.02)
+  return name, workdir, cmd, proc, start
+
+
+def interrupt_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Random):
+  """SIGINT to a fresh run of ref's kind at a random moment, then the same command again."""
+  kind = ref['kind']
+  delay = rng.uniform(0.03, 0.97) * ref['duration']
+  name, workdir, cmd, proc, start = _started(runner, ref, 'interrupt', index, delay)
   sent, where = proc.poll() is None, 'finished before the interrupt'
   if sent:
     with open(runner.log(name)) as f:
@@ -130,15 +137,8 @@ def _rows_twice(workdir: str) -> int:
 def twin_trial(runner: Runner, ref: Dict[str, Any], index: int, rng: random.Random):
   """The same command started again on the same workdir while the first runs."""
   kind = ref['kind']
-  name = f'{kind}_twin_{index}'
-  workdir = os.path.join(runner.scratch, name)
-  shutil.rmtree(workdir, ignore_errors=True)
-  cmd = commands(kind, workdir, runner.scratch)
   delay = rng.uniform(0.05, 0.6) * ref['duration']
-  start = time.perf_counter()
-  first = runner.start(cmd, name)
-  while first.poll() is None and time.perf_counter() < start + delay:
-    time.sleep(0.02)
+  name, workdir, cmd, first, start = _started(runner, ref, 'twin', index, delay)
   running = first.poll() is None
   second = runner.run(cmd, name + '_second')
   try:

@@ -30,7 +30,7 @@ def _validate_encoder(config) -> None:
   """`model.encoder_type`: 'mlp', or 'identity' (planning in observation space) with
   latent_dim = obs_dim, standardised observations, no sphere for the dynamics, one task."""
   m = config.model
-  kind = m.get('encoder_type', 'mlp')
+  kind = m.encoder_type
   if kind not in ('mlp', 'identity'):
     raise ValueError(f"config.model.encoder_type must be 'mlp' or 'identity', got {kind!r}")
   if kind != 'identity':

@@ -45,10 +45,16 @@ class Encoder(nn.Module):
   @nn.compact
   def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
     if self.normalize_obs:
-      mean = self.param('obs_mean', nn.initializers.zeros, (obs.shape[-1],))
-      std = self.param('obs_std', nn.initializers.ones, (obs.shape[-1],))
-      obs = (obs - jax.lax.stop_gradient(mean)) / jax.lax.stop_gradient(std)
+      obs = _standardise(self, obs)
     return rms_normalize(MLP((self.hidden, self.latent_dim), name='mlp')(obs))
+
+
+def _standardise(module: nn.Module, obs: jnp.ndarray) -> jnp.ndarray:
+  """obs standardised by `module`'s `obs_mean` and `obs_std` parameters (set from the data by
+  `set_obs_normalization`, never trained: gradients stopped)."""
+  mean = module.param('obs_mean', nn.initializers.zeros, (obs.shape[-1],))
+  std = module.param('obs_std', nn.initializers.ones, (obs.shape[-1],))
+  return (obs - jax.lax.stop_gradient(mean)) / jax.lax.stop_gradient(std)
 
 
 class IdentityEncoder(nn.Module):
@@ -60,19 +66,15 @@ class IdentityEncoder(nn.Module):
 
   @nn.compact
   def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
-    if self.normalize_obs:
-      mean = self.param('obs_mean', nn.initializers.zeros, (obs.shape[-1],))
-      std = self.param('obs_std', nn.initializers.ones, (obs.shape[-1],))
-      obs = (obs - jax.lax.stop_gradient(mean)) / jax.lax.stop_gradient(std)
-    return obs
+    return _standardise(self, obs) if self.normalize_obs else obs
 
 
 ENCODER_TYPES = ('mlp', 'identity')
 
 
 def build_encoder(m: ml_collections.ConfigDict) -> nn.Module:
-  """The encoder `model.encoder_type` names ('mlp' for a config saved before the field)."""
-  if m.get('encoder_type', 'mlp') == 'identity':
+  """The encoder `model.encoder_type` names (a config saved before the field migrates to 'mlp')."""
+  if m.encoder_type == 'identity':
     return IdentityEncoder(m.normalize_obs)
   return Encoder(m.encoder_hidden, m.latent_dim, m.normalize_obs)
 
