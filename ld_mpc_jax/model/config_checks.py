@@ -47,7 +47,7 @@ def _validate_encoder(config) -> None:
     raise ValueError('config.model.encoder_type=identity does not go with dynamics_type=mlp nor '
                      'plan.latent_filter > 0: both RMS-normalise the latent, which an '
                      'observation is not')
-  if config.get('tasks'):
+  if tasks.is_multitask(config):
     raise ValueError('config.model.encoder_type=identity is for one task (config.tasks is set)')
 
 
