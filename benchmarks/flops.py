@@ -17,6 +17,7 @@ sees inside `plan`, and adds the missing iterations:
 where C(plan) itself holds the non-scanned parts plus every loop body once.
 """
 
+import dataclasses
 from typing import Callable
 
 import jax
@@ -25,6 +26,7 @@ import ml_collections
 
 from ld_mpc_jax.ops import diffusion
 from ld_mpc_jax.model.models import ActionProposal, LatentDynamics, build_networks, init_params
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
 # ---------------------------------------------------------------------------------------------
@@ -151,15 +153,9 @@ def _abstract_inputs(config: ml_collections.ConfigDict):
   return params, z, key
 
 
-def _with(config: ml_collections.ConfigDict, **plan_overrides) -> ml_collections.ConfigDict:
-  c = ml_collections.ConfigDict(config.to_dict())
-  for name, value in plan_overrides.items():
-    c.plan[name] = value
-  return c
-
-
 def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None = None,
-                   plan_args: tuple | None = None, plan_once: float | None = None) -> dict:
+                   plan_args: tuple | None = None, plan_once: float | None = None,
+                   plan: PlanSettings | None = None) -> dict:
   """Trip-count-corrected XLA FLOPs of one `plan` call (see the module docstring).
 
   Args:
@@ -168,13 +164,16 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
     plan_args: its arguments (arrays or ShapeDtypeStructs); default (params, z, key). Pass
       (params, z, key, prev_sequence) for a warm-started call.
     plan_once: C(plan) if already known (from the caller's own compilation).
+    plan: the planner's settings of `plan_fn` when they are not the config's (the acting
+      planner's, exploration.acting_plan); default PlanSettings.from_config(config).
   Returns:
     {'plan_once': C(plan), 'proposal_step', 'transition', 'dynamics_step', 'total'} in FLOPs.
   """
   from ld_mpc_jax.plan import planner  # Local: planner imports nothing from here, keep it that way.
-  nets = build_networks(config)
-  p, d = config.plan, config.diffusion
-  h, a, w = config.horizon, config.action_dim, config.model.width
+  m = ModelSettings.from_config(config)
+  p = PlanSettings.from_config(config) if plan is None else plan
+  nets = build_networks(m)
+  h, a, w = m.horizon, m.action_dim, m.width
   k, n = p.num_candidates, p.num_candidates - p.num_prior_candidates
   params, z, key = _abstract_inputs(config)
   if plan_once is None:
@@ -185,14 +184,14 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
     variables = {'params': prop_params}
     model_fn = lambda a_t, t: nets.proposal.apply(variables, a_t, t, cond,
                                                   method=ActionProposal.denoise)
-    return diffusion.sample(model_fn, x, key, 1, p.action_eta, d.prediction,
-                            clip_x0=d.clip_actions)
+    return diffusion.sample(model_fn, x, key, 1, p.action_eta, m.prediction,
+                            clip_x0=m.clip_actions)
 
   def dynamics_step(dyn_params, x, cond, key):
     variables = {'params': dyn_params}
     model_fn = lambda x_t, t: nets.dynamics.apply(variables, x_t, t, cond,
                                                   method=LatentDynamics.denoise)
-    return diffusion.sample(model_fn, x, key, 1, p.dynamics_eta, d.prediction)
+    return diffusion.sample(model_fn, x, key, 1, p.dynamics_eta, m.prediction)
 
   f32 = lambda *shape: jax.ShapeDtypeStruct(shape, jnp.float32)
   prop = xla_flops(proposal_step, params['proposal'], f32(n, h, a), f32(n, 1, w), key)
@@ -200,7 +199,7 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
                   f32(k, 2, w), key)
   # One transition (conditioning, actor prior, one dynamics step): the rollout's outer scan
   # with a single denoising step, counted once by XLA.
-  rollout = planner.make_rollout(_with(config, dynamics_steps=1), nets)
+  rollout = planner.make_rollout(m, dataclasses.replace(p, dynamics_steps=1), nets)
   transition = xla_flops(rollout, params, z, f32(n, h, a), key)
 
   action_steps = p.action_steps

@@ -73,10 +73,12 @@ def _timed(totals: Dict[str, float], counts: Dict[str, int]):
 def _flops(config: ml_collections.ConfigDict) -> Dict[str, float]:
   """GFLOP of one acting decision (one environment) and of one update."""
   from benchmarks import flops, training  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.model.exploration import acting_config  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.model.exploration import acting_plan  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.model.settings import ModelSettings  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.plan import planner  # pylint: disable=g-import-not-at-top
-  act = acting_config(config)
-  decision = flops.xla_plan_flops(act, planner.make_plan(act))['total']
+  act = acting_plan(config)
+  plan_fn = planner.build_plan(ModelSettings.from_config(config), act)
+  decision = flops.xla_plan_flops(config, plan_fn, plan=act)['total']
   update = training.benchmark_update('update', config, repeats=1, warmup=0)  # One seed's.
   return dict(decision_gflop=decision / 1e9, update_gflop=update['gflop'])
 

@@ -12,6 +12,7 @@ import pytest
 from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.plan import agent, planner
 from ld_mpc_jax.model import models, objective
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
 def test_trajectory_dynamics_rejects_actor_prior_candidates(smoke_config):
@@ -28,18 +29,20 @@ def test_energy_guidance_raises_the_guided_return(smoke_config):
                                                        'plan.num_candidates': 16})
   plain_cfg = ablations.with_overrides(guided_cfg, {'plan.guidance_scale': 0.0})
   params = models.init_params(guided_cfg, jax.random.key(3))
-  nets = models.build_networks(guided_cfg)
+  nets = models.build_networks(ModelSettings.from_config(guided_cfg))
   z, key = models.encode(params, jnp.linspace(-1, 1, 39)), jax.random.key(4)
   # Jitted: op by op, the guided sampler's gradient compiles many small programs.
-  propose = lambda cfg: jax.jit(planner.make_propose(cfg, nets), static_argnums=3)
+  propose = lambda cfg: jax.jit(planner.make_propose(
+      ModelSettings.from_config(cfg), PlanSettings.from_config(cfg), nets), static_argnums=3)
   guided = propose(guided_cfg)(params, z, key, 16)
   plain = propose(plain_cfg)(params, z, key, 16)
   assert np.all(np.abs(np.asarray(guided)) <= 1.0)
   assert float(jnp.abs(guided - plain).max()) > 1e-3
   score_cfg = ablations.with_overrides(plain_cfg, {'plan.dynamics_steps': 1,
                                                    'plan.dynamics_eta': 0.0})
-  rollout = planner.make_rollout(score_cfg, nets)
-  score = objective.make_score(score_cfg, nets)
+  m, p = ModelSettings.from_config(score_cfg), PlanSettings.from_config(score_cfg)
+  rollout = planner.make_rollout(m, p, nets)
+  score = objective.make_score(m, nets, p.pessimism, p.progress_weight)
   j = jax.jit(lambda acts: score(params, rollout(params, z, acts, jax.random.key(5))[1],
                                  acts).mean())
   assert float(j(guided)) > float(j(plain))

@@ -7,6 +7,7 @@ import jax
 
 from ld_mpc_jax.plan.agent import make_act, make_policy
 from ld_mpc_jax.model.models import build_networks, encode
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 @pytest.mark.parametrize('mode', ['plan', 'actor', 'proposal'])
@@ -46,7 +47,7 @@ def test_plan_policy_acts_with_the_planners_action(smoke_config, smoke_params):
 def test_actor_policy_is_the_actor_prior(smoke_config, smoke_params):
   policy, _ = make_policy(smoke_config, smoke_params, 'actor')
   obs = np.linspace(-1, 1, 39).astype(np.float32)
-  nets = build_networks(smoke_config)
+  nets = build_networks(ModelSettings.from_config(smoke_config))
   expected = nets.actor.apply({'params': smoke_params['actor']}, encode(smoke_params, obs))
   np.testing.assert_allclose(policy(obs), expected, rtol=1e-5, atol=1e-6)
 

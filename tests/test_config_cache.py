@@ -1,4 +1,7 @@
-"""config_cache: one built function per config value; nothing traced twice for equal configs."""
+"""config_cache: one built function per config (or settings) value; nothing traced twice for equal
+values."""
+
+import dataclasses
 
 import jax.numpy as jnp
 
@@ -7,6 +10,7 @@ from ld_mpc_jax.ops import config_cache, registry
 from ld_mpc_jax import make_plan
 from ld_mpc_jax.model import models
 from ld_mpc_jax.learn.train_state import make_update
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
 def test_equal_configs_share_one_built_function_and_others_do_not():
@@ -53,5 +57,25 @@ def test_builders_trace_once_per_config_value():
   # A score function of the caller's own is never cached.
   score = lambda params, latents, actions: jnp.zeros(latents.shape[0])
   assert make_plan(config, score) is not make_plan(config, score)
-  # init_params jits one initialiser per config value.
-  assert models._jitted_init(config) is models._jitted_init(door_open.get_config('smoke'))
+  # init_params jits one initialiser per model settings' value.
+  model = lambda: ModelSettings.from_config(door_open.get_config('smoke'))
+  assert models._jitted_init(model()) is models._jitted_init(model())
+
+
+def test_settings_builders_share_one_function_per_value_and_follow_the_registries():
+  built = []
+
+  @config_cache.by_settings
+  def build(model, plan):
+    built.append(plan.num_candidates)
+    return object()
+
+  c = door_open.get_config('smoke')
+  m, p = ModelSettings.from_config(c), PlanSettings.from_config(c)
+  first = build(m, p)
+  assert build(ModelSettings.from_config(c), PlanSettings.from_config(c)) is first
+  assert build(m, dataclasses.replace(p, num_candidates=3)) is not first and built[-1] == 3
+  family = registry.Registry('toy family')
+  family.register('toy', object())
+  assert build(m, p) is not first
+  family.unregister('toy')

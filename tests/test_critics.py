@@ -14,6 +14,7 @@ from ld_mpc_jax.model import critics, models, objective
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.plan import planner
 from ld_mpc_jax.ops.numerics import discounted_return, two_hot_decode
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 def test_expectile_loss_hand_computed():
@@ -57,7 +58,7 @@ def _toy_values(smoke_config, expectile: float, steps: int = 600):
   z = jnp.stack([jnp.stack(w[0]) for w in windows])  # [B, H+2 = 3, 4]
   action = jnp.stack([jnp.stack(w[1]) for w in windows])  # [B, H+1 = 2, 4]
   reward = jnp.array([w[2] for w in windows])
-  net = critics.build_critics(config)
+  net = critics.build_critics(ModelSettings.from_config(config))
   params = {'critics': net.init(jax.random.key(0), z[:, 0], action[:, 0])['params']}
   loss_fn = critics.make_critic_loss(config, net)
   tx = optax.adam(1e-2)
@@ -75,7 +76,7 @@ def _toy_values(smoke_config, expectile: float, steps: int = 600):
     return (params, target, opt), None
 
   (params, _, _), _ = jax.lax.scan(step, (params, params, tx.init(params)), None, length=steps)
-  v = objective.make_terminal_value(config, net)(params, eye)
+  v = objective.make_terminal_value(ModelSettings.from_config(config), net)(params, eye)
   q = 10.0 * net.apply({'params': params['critics']}, jnp.stack([s0, s0]),
                        jnp.stack([left, right]), method=critics.Critics.q_value).mean(0)
   return np.asarray(v), float(q[0]), float(q[1])
@@ -94,8 +95,9 @@ def test_expectile_value_ranks_what_the_behaviour_value_misranks(smoke_config):
 
 def _objective_terminal_part(config, params, latents, actions):
   """J minus its discounted rewards: gamma^H times the terminal value the planner uses."""
-  nets = models.build_networks(config)
-  score = objective.make_score(config, nets)
+  nets = models.build_networks(ModelSettings.from_config(config))
+  score = objective.make_score(ModelSettings.from_config(config), nets, config.plan.pessimism,
+      config.plan.progress_weight)
 
   @jax.jit  # One program: operation by operation, the networks compile many small ones.
   def terminal_part(params, latents, actions):
@@ -137,7 +139,7 @@ def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
   assert out.scores.shape == (old.plan.num_candidates,)
   explicit = with_overrides(old, {})
   explicit.critic = ml_collections.ConfigDict(legacy.LEGACY_CRITIC)
-  assert not models.uses_critics(explicit)
+  assert not models.uses_critics(ModelSettings.from_config(explicit))
 
 
 def test_policy_td_targets_against_hand_computed_values(smoke_config):

@@ -12,6 +12,7 @@ from ld_mpc_jax import data
 from ld_mpc_jax.runs import online
 from ld_mpc_jax.data import demos
 from ld_mpc_jax.data.online_buffer import Buffer
+from ld_mpc_jax.model.settings import ModelSettings
 
 DEMO_OBS = 5.0  # Observations of the fake demonstrations: every window from them is all 5.0.
 
@@ -119,7 +120,8 @@ def test_demo_bc_loss_averages_the_actor_error_over_demo_windows_only():
   from ld_mpc_jax.model.models import build_networks, init_params
   import jax
   config = door_open_online.get_config('smoke')
-  nets, params = build_networks(config), init_params(config, jax.random.key(0))
+  nets = build_networks(ModelSettings.from_config(config))
+  params = init_params(config, jax.random.key(0))
   z = jax.random.normal(jax.random.key(1), (3, 2, config.model.latent_dim))
   action = jnp.zeros((3, 2, 4))
   demo = jnp.array([1.0, 0.0, 1.0])

@@ -1,12 +1,15 @@
 """ld_mpc_jax.eval.diagnostics: held-out windows and their returns, departures from the actor prior,
 success per K paired with the largest K, and the report's table."""
 
+import dataclasses
+
 import jax
 import numpy as np
 import pytest
 from scipy import stats as sps
 
 from ld_mpc_jax.eval import diagnostics, evaluation_suite
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
 def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
@@ -32,9 +35,10 @@ def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
   np.testing.assert_allclose(returns, [(1 - gamma ** (length - t)) / (1 - gamma) for t in starts])
   corr = diagnostics.objective_correlation(smoke_config, smoke_params, obs, actions, returns)
   # J of the encoder's latents of the windows, ranked against the returns here.
-  nets = models.build_networks(smoke_config)
-  j = objective.make_score(smoke_config, nets)(smoke_params, models.encode(smoke_params, obs),
-                                               actions)
+  nets = models.build_networks(ModelSettings.from_config(smoke_config))
+  score = objective.make_score(ModelSettings.from_config(smoke_config), nets,
+                               smoke_config.plan.pessimism, smoke_config.plan.progress_weight)
+  j = score(smoke_params, models.encode(smoke_params, obs), actions)
   assert corr['windows'] == 4
   assert corr['spearman_encoder'] == pytest.approx(sps.spearmanr(j, returns).statistic, abs=1e-6)
   assert np.isfinite(corr['spearman_model'])
@@ -133,15 +137,17 @@ def test_gain_parts_add_up_to_the_objective(smoke_config, smoke_params):
   executed sequence and the actor prior acting along its own rollout."""
   from ld_mpc_jax.model import models, objective
   from ld_mpc_jax.plan import planner
-  nets = models.build_networks(smoke_config)
+  nets = models.build_networks(ModelSettings.from_config(smoke_config))
   z = models.encode(smoke_params, np.zeros(39, np.float32))
   seq = jax.random.uniform(jax.random.key(3), (smoke_config.horizon, smoke_config.action_dim),
                            minval=-1, maxval=1)
   key = jax.random.key(5)
   r, v = diagnostics.gain_parts(smoke_config, nets, draws=1)(smoke_params, z, seq, key)
-  roll = planner.make_rollout(diagnostics._with_plan(smoke_config, num_prior_candidates=1), nets)
+  roll = planner.make_rollout(ModelSettings.from_config(smoke_config), dataclasses.replace(
+      PlanSettings.from_config(smoke_config), num_prior_candidates=1), nets)
   acts, lats = roll(smoke_params, z, seq[None], jax.random.split(key, 1)[0])
-  j = objective.make_member_scores(smoke_config, nets)(smoke_params, lats, acts).mean(0)
+  j = objective.make_member_scores(ModelSettings.from_config(smoke_config), nets,
+      smoke_config.plan.progress_weight)(smoke_params, lats, acts).mean(0)
   np.testing.assert_allclose(r + v, j, rtol=1e-5, atol=1e-4)
   np.testing.assert_allclose(acts[0], seq)  # The executed sequence is rolled as given.
   assert not np.allclose(r, 0.0)

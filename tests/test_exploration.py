@@ -2,6 +2,7 @@
 noise and its correlated (AR(1)) draws, and the intrinsic exploration term in J while acting
 (objective.Intrinsic: optimism over the value members, the dynamics draws' disagreement, annealed)."""
 
+import dataclasses
 import json
 
 import jax
@@ -16,48 +17,47 @@ from ld_mpc_jax.model import exploration, models, objective
 from ld_mpc_jax.plan import planner
 
 
-def test_acting_config_is_a_copy_with_the_online_noise_and_pessimism():
+def test_acting_plan_is_the_plans_with_the_online_noise_and_pessimism():
   c = door_open_online.get_config('smoke')
   c.online.action_noise_std, c.online.prior_noise_std, c.online.act_pessimism = 0.3, 0.4, -0.5
   c.plan.safe_selection, c.online.act_safe_selection = True, False  # Safe only in evaluation.
   plan = c.plan.to_dict()
-  acting = exploration.acting_config(c)
-  assert (acting.plan.action_noise_std, acting.plan.prior_noise_std, acting.plan.pessimism,
-          acting.plan.safe_selection) == (0.3, 0.4, -0.5, False)
+  acting = exploration.acting_plan(c)
+  assert (acting.action_noise_std, acting.prior_noise_std, acting.pessimism,
+          acting.safe_selection) == (0.3, 0.4, -0.5, False)
   assert c.plan.to_dict() == plan  # The evaluation's config is left as it was.
   others = lambda p: {k: v for k, v in p.items() if k not in (
       'action_noise_std', 'prior_noise_std', 'pessimism', 'safe_selection', 'safe_confirm',
       'fallback_drop')}  # The gates: inert without safe selection, and zeroed with it off.
-  assert others(acting.plan.to_dict()) == others(plan)
-  assert acting.online.to_dict() == c.online.to_dict()
+  assert others(dataclasses.asdict(acting)) == others(plan)
 
 
 def test_acting_searches_with_its_own_settings_and_evaluation_with_the_plans():
   c = door_open_online.get_config('cpu')
   assert (c.online.act_num_gaussian, c.online.act_iterations) == (32, 3)  # As the presets act.
   assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)  # Evaluation: proposal and prior.
-  acting = exploration.acting_config(c)
-  assert (acting.plan.num_gaussian, acting.plan.iterations) == (32, 3)
+  acting = exploration.acting_plan(c)
+  assert (acting.num_gaussian, acting.iterations) == (32, 3)
   assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)
 
 
 def test_acting_keeps_the_safe_selection_gates_only_when_asked():
   c = door_open_online.get_config('cpu')
   c.plan.safe_selection, c.plan.safe_confirm, c.plan.fallback_drop = True, True, 0.1
-  acting = exploration.acting_config(c)  # online.act_safe_selection is off in the presets.
-  assert not (acting.plan.safe_selection or acting.plan.safe_confirm)
-  assert acting.plan.fallback_drop == 0
+  acting = exploration.acting_plan(c)  # online.act_safe_selection is off in the presets.
+  assert not (acting.safe_selection or acting.safe_confirm)
+  assert acting.fallback_drop == 0
   c.online.act_safe_selection = True
-  acting = exploration.acting_config(c)
-  assert acting.plan.safe_confirm and acting.plan.fallback_drop == 0.1
+  acting = exploration.acting_plan(c)
+  assert acting.safe_confirm and acting.fallback_drop == 0.1
 
 
 def test_the_cpu_preset_evaluates_without_the_search_it_acts_with():
   c = door_open_online.get_config('cpu')
   assert (c.critic.log_std_map, c.plan.num_gaussian, c.plan.iterations) == ('tanh', 0, 0)
-  acting = exploration.acting_config(c)
-  assert (acting.plan.num_gaussian, acting.plan.iterations) == (32, 3)  # Acting still searches.
-  assert (acting.plan.pessimism, c.online.exec_noise_corr, c.gamma) == (-1.0, 0.85, 0.95)
+  acting = exploration.acting_plan(c)
+  assert (acting.num_gaussian, acting.iterations) == (32, 3)  # Acting still searches.
+  assert (acting.pessimism, c.online.exec_noise_corr, c.gamma) == (-1.0, 0.85, 0.95)
 
 
 def test_removed_presets_say_what_to_use():
@@ -219,15 +219,15 @@ def test_the_schedule_starts_at_the_first_planner_wave_and_ends_at_env_steps():
   # Linear: acting's pessimism is the traced term alone; the acting config's is 0.
   bonus = exploration.acting_intrinsic(c, end, start)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((-0.2, 0.0))
-  acting = exploration.acting_config(c)
-  assert (acting.plan.pessimism, acting.plan.dynamics_draws) == (0.0, 4)
+  acting = exploration.acting_plan(c)
+  assert (acting.pessimism, acting.dynamics_draws) == (0.0, 4)
   assert (c.plan.pessimism, c.plan.dynamics_draws) == (1.0, 1)  # Evaluation's, unchanged.
   # Constant (the default): the start values throughout; the pessimism stays a setting.
   c = exploration_config('constant')
   assert exploration.acting_exploration(c, end, start) == pytest.approx((-1.0, 40.0))
   bonus = exploration.acting_intrinsic(c, end, start)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((0.0, 40.0))
-  assert exploration.acting_config(c).plan.pessimism == -1.0
+  assert exploration.acting_plan(c).pessimism == -1.0
 
 
 def test_the_first_planner_wave_follows_the_actor_prior_seed_waves():
@@ -256,7 +256,7 @@ def test_defaults_add_no_intrinsic_term_and_old_runs_load_them(tmp_path):
   c = door_open_online.get_config('cpu')
   bonus = exploration.acting_intrinsic(c, 50_000, c.online.seed_steps)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == (0.0, 0.0)
-  assert exploration.acting_config(c).plan.pessimism == c.online.act_pessimism  # As before.
+  assert exploration.acting_plan(c).pessimism == c.online.act_pessimism  # As before.
   raw = json.loads(c.to_json_best_effort())
   for name in ('act_schedule', 'act_pessimism_end', 'act_disagreement', 'act_disagreement_end',
                'act_dynamics_draws', 'act_proposal'):
@@ -274,5 +274,5 @@ def test_acting_without_the_proposal_needs_other_candidates():
     validate_config(c)
   c.plan.num_prior_candidates = 2
   validate_config(c)
-  assert exploration.acting_config(c).plan.num_candidates == 2  # The actor prior's alone.
+  assert exploration.acting_plan(c).num_candidates == 2  # The actor prior's alone.
   assert c.plan.num_candidates == 4  # Evaluation keeps the proposal's.

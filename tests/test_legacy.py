@@ -6,6 +6,7 @@ import pytest
 
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.ops import legacy
+from ld_mpc_jax.model.settings import ModelSettings
 
 # What a run saved before these fields existed did (hand-written, not read from legacy).
 OLD_RUN_VALUES = {
@@ -82,7 +83,7 @@ def test_a_version_1_config_gets_the_progress_reward_off():
   migrated = legacy.migrate(ml_collections.ConfigDict(v1))
   assert migrated.version == legacy.CONFIG_VERSION
   assert (migrated.loss.w_progress, migrated.plan.progress_weight) == (0.0, 0.0)
-  assert not progress.enabled(migrated)  # No head: its parameters are those it saved.
+  assert not ModelSettings.from_config(migrated).progress  # No head: the parameters it saved.
 
 
 def test_a_version_3_online_config_keeps_its_schedules_ending_at_env_steps():

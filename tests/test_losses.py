@@ -1,11 +1,14 @@
 """The loss terms (ld_mpc_jax.learn.losses, and the kinds' own) against hand-computed values."""
 
+import types
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from ld_mpc_jax.learn import losses
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 def test_maxq_actor_climbs_a_toy_q(smoke_config):
@@ -16,7 +19,7 @@ def test_maxq_actor_climbs_a_toy_q(smoke_config):
   from ld_mpc_jax.model.actors import maxq_actor_loss
   c = smoke_config
   c.critic.actor, c.critic.hidden = 'maxq', ()
-  nets = models.build_networks(c)
+  nets = models.build_networks(ModelSettings.from_config(c))
   params = models.init_params(c, jax.random.key(0))
   d = c.model.latent_dim
   w = np.array([1.0, -1.0, 1.0, -1.0], np.float32)
@@ -69,6 +72,12 @@ def _cfg():
                 w_novelty=12.0)))
 
 
+def _model():
+  """The model settings' fields that the kinds' losses read, at _cfg()'s values."""
+  return types.SimpleNamespace(horizon=2, action_dim=2, gamma=0.5, prediction='x0', num_bins=5,
+                               vmin=-2.0, vmax=2.0)
+
+
 Z = jnp.arange(2 * 4 * 3, dtype=jnp.float32).reshape(2, 4, 3) / 10.0  # [B=2, H+2=4, D=3]
 A = jnp.arange(2 * 3 * 2, dtype=jnp.float32).reshape(2, 3, 2) / 10.0 - 0.5  # [B, H+1=3, A=2]
 PARAMS = {'proposal': {}, 'dynamics': {}, 'actor': {}, 'critics': {}}
@@ -84,15 +93,14 @@ def test_reward_loss_hand_computed():
 def test_behaviour_value_loss_hand_computed():
   """Targets: window returns of the rewards bootstrapped with the EMA head's V(z_{H+1})."""
   from ld_mpc_jax.model.objective import Behaviour
-  config = _cfg()
   # The EMA objective's value logits all on the middle bin: V_ema = symexp(0) = 0.
   v_tgt = jnp.log(jnp.array([1e-9, 1e-9, 1.0, 1e-9, 1e-9]))
   nets = type('Nets', (), {'objective': _Zeros((None, jnp.broadcast_to(v_tgt, (1, 3, 5))))})
   reward = jnp.array([[0.0, 0.0, np.expm1(0.25)]])  # Targets: 0.25 e, 0.5 e, e (e = expm1 .25).
   e = np.expm1(0.25)
   v_logits = jnp.zeros((1, 3, 5))  # Uniform: CE = log 5 whatever the target.
-  loss, target_mean = Behaviour.loss(config, nets, {'objective': {}}, jnp.zeros((1, 4, 3)),
-                                     jnp.zeros((1, 3, 2)), reward, v_logits)
+  loss, target_mean = Behaviour.loss(_model(), nets, {'objective': {}},
+                                     jnp.zeros((1, 4, 3)), jnp.zeros((1, 3, 2)), reward, v_logits)
   np.testing.assert_allclose(loss, np.log(5.0), rtol=1e-5)
   np.testing.assert_allclose(target_mean, (0.25 * e + 0.5 * e + e) / 3, rtol=1e-5)
 
@@ -114,7 +122,7 @@ def test_weighted_sum_order_and_absent_terms():
 def test_diffusion_proposal_losses_hand_computed(kind):
   """x0-prediction of zeros: the loss is the mean square of the denoised actions."""
   from ld_mpc_jax.model.proposals import PROPOSALS
-  got = PROPOSALS.get(kind).loss(_cfg(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
+  got = PROPOSALS.get(kind).loss(_model(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
   want = jnp.mean(A[:, :2] ** 2) if kind == 'diffusion_seq' else jnp.mean(A ** 2)
   np.testing.assert_allclose(got, want, rtol=1e-6)
 
@@ -125,7 +133,7 @@ def test_gaussian_proposal_nll_hand_computed():
                                           jnp.array([1.0, 2.0])),
                              np.mean([0.5, 0.5 + np.log(2.0)]), rtol=1e-6)
   module = _Zeros((jnp.zeros((6, 2)), jnp.zeros((6, 2))))  # mean 0, log std 0
-  got = PROPOSALS.get('mlp').loss(_cfg(), module, PARAMS, Z, A, jax.random.key(0), {})
+  got = PROPOSALS.get('mlp').loss(_model(), module, PARAMS, Z, A, jax.random.key(0), {})
   np.testing.assert_allclose(got, 0.5 * jnp.mean(A ** 2), rtol=1e-6)
 
 
@@ -134,7 +142,7 @@ def test_dynamics_losses_hand_computed(kind):
   """Predicting zeros: the mean square of the next latents (all H+1 of them for one-step kinds,
   z_{1:H} for the trajectory kind)."""
   from ld_mpc_jax.model.dynamics import DYNAMICS
-  got = DYNAMICS.get(kind).loss(_cfg(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
+  got = DYNAMICS.get(kind).loss(_model(), _Zeros(), PARAMS, Z, A, jax.random.key(0), {})
   want = jnp.mean(Z[:, 1:3] ** 2) if kind == 'diffusion_traj' else jnp.mean(Z[:, 1:] ** 2)
   np.testing.assert_allclose(got, want, rtol=1e-6)
 
@@ -197,7 +205,7 @@ def test_loss_metrics_and_total(smoke_config):
     c = with_overrides(smoke_config, overrides[name])
     params = models.init_params(c, jax.random.key(0))
     # One jitted program: operation by operation, the loss compiles hundreds of small ones.
-    loss_fn = jax.jit(losses.make_loss_fn(c, models.build_networks(c)))
+    loss_fn = jax.jit(losses.make_loss_fn(c, models.build_networks(ModelSettings.from_config(c))))
     loss, metrics = loss_fn(params, params, batch, jax.random.key(1))
     assert set(metrics) == names, name
     terms = {n: metrics[f'loss_{n}'] for n, _ in losses.WEIGHTS if f'loss_{n}' in metrics}
@@ -216,7 +224,7 @@ def test_rolled_and_unrolled_training_rollouts_agree(smoke_config):
   out = {}
   for unroll in (False, True):
     c.critic.rollout_unroll = unroll
-    rollout = losses.make_model_rollout(c, models.build_networks(c))
+    rollout = losses.make_model_rollout(c, models.build_networks(ModelSettings.from_config(c)))
     out[unroll] = np.asarray(jax.jit(rollout)(params, z0, actions, jax.random.key(3)))
   assert out[True].shape == (3, c.horizon + 1, c.model.latent_dim)
   assert np.abs(out[True][:, -1] - out[True][:, 0]).max() > 1e-3  # The latents move.

@@ -9,6 +9,7 @@ from ld_mpc_jax import count_params, encode, init_params
 from ld_mpc_jax.model import models
 from ld_mpc_jax.model.models import build_networks
 from ld_mpc_jax.nets import fourier_features
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 def test_fourier_features_hand_values():
@@ -36,7 +37,7 @@ def test_encode_rejects_wrong_obs_size(smoke_params, shape):
 
 
 def test_network_output_shapes(smoke_config, smoke_params):
-  nets = build_networks(smoke_config)
+  nets = build_networks(ModelSettings.from_config(smoke_config))
   c = smoke_config
   b, h, d, a = 3, c.horizon, c.model.latent_dim, c.action_dim
   z = jnp.ones((b, d))
@@ -56,7 +57,7 @@ def test_network_output_shapes(smoke_config, smoke_params):
 
 def test_objective_is_causal(smoke_config, smoke_params):
   """Rewards and earlier values never see later tokens; the last value does."""
-  nets = build_networks(smoke_config)
+  nets = build_networks(ModelSettings.from_config(smoke_config))
   h, d, a = smoke_config.horizon, smoke_config.model.latent_dim, smoke_config.action_dim
   z = jax.random.normal(jax.random.key(0), (h + 1, d))
   act = jax.random.uniform(jax.random.key(1), (h, a), minval=-1, maxval=1)

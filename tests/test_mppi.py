@@ -9,6 +9,7 @@ import pytest
 from ld_mpc_jax.model import tdmpc2_world
 from ld_mpc_jax.plan import mppi
 from ld_mpc_jax.model.models import count_params
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 TINY_MODEL = tdmpc2_world.TDMPC2Config(latent_dim=16, enc_dim=16, mlp_dim=16, num_q=3, num_bins=11)
 TINY_MPPI = mppi.MPPIConfig(num_samples=32, num_elites=8, num_prior=4, iterations=2)
@@ -115,7 +116,8 @@ def test_mppi_on_ldmpc_world_model(smoke_config, smoke_params):
   c = smoke_config
   cfg = mppi.MPPIConfig(action_dim=c.action_dim, horizon=c.horizon, num_samples=8,
                         num_elites=2, num_prior=0, iterations=2, temperature=0.5)
-  value_fn, scored = mppi.make_ldmpc_value_fn(c), []
+  value_fn = mppi.make_ldmpc_value_fn(ModelSettings.from_config(c), PlanSettings.from_config(c))
+  scored = []
 
   def recorded(params, z, actions, key):  # Every iteration's candidates and their values J.
     values = value_fn(params, z, actions, key)

@@ -16,6 +16,7 @@ from ld_mpc_jax.model import exploration, models, novelty, objective
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.ops.numerics import window_returns
 from ld_mpc_jax.plan import planner
+from ld_mpc_jax.model.settings import ModelSettings
 
 ON = {'loss.w_novelty': 1.0}
 D, A = 6, 2
@@ -132,7 +133,7 @@ def test_the_model_and_its_loss_have_the_term_only_when_on(smoke_config, target)
   batch = {'obs': jnp.asarray(rng.normal(size=(2, h + 2, 39)), jnp.float32),
            'action': jnp.asarray(rng.uniform(-1, 1, (2, h + 1, 4)), jnp.float32),
            'reward': jnp.zeros((2, h + 1), jnp.float32)}
-  nets = models.build_networks(c)
+  nets = models.build_networks(ModelSettings.from_config(c))
   _, metrics = jax.jit(losses.make_loss_fn(c, nets))(params, params, batch, jax.random.key(1))
   z = models.encode(params, batch['obs'])
   obs = batch['obs']  # Read only by members of target 'obs'.
@@ -194,5 +195,5 @@ def test_a_version_2_config_gets_the_fields_off():
   legacy.migrate(c)
   assert (c.version, c.loss.w_novelty, c.online.act_novelty, c.online.act_novelty_end) == (
       legacy.CONFIG_VERSION, 0.0, 0.0, 0.0)
-  assert c.model.novelty_target == 'latent' and not novelty.predicts_obs(c)
-  assert not novelty.enabled(c)
+  assert c.model.novelty_target == 'latent' and not c.model.novelty_target == 'obs'
+  assert not ModelSettings.from_config(c).novelty

@@ -10,6 +10,7 @@ from ld_mpc_jax.model import objective
 from ld_mpc_jax.model.critics import Critics
 from ld_mpc_jax.model.models import build_networks
 from ld_mpc_jax.ops.numerics import two_hot_decode
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 def test_combine_is_mean_less_pessimism_times_std():
@@ -30,9 +31,10 @@ def test_as_members_gives_scores_a_member_axis():
 def _parts(config, params):
   """(member scores, score at pessimism 0.5, rewards [K, H], V_m(z_H) [M, K]) for K = 3 random
   latents and actions, each with its last action flipped too (rows 3-5): one jitted program."""
-  nets = build_networks(config)
-  members, score = objective.make_member_scores(config, nets), objective.make_score(
-      config, nets, pessimism=0.5)
+  m = ModelSettings.from_config(config)
+  nets = build_networks(m)
+  members = objective.make_member_scores(m, nets, config.plan.progress_weight)
+  score = objective.make_score(m, nets, 0.5, config.plan.progress_weight)
   k, h, d, a = 3, config.horizon, config.model.latent_dim, config.action_dim
   latents = jax.random.normal(jax.random.key(1), (k, h + 1, d))
   actions = jax.random.uniform(jax.random.key(2), (k, h, a), minval=-1, maxval=1)

@@ -12,6 +12,7 @@ from ld_mpc_jax.eval import evaluation_suite, noise_sweep
 from ld_mpc_jax.learn import losses
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan.agent import make_act, uses_prev
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 CONSTANT = (5, 11, 12)  # Features constant in the toy data below.
 
@@ -88,7 +89,7 @@ def test_training_noise_only_with_augmentation(smoke_config):
   for aug in (0.0, 0.1):
     c = with_overrides(smoke_config, {'train.obs_noise_aug': aug, 'critic.value': 'behaviour',
                                       'critic.actor': 'bc', 'critic.latent_rollout': False})
-    loss_fn = jax.jit(losses.make_loss_fn(c, models.build_networks(c)))
+    loss_fn = jax.jit(losses.make_loss_fn(c, models.build_networks(ModelSettings.from_config(c))))
     out[aug] = loss_fn(params, params, batch, jax.random.key(1))[1]
   assert 'loss_noise_inv' not in out[0.0]
   assert float(out[0.1]['loss_noise_inv']) > 0  # A noisy latent away from the clean one.
@@ -104,7 +105,8 @@ def test_latent_filter_blends_the_models_prediction(smoke_config, smoke_params, 
   key = jax.random.key(0)
   plain = make_act(smoke_config, mode)
   c = with_overrides(smoke_config, {'plan.latent_filter': 0.5})
-  assert uses_prev(c, mode) and not uses_prev(smoke_config, 'actor')
+  assert uses_prev(PlanSettings.from_config(c), mode)
+  assert not uses_prev(PlanSettings.from_config(smoke_config), 'actor')
   filt = make_act(c, mode)
   a0, carry, _ = filt(smoke_params, obs, key, 0, None)
   np.testing.assert_allclose(a0, plain(smoke_params, obs, key, 0, None)[0], atol=1e-6)
@@ -116,7 +118,7 @@ def test_latent_filter_blends_the_models_prediction(smoke_config, smoke_params, 
   assert np.abs(z1 - z_obs).max() > 1e-3  # The prediction moved the latent,
   np.testing.assert_allclose(np.sqrt(np.mean(np.asarray(z1) ** 2)), 1.0, rtol=1e-3)  # On the sphere.
   if mode == 'actor':  # The actor acts on the filtered latent.
-    nets = models.build_networks(c)
+    nets = models.build_networks(ModelSettings.from_config(c))
     want = nets.actor.apply({'params': smoke_params['actor']}, z1)
     np.testing.assert_allclose(a1, want, atol=1e-5)
 

@@ -12,6 +12,7 @@ from ld_mpc_jax.model import models
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.plan.planner import make_plan
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 def obs_space_config():
@@ -75,4 +76,5 @@ def test_configs_saved_before_the_field_keep_the_learned_encoder():
   config.version = 5
   del config.model['encoder_type']
   assert legacy.migrate(config).model.encoder_type == 'mlp'
-  assert isinstance(models.build_networks(config).encoder, models.Encoder)
+  nets = models.build_networks(ModelSettings.from_config(config))
+  assert isinstance(nets.encoder, models.Encoder)

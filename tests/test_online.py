@@ -21,7 +21,8 @@ from ld_mpc_jax.eval import evaluation_suite, run_files
 from ld_mpc_jax.model.search import CANDIDATE_KINDS
 from ld_mpc_jax.runs import online, online_seats
 from ld_mpc_jax.model.models import init_params
-from ld_mpc_jax.plan.planner import make_plan
+from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.plan.planner import build_plan, make_plan
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -98,12 +99,13 @@ def test_any_task_by_flag_explores_only_while_acting(tmp_path, monkeypatch):
   assert evaluations and all(u[2:] == (0.0, 0.0) for u in evaluations)
   assert all(u[2:] == (0.2, 0.2) for u in used if u[0] == 'act')
   # The acting planner's candidates are the plain planner's plus noise, same key and params.
-  acting = online.acting_config(config)
+  acting = online.acting_plan(config)
   params = init_params(config, jax.random.key(0))
   z = jax.random.normal(jax.random.key(1), (config.model.latent_dim,))
-  noisy = make_plan(acting)(params, z, jax.random.key(2)).candidates
+  noisy = build_plan(ModelSettings.from_config(config), acting)(params, z, jax.random.key(2))
   plain = make_plan(config)(params, z, jax.random.key(2)).candidates
-  assert config.plan.action_noise_std == 0.0 and acting.plan.action_noise_std == 0.2
+  assert config.plan.action_noise_std == 0.0 and acting.action_noise_std == 0.2
+  noisy = noisy.candidates
   assert float(jnp.abs(noisy - plain).max()) > 0.05
   assert float(jnp.abs(noisy).max()) <= 1.0
   # The task by flag: acting and evaluation alike on push-v3.
@@ -187,8 +189,8 @@ def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, mon
   o.act_pessimism, o.act_pessimism_end, o.act_disagreement = -1.0, 0.0, 2.0
   o.act_dynamics_draws = 2
   config.loss.w_novelty, o.act_novelty, o.act_novelty_end = 1.0, 3.0, 0.0  # The exploration value.
-  acting = online.acting_config(config)  # Evaluation keeps the proposal's K - P candidates.
-  assert (acting.plan.num_candidates, config.plan.num_candidates) == (2, 4)
+  acting = online.acting_plan(config)  # Evaluation keeps the proposal's K - P candidates.
+  assert (acting.num_candidates, config.plan.num_candidates) == (2, 4)
   _record_policies(config, str(tmp_path / 'run'), monkeypatch)
   wave = _rows(tmp_path / 'run' / 'online.csv')[1]
   assert wave['acting'] == 'planner' and int(wave['planned']) == 20  # 2 envs x 10 decisions.

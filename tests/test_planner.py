@@ -11,6 +11,7 @@ from ld_mpc_jax import encode, init_params, make_plan, validate_config
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan import planner
 from ld_mpc_jax.model.models import build_networks
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 @pytest.fixture
@@ -71,7 +72,7 @@ def test_actor_prior_candidates_follow_the_actor(smoke_config, smoke_params, z):
   smoke_config.plan.num_candidates = 6
   smoke_config.plan.num_prior_candidates = 2
   out = make_plan(smoke_config)(smoke_params, z, jax.random.key(0))
-  nets = build_networks(smoke_config)
+  nets = build_networks(ModelSettings.from_config(smoke_config))
   a_pi = nets.actor.apply({'params': smoke_params['actor']}, z)
   np.testing.assert_allclose(out.candidates[-1, 0], a_pi, rtol=1e-5, atol=1e-6)
   np.testing.assert_allclose(out.candidates[-2, 0], a_pi, rtol=1e-5, atol=1e-6)
@@ -170,7 +171,7 @@ def test_plan_reports_which_kind_of_candidate_won(smoke_config, smoke_params):
 def test_actor_prior_candidates_are_diverse_and_keep_the_actor(smoke_config, smoke_params):
   config = with_overrides(smoke_config, {'plan.num_candidates': 4, 'plan.num_prior_candidates': 3,
                                          'plan.prior_noise_std': 0.3})
-  nets = models.build_networks(config)
+  nets = models.build_networks(ModelSettings.from_config(config))
   z = models.encode(smoke_params, np.ones(config.obs_dim))
   out = planner.make_plan(config)(smoke_params, z, jax.random.key(0))
   prior = out.candidates[1:]  # [3, H, A]

@@ -10,6 +10,7 @@ from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import replay
 from ld_mpc_jax.model import progress
+from ld_mpc_jax.model.settings import ModelSettings
 
 ON = {'loss.w_progress': 1.0, 'plan.progress_weight': 5.0}
 
@@ -91,11 +92,11 @@ def test_the_loss_has_the_term_only_with_the_head_and_targets(smoke_config):
            'action': jnp.asarray(rng.uniform(-1, 1, (2, h + 1, 4)), jnp.float32),
            'reward': jnp.zeros((2, h + 1), jnp.float32),
            'progress': jnp.asarray(rng.uniform(0, 1, (2, h + 2)), jnp.float32)}
-  loss_fn = losses.make_loss_fn(c, models.build_networks(c))
+  loss_fn = losses.make_loss_fn(c, models.build_networks(ModelSettings.from_config(c)))
   # The metrics and the gradient from one compiled program (compiling dominates this test).
   (_, metrics), grads = jax.jit(jax.value_and_grad(loss_fn, has_aux=True))(
       params, params, batch, jax.random.key(1))
-  nets = models.build_networks(c)
+  nets = models.build_networks(ModelSettings.from_config(c))
   z = models.encode(params, batch['obs'])
   expected = progress.loss(nets.progress, params, z, batch['progress'])
   np.testing.assert_allclose(metrics['loss_progress'], expected, rtol=1e-5)
@@ -108,14 +109,14 @@ def test_the_loss_has_the_term_only_with_the_head_and_targets(smoke_config):
 def test_j_gains_w_gamma_h_phi_of_the_last_latent(smoke_config):
   from ld_mpc_jax.model import models, objective  # pylint: disable=g-import-not-at-top
   c = with_overrides(smoke_config, ON)
-  nets = models.build_networks(c)
+  m = ModelSettings.from_config(c)
+  nets = models.build_networks(m)
   params = models.init_params(c, jax.random.key(0))
   k, h, d = 5, c.horizon, c.model.latent_dim
   latents = jax.random.normal(jax.random.key(1), (k, h + 1, d))
   actions = jax.random.uniform(jax.random.key(2), (k, h, 4), minval=-1, maxval=1)
-  shaped = objective.make_member_scores(c, nets)(params, latents, actions)
-  plain = objective.make_member_scores(with_overrides(c, {'plan.progress_weight': 0.0}), nets)(
-      params, latents, actions)
+  shaped = objective.make_member_scores(m, nets, c.plan.progress_weight)(params, latents, actions)
+  plain = objective.make_member_scores(m, nets, 0.0)(params, latents, actions)
   phi = progress.phi(nets.progress, params, latents[:, -1])
   np.testing.assert_allclose(shaped - plain, np.broadcast_to(5.0 * c.gamma ** h * phi, plain.shape),
                              rtol=1e-5, atol=1e-6)

@@ -2,6 +2,8 @@
 and bounds, single-step proposals inside the planner's rollout. (Each kind's loss term is in
 tests/test_losses.py.)"""
 
+import types
+
 import chex
 import jax
 import jax.numpy as jnp
@@ -11,6 +13,7 @@ import numpy as np
 from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.model import models, proposals
 from ld_mpc_jax.plan import planner
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
 def test_transitions_pair_each_latent_with_its_action():
@@ -36,17 +39,16 @@ class _FixedGaussian:
 
 
 def test_gaussian_step_is_mean_plus_std_noise_clipped():
-  config = ml_collections.ConfigDict(dict(action_dim=2))
+  model = types.SimpleNamespace(action_dim=2)  # All the kind reads of the model's settings.
   module = _FixedGaussian([0.5, -0.9], np.log([0.1, 2.0]))
   key = jax.random.key(3)
-  a = proposals.PROPOSALS.get('mlp').make_step(config, module)({'proposal': {}},
-                                                               jnp.zeros((4, 5)), key)
+  kind = proposals.PROPOSALS.get('mlp')
+  a = kind.make_step(model, None, module)({'proposal': {}}, jnp.zeros((4, 5)), key)
   noise = jax.random.normal(jax.random.split(key)[0], (4, 1, 2))[:, 0]
   np.testing.assert_allclose(a, np.clip(np.array([0.5, -0.9]) + np.array([0.1, 2.0]) * noise,
                                         -1.0, 1.0), rtol=1e-6)
   # As a proposal: `num` draws of one action for one latent, [num, 1, A].
-  drawn = proposals.PROPOSALS.get('mlp').make_propose(config, module)({'proposal': {}},
-                                                                      jnp.zeros(5), key, 4)
+  drawn = kind.make_propose(model, None, module)({'proposal': {}}, jnp.zeros(5), key, 4)
   np.testing.assert_allclose(drawn[:, 0], a, rtol=1e-6)
 
 
@@ -65,7 +67,8 @@ def test_single_step_proposal_draws_a_fresh_action_at_every_latent(smoke_config)
   """With a single-step proposal, a_i depends on z_i: different rollouts differ after step 0."""
   config = ablations.with_overrides(smoke_config, ablations.VARIANTS['diffstep_mlp'][1])
   params = models.init_params(config, jax.random.key(0))
-  rollout = planner.make_rollout(config, models.build_networks(config))
+  m = ModelSettings.from_config(config)
+  rollout = planner.make_rollout(m, PlanSettings.from_config(config), models.build_networks(m))
   actions, latents = rollout(params, jnp.ones(config.model.latent_dim), 3, jax.random.key(1))
   chex.assert_shape(actions, (3, config.horizon, config.action_dim))
   chex.assert_shape(latents, (3, config.horizon + 1, config.model.latent_dim))

@@ -31,19 +31,19 @@ class ToyLinear:
   one_step = True
   conditioning = (('linear',),)
 
-  def build(self, config):
-    return LinearLatentMap(config.model.latent_dim)
+  def build(self, model):  # model: the ModelSettings (ld_mpc_jax.model.settings).
+    return LinearLatentMap(model.latent_dim)
 
-  def init_args(self, config):
-    return jnp.zeros((1, config.model.latent_dim)), jnp.zeros((1, config.action_dim))
+  def init_args(self, model):
+    return jnp.zeros((1, model.latent_dim)), jnp.zeros((1, model.action_dim))
 
-  def loss(self, config, module, params, z, action, key, rngs):
+  def loss(self, model, module, params, z, action, key, rngs):
     n = action.shape[0] * action.shape[1]
     z_in, a_in = z[:, :-1].reshape(n, -1), action.reshape(n, -1)
     pred = module.apply({'params': params['dynamics']}, z_in, a_in)
     return jnp.mean((pred - jax.lax.stop_gradient(z[:, 1:].reshape(n, -1))) ** 2)
 
-  def make_step(self, config, module, steps, eta):
+  def make_step(self, model, module, steps, eta):
     return lambda params, z, a, key: module.apply({'params': params['dynamics']}, z, a)
 
 

@@ -9,6 +9,7 @@ import pytest
 from ld_mpc_jax import encode, make_plan
 from ld_mpc_jax.model import search
 from ld_mpc_jax.model.search import CANDIDATE_KINDS
+from ld_mpc_jax.model.settings import PlanSettings
 
 TARGET = jnp.array([0.6, -0.4, 0.2, -0.8])  # The toy optimum: this action at every step.
 
@@ -158,9 +159,9 @@ def test_bad_search_settings_fail_in_one_line(smoke_config):
     make_plan(c)
 
 
-def _target_draws(config, nets, propose):
+def _target_draws(model, plan, nets, propose):
   """A toy first-round kind: `num` copies of TARGET, jittered by 0.01."""
-  shape = (3, config.horizon, config.action_dim)
+  shape = (3, model.horizon, model.action_dim)
 
   def draw(params, z, prop_key, noise_key, init):
     eps = jax.random.normal(jax.random.fold_in(noise_key, 99), shape)
@@ -171,7 +172,7 @@ def _target_draws(config, nets, propose):
 def test_a_candidate_kind_registered_here_joins_the_first_round(smoke_config, smoke_params, z):
   """A new first-round kind is one registry entry and its name in `plan.first_round`."""
   search.CANDIDATES.register('toy_target', search.CandidateKind(
-      'three sequences near TARGET', lambda config: 3, _target_draws))
+      'three sequences near TARGET', lambda plan: 3, _target_draws))
   try:
     c = search_config(smoke_config, 0)
     c.plan.first_round = ('proposal', 'gaussian', 'toy_target')
@@ -255,10 +256,11 @@ def test_expected_max_scaling_holds_noise_departures_flat_in_k():
 def test_effective_margin_counts_every_scored_candidate(smoke_config):
   c = search_config(smoke_config, 2)  # 6 + 8 first-round candidates, 2 rounds of 32.
   c.plan.safe_margin, c.plan.safe_margin_scaling = 2.0, 'none'
-  assert search.num_scored(c) == 6 + 8 + 2 * 32
-  assert search.effective_margin(c) == 2.0
+  assert search.num_scored(PlanSettings.from_config(c)) == 6 + 8 + 2 * 32
+  assert search.effective_margin(PlanSettings.from_config(c)) == 2.0
   c.plan.safe_margin_scaling = 'expected_max'
-  assert search.effective_margin(c) == pytest.approx(2.0 * search.expected_max(78))
+  assert search.effective_margin(PlanSettings.from_config(c)) == pytest.approx(
+      2.0 * search.expected_max(78))
   c.plan.safe_margin_scaling = 'sqrt'
   with pytest.raises(ValueError, match='safe_margin_scaling must be one of'):
     make_plan(c)
@@ -374,7 +376,7 @@ def test_confirm_draws_must_be_positive(smoke_config):
 def test_gates_act_only_with_safe_selection(smoke_config, smoke_params, z):
   """Confirmation and fallback are safe selection's gates: at their (recommended) defaults
   and without safe selection, the plan is the argmax's, and the planner carries no guard."""
-  from ld_mpc_jax.model.search import gates
+  gates = lambda c: PlanSettings.from_config(c).gates
   c = smoke_config
   c.plan.num_prior_candidates = 2
   assert c.plan.safe_confirm and c.plan.fallback_drop > 0 and not c.plan.safe_selection

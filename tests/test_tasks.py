@@ -11,6 +11,7 @@ from ld_mpc_jax.model import models, tasks
 from ld_mpc_jax.model.critics import Critics
 from ld_mpc_jax.learn.losses import make_loss_fn
 from ld_mpc_jax.plan.planner import make_plan
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 @pytest.fixture(scope='module')
@@ -70,7 +71,7 @@ def test_binding_equals_concatenating_the_embedding(mt_params):
 
 
 def test_task_conditioning_changes_every_network(mt_config, mt_params):
-  nets = models.build_networks(mt_config)
+  nets = models.build_networks(ModelSettings.from_config(mt_config))
   p0, p1 = tasks.bind(mt_params, 0), tasks.bind(mt_params, 1)
   obs = jax.random.normal(jax.random.key(2), (3, 39))
   h, a_dim = mt_config.horizon, mt_config.action_dim
@@ -97,7 +98,7 @@ def test_task_conditioning_changes_every_network(mt_config, mt_params):
 
 
 def test_multitask_loss_trains_each_task_on_its_share(mt_config, mt_params):
-  nets = models.build_networks(mt_config)
+  nets = models.build_networks(ModelSettings.from_config(mt_config))
   loss = tasks.multitask_loss(make_loss_fn(mt_config, nets), 10)
   h, b = mt_config.horizon, 2
   rng = np.random.default_rng(0)

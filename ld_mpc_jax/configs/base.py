@@ -126,7 +126,7 @@ def get_config() -> ml_collections.ConfigDict:
   # (three seeds each) at most one episode of 50 behind the actor prior on any seed and task,
   # 1910/2100 against 1821/2100 pooled (docs/results.md). The fields below default to that
   # recommended setting, and confirmation and fallback act only with safe selection
-  # (search.gates), so `plan.safe_selection=True` alone switches it on. Safe selection itself is
+  # (PlanSettings.gates), so `plan.safe_selection=True` alone switches it on. Safe selection itself is
   # off by default: it needs actor-prior candidates, costs eight rollout pairs per decision, and
   # a checkpoint keeps the settings it trained with. Margin 8 alone (no scaling, no gates)
   # was chosen on door-open `weak` on training seed 0
@@ -145,7 +145,7 @@ def get_config() -> ml_collections.ConfigDict:
   # of both sequences, by confirm_margin x the spread (ld_mpc_jax.plan.planner, search.beats). The
   # winner's first score carries the selection's optimism, a fresh one does not: the double
   # estimator (van Hasselt 2010, "Double Q-learning"). Costs 2 x confirm_draws rollouts per call.
-  p.safe_confirm = True  # With safe selection only (search.gates).
+  p.safe_confirm = True  # With safe selection only (PlanSettings.gates).
   # Fresh rollouts of the pair that confirmation scores: the gain must hold on their mean, by
   # confirm_margin x the spread over members and rollouts together, so that it counts the
   # dynamics' draw-to-draw noise, which the members share and their spread alone misses. 1: one
@@ -167,7 +167,7 @@ def get_config() -> ml_collections.ConfigDict:
   # (training seed 1) every episode the planner lost dropped the peg at the hole while
   # departing, with the value falling from about 1700; on push `medium` the planner's won
   # episodes dip up to 26% below peaks of 150-270 and recover (docs/results.md). 0: off; with
-  # safe selection only (search.gates).
+  # safe selection only (PlanSettings.gates).
   # Acting as a policy, the planner carries this state between decisions (planner.Guard).
   p.fallback_drop = 0.1
   p.fallback_floor = 1000.0

@@ -10,6 +10,8 @@
                         horizon's rewards and the terminal value, in chosen held-out episodes.
 """
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import ml_collections
@@ -19,6 +21,7 @@ from scipy import stats as sps
 from ld_mpc_jax import data
 from ld_mpc_jax.eval import evaluation, evaluation_suite
 from ld_mpc_jax.model import models, objective
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops import stats
 from ld_mpc_jax.plan import agent, planner
 from ld_mpc_jax.ops.numerics import discounted_return, two_hot_decode
@@ -56,9 +59,10 @@ def held_out_windows(config, data_episodes: int, stride: int):
 
 def objective_correlation(config, params, obs, actions, returns) -> dict:
   """Spearman of J (dynamics rollout and encoder latents) against Monte Carlo returns."""
-  nets = models.build_networks(config)
-  score = objective.make_score(config, nets)
-  rollout = planner.make_rollout(_with_plan(config, num_prior_candidates=0), nets)
+  m, p = ModelSettings.from_config(config), PlanSettings.from_config(config)
+  nets = models.build_networks(m)
+  score = objective.make_score(m, nets, p.pessimism, p.progress_weight)
+  rollout = planner.make_rollout(m, dataclasses.replace(p, num_prior_candidates=0), nets)
 
   @jax.jit
   def both(obs, actions, key):
@@ -219,9 +223,11 @@ def gain_parts(config, nets, draws: int = 8):
   sequence (0) and the actor prior acting along its own rollout (1), the discounted reward sum
   over the horizon, sum_i gamma^i r_i, and gamma^H times the value members' mean at z_H, each
   averaged over `draws` fresh dynamics rollouts. rewards + values is J at pessimism 0."""
-  m, gamma, h = config.model, config.gamma, config.horizon
-  roll = planner.make_rollout(_with_plan(config, num_prior_candidates=1), nets)
-  members = objective.get(config).make_members(config, nets)
+  m = ModelSettings.from_config(config)
+  gamma, h = m.gamma, m.horizon
+  roll = planner.make_rollout(
+      m, dataclasses.replace(PlanSettings.from_config(config), num_prior_candidates=1), nets)
+  members = objective.get(m).make_members(m, nets)
 
   def one(params, z, sequence, key):
     acts, lats = roll(params, z, sequence[None], key)  # [2, H, A], [2, H+1, D].
@@ -244,9 +250,10 @@ class _GainPolicy:
   each decision that departs from the actor prior."""
 
   def __init__(self, config, params, key_seed: int, draws: int):
-    nets = models.build_networks(config)
+    settings = agent.ActSettings.from_config(config)
+    nets = models.build_networks(settings.model)
     self.params, self.key_seed = params, key_seed
-    self.act, self.warm = agent.make_act(config, 'plan'), agent.uses_prev(config, 'plan')
+    self.act, self.warm = agent.make_act(settings, 'plan'), agent.uses_prev(settings.plan, 'plan')
     self.parts = jax.jit(gain_parts(config, nets, draws))
     self.rows = []
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from ld_mpc_jax.eval import evaluation, evaluation_suite
 from ld_mpc_jax.model import models
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.ops.numerics import two_hot_decode
 from ld_mpc_jax.plan.agent import make_policy
 
@@ -64,8 +65,9 @@ def record_episodes(config: ml_collections.ConfigDict, params, mode: str, num_ep
 def predicted_rewards(config: ml_collections.ConfigDict, params, episode) -> np.ndarray:
   """r_t for every transition of `episode` [L]: the objective's first position of the window
   that starts at t (later positions zero-padded; causal, so they do not change it)."""
-  nets = models.build_networks(config)
-  h, m = config.horizon, config.model
+  m = ModelSettings.from_config(config)
+  nets = models.build_networks(m)
+  h = m.horizon
   z = models.encode(params, episode['obs'])  # [L, D]
   pad = lambda x: jnp.concatenate([x, jnp.zeros((h + 1,) + x.shape[1:], x.dtype)])
   zp, ap = pad(z), pad(jnp.asarray(episode['action']))

@@ -43,6 +43,7 @@ import ml_collections
 from ld_mpc_jax.model import actors, dynamics, novelty, objective, progress, proposals
 from ld_mpc_jax.model.critics import make_critic_loss
 from ld_mpc_jax.model.models import Networks
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
 
 # Loss weight of each term (config.loss.<weight>), in the order they are summed.
@@ -99,7 +100,7 @@ def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Cal
   """rollout(params, z0 [B, D], actions [B, H, A], key) -> latents [B, H+1, D] of the dynamics
   model, `critic.rollout_steps` deterministic DDIM steps per transition, a scan over H unrolled
   or not (`critic.rollout_unroll`)."""
-  transition = dynamics.make_transition(config, nets.dynamics,
+  transition = dynamics.make_transition(ModelSettings.from_config(config), nets.dynamics,
                                         steps=config.critic.rollout_steps, eta=0.0)
 
   def rollout(params, z0, actions, key):
@@ -122,7 +123,8 @@ def make_objective_terms(config: ml_collections.ConfigDict, nets: Networks) -> C
   scored in one call of the objective on a new leading axis [n, B, ...] (the batch axis stays
   second, so a data-parallel batch split is not moved)."""
   m, h = config.model, config.horizon
-  value_kind = objective.get(config)
+  ms = ModelSettings.from_config(config)
+  value_kind = objective.get(ms)
 
   def terms(params, target_params, z_sets, z_ema, action, reward, rngs):
     z_all = jnp.stack([z_i[:, :h + 1] for z_i in z_sets])  # [n, B, H+1, D]
@@ -133,8 +135,8 @@ def make_objective_terms(config: ml_collections.ConfigDict, nets: Networks) -> C
                               config.loss.reward_balance)}
     if value_kind.loss is None:
       return dict(out, val=jnp.zeros(())), {}
-    out['val'], target_mean = value_kind.loss(config, nets, target_params, z_ema, action,
-                                              reward, v_logits)
+    out['val'], target_mean = value_kind.loss(ms, nets, target_params, z_ema, action, reward,
+                                              v_logits)
     return out, {'value_target_mean': target_mean}
 
   return terms
@@ -146,8 +148,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   The terms and their weights: the module docstring. `target_params` are the EMA parameters:
   their encoder gives the value targets' latents z_ema, their objective or critics the targets.
   """
-  h, sg = config.horizon, jax.lax.stop_gradient
-  proposal, dyn, actor = proposals.get(config), dynamics.get(config), actors.get(config)
+  h, sg, ms = config.horizon, jax.lax.stop_gradient, ModelSettings.from_config(config)
+  proposal, dyn, actor = proposals.get(ms), dynamics.get(ms), actors.get(ms)
   policy = lambda params, z: nets.actor.apply({'params': params['actor']}, z)
   critic_loss = (make_critic_loss(config, nets.critics, policy)
                  if nets.critics is not None else None)
@@ -168,8 +170,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
       z, z_clean = encode(params, obs + aug * noise), sg(z_clean)
       terms['noise_inv'] = consistency_loss(z, z_clean)
     z_ema = sg(encode(target_params, obs))
-    terms |= {'dyn': dyn.loss(config, nets.dynamics, params, z, action, k_dyn, drop(0)),
-              'act': proposal.loss(config, nets.proposal, params, z, action, k_act, drop(1))}
+    terms |= {'dyn': dyn.loss(ms, nets.dynamics, params, z, action, k_dyn, drop(0)),
+              'act': proposal.loss(ms, nets.proposal, params, z, action, k_act, drop(1))}
     z_sets = (z,)
     if model_rollout is not None:  # The objective also learns on the latents it scores.
       z_roll = model_rollout(params, z[:, 0], action[:, :h], k_roll)

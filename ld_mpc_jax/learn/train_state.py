@@ -14,6 +14,7 @@ from ld_mpc_jax.model import tasks
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.learn.losses import make_loss_fn
 from ld_mpc_jax.model.models import build_networks, init_params, set_obs_normalization
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 @flax.struct.dataclass
@@ -96,7 +97,7 @@ def _jitted_update(config: ml_collections.ConfigDict) -> Callable:
 
 def _update_fn(config: ml_collections.ConfigDict) -> Callable:
   """The unjitted update(state, batch, key) -> (state, metrics) of `make_update`."""
-  nets = build_networks(config)
+  nets = build_networks(ModelSettings.from_config(config))
   loss_fn = make_loss_fn(config, nets)
   if tasks.is_multitask(config):  # batch['task'] [B] too; one share per task (tasks.py).
     loss_fn = tasks.multitask_loss(loss_fn, tasks.num_tasks(config))

@@ -15,8 +15,8 @@ where `weights` are the critics' AWR weights (None without critics).
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import ml_collections
 
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.nets import MLP
 from ld_mpc_jax.ops.registry import Registry
 
@@ -136,6 +136,6 @@ ACTORS.register('bc', BC())
 ACTORS.register('maxq', MaxQ())
 
 
-def get(config: ml_collections.ConfigDict):
-  """The entry of config.critic.actor (ValueError naming the kinds if unknown)."""
-  return ACTORS.get(config.critic.actor)
+def get(m: ModelSettings):
+  """The entry of `critic.actor` (ValueError naming the kinds if unknown)."""
+  return ACTORS.get(m.actor)

@@ -5,7 +5,8 @@ import os
 
 import ml_collections
 
-from ld_mpc_jax.model import exploration, tasks
+from ld_mpc_jax.model import exploration, proposals, search, tasks
+from ld_mpc_jax.model.settings import PlanSettings
 from ld_mpc_jax.ops import legacy
 
 _POSITIVE_INTS = (
@@ -196,9 +197,10 @@ def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
 
 def _validate_variant(config: ml_collections.ConfigDict) -> None:
   """Model kinds (their registries) and the planner options each one supports."""
-  from ld_mpc_jax.model import dynamics, proposals  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.model import dynamics  # pylint: disable=g-import-not-at-top
   m, p = config.model, config.plan
-  proposal, dyn = proposals.get(config), dynamics.get(config)
+  proposal = proposals.PROPOSALS.get(m.proposal_type)
+  dyn = dynamics.DYNAMICS.get(m.dynamics_type)
   if not proposal.sequence and not dyn.one_step:
     raise ValueError(f'config.model.dynamics_type {m.dynamics_type} needs whole action sequences '
                      f'up front, but proposal_type {m.proposal_type!r} proposes one action per '
@@ -231,8 +233,8 @@ def _validate_critic(config: ml_collections.ConfigDict) -> None:
   if not isinstance(p.dynamics_draws, int) or p.dynamics_draws < 1:
     raise ValueError(f'config.plan.dynamics_draws must be an integer >= 1, '
                      f'got {p.dynamics_draws!r}')
-  objective.get(config)
-  actor = actors.get(config)
+  objective.VALUES.get(config.critic.value)
+  actor = actors.ACTORS.get(config.critic.actor)
   if o.td_target not in TD_TARGETS:
     raise ValueError(f'config.critic.td_target must be one of {TD_TARGETS}, '
                      f'got {o.td_target!r}')
@@ -248,7 +250,7 @@ def _validate_critic(config: ml_collections.ConfigDict) -> None:
   if o.value_scale <= 0 or o.awr_max_weight <= 0 or o.awr_temperature < 0:
     raise ValueError('config.critic.value_scale and awr_max_weight must be > 0 and '
                      'awr_temperature >= 0')
-  if o.latent_rollout and not dynamics.get(config).one_step:
+  if o.latent_rollout and not dynamics.DYNAMICS.get(config.model.dynamics_type).one_step:
     raise ValueError('config.critic.latent_rollout needs one-step dynamics; set it False '
                      f'with dynamics_type {config.model.dynamics_type}')
 
@@ -314,14 +316,15 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
 def _validate_acting_search(config: ml_collections.ConfigDict) -> None:
   """The evaluation planner's search (`plan.*`), then the acting one's (`online.act_*`)."""
   o = config.online
-  from ld_mpc_jax.model import search  # pylint: disable=g-import-not-at-top
   for name in ('act_num_gaussian', 'act_iterations'):
     if not isinstance(o[name], int) or o[name] < 0:
       raise ValueError(f'config.online.{name} must be an integer >= 0, got {o[name]!r}')
-  search.validate_search(config)  # The evaluation planner's (make_plan checks it again).
+  sequence = proposals.PROPOSALS.get(config.model.proposal_type).sequence
+  # The evaluation planner's (build_plan checks it again).
+  search.validate_plan(PlanSettings.from_config(config), sequence, config.model.proposal_type)
   exploration.validate_acting(config)
   try:  # Then the acting planner's.
-    search.validate_search(exploration.acting_config(config))
+    search.validate_plan(exploration.acting_plan(config), sequence, config.model.proposal_type)
   except ValueError as err:
     raise ValueError(f'while acting (config.online.act_num_gaussian, act_iterations): '
                      f'{err}') from None

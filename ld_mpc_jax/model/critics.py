@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.nets import MLP
 from ld_mpc_jax.ops.numerics import window_returns
 
@@ -71,10 +72,9 @@ class Critics(nn.Module):
     return self.value(z), self.q_value(z, a)
 
 
-def build_critics(config: ml_collections.ConfigDict) -> Critics:
+def build_critics(m: ModelSettings) -> Critics:
   """The V and Q ensembles of `config.critic` (whether a model has them: models.uses_critics)."""
-  o = config.critic
-  return Critics(tuple(o.hidden), o.num_values, o.num_q)
+  return Critics(tuple(m.critic_hidden), m.num_values, m.num_q)
 
 
 def expectile_loss(diff: jnp.ndarray, expectile: float) -> jnp.ndarray:

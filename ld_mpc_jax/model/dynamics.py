@@ -11,17 +11,16 @@ all H latents at once), and its input layers that read the latent (`conditioning
 paths: the multi-task bias of ld_mpc_jax.model.tasks).
 """
 
-from typing import Callable, Optional
+from typing import Callable
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import ml_collections
-
 from ld_mpc_jax.ops import diffusion
 from ld_mpc_jax.nets import MLP, TimeEmbedding, Transformer, position_embedding
 from ld_mpc_jax.ops.numerics import rms_normalize
 from ld_mpc_jax.model.proposals import transitions
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.registry import Registry
 
 DYNAMICS = Registry('dynamics', 'config.model.dynamics_type')
@@ -102,13 +101,12 @@ class MLPDynamics(nn.Module):
     return rms_normalize(MLP((self.hidden, self.hidden, self.latent_dim), name='mlp')(x))
 
 
-def _maybe_normalize(config: ml_collections.ConfigDict) -> Callable:
+def _maybe_normalize(m: ModelSettings) -> Callable:
   """rms_normalize with `model.normalize_dynamics` (samples on the encoder's sphere), else id."""
-  return rms_normalize if config.model.normalize_dynamics else (lambda x: x)
+  return rms_normalize if m.normalize_dynamics else (lambda x: x)
 
 
-def _transformer_args(config: ml_collections.ConfigDict) -> dict:
-  m = config.model
+def _transformer_args(m: ModelSettings) -> dict:
   return dict(width=m.width, num_blocks=m.dynamics_blocks, num_heads=m.num_heads,
               mlp_ratio=m.mlp_ratio, dropout=m.dropout)
 
@@ -119,24 +117,24 @@ class DiffusionAR:
   one_step = True
   conditioning = (('z_proj',),)
 
-  def build(self, config):
-    return LatentDynamics(config.model.latent_dim, **_transformer_args(config))
+  def build(self, m: ModelSettings):
+    return LatentDynamics(m.latent_dim, **_transformer_args(m))
 
-  def init_args(self, config):
-    z = jnp.zeros((1, config.model.latent_dim))
-    return z, jnp.zeros((1,)), z, jnp.zeros((1, config.action_dim))
+  def init_args(self, m: ModelSettings):
+    z = jnp.zeros((1, m.latent_dim))
+    return z, jnp.zeros((1,)), z, jnp.zeros((1, m.action_dim))
 
-  def loss(self, config, module, params, z, action, key, rngs):
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
     """Denoising loss of sg(z_{i+1}) given (z_i, a_i), i <= H: z [B, H+2, D] -> []."""
     z_in, a_in = transitions(z, action)
     z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(z_in.shape)
     fn = lambda x_t, t: module.apply({'params': params['dynamics']}, x_t, t, z_in, a_in,
                                      deterministic=False, rngs=rngs)
-    return diffusion.denoising_loss(fn, z_next, key, config.diffusion.prediction).mean()
+    return diffusion.denoising_loss(fn, z_next, key, m.prediction).mean()
 
-  def make_step(self, config, module, steps: int, eta: float) -> Callable:
+  def make_step(self, m: ModelSettings, module, steps: int, eta: float) -> Callable:
     """step(params, z [N, D], a [N, A], key) -> z_next [N, D]."""
-    normalize, prediction = _maybe_normalize(config), config.diffusion.prediction
+    normalize, prediction = _maybe_normalize(m), m.prediction
 
     def step(params, z_cur, a_cur, key):
       dyn_vars = {'params': params['dynamics']}
@@ -155,26 +153,26 @@ class DiffusionTrajectory:
   one_step = False
   conditioning = (('z_proj',),)
 
-  def build(self, config):
-    return TrajectoryDynamics(config.model.latent_dim, **_transformer_args(config))
+  def build(self, m: ModelSettings):
+    return TrajectoryDynamics(m.latent_dim, **_transformer_args(m))
 
-  def init_args(self, config):
-    h, d, a = config.horizon, config.model.latent_dim, config.action_dim
+  def init_args(self, m: ModelSettings):
+    h, d, a = m.horizon, m.latent_dim, m.action_dim
     return jnp.zeros((1, h, d)), jnp.zeros((1,)), jnp.zeros((1, d)), jnp.zeros((1, h, a))
 
-  def loss(self, config, module, params, z, action, key, rngs):
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
     """Denoising loss of sg(z_{1:H}) given z_0 and a_{0:H-1}, as the planner uses it -> []."""
-    h = config.horizon
+    h = m.horizon
     target = jax.lax.stop_gradient(z[:, 1:h + 1])
     fn = lambda x_t, t: module.apply({'params': params['dynamics']}, x_t, t, z[:, 0],
                                      action[:, :h], deterministic=False, rngs=rngs)
-    return diffusion.denoising_loss(fn, target, key, config.diffusion.prediction).mean()
+    return diffusion.denoising_loss(fn, target, key, m.prediction).mean()
 
-  def make_rollout(self, config, module) -> Callable:
+  def make_rollout(self, m: ModelSettings, plan: PlanSettings, module) -> Callable:
     """roll(params, z [D], actions [K, H, A], key) -> latents [K, H+1, D] (latents[:, 0] = z),
     `plan.dynamics_steps` denoising steps for all H latents at once."""
-    p, h = config.plan, config.horizon
-    normalize, prediction = _maybe_normalize(config), config.diffusion.prediction
+    p, h = plan, m.horizon
+    normalize, prediction = _maybe_normalize(m), m.prediction
 
     def roll(params, z, actions, key):
       dyn_vars = {'params': params['dynamics']}
@@ -196,20 +194,20 @@ class DeterministicMLP:
   one_step = True
   conditioning = (('mlp', 'dense_0'),)
 
-  def build(self, config):
-    return MLPDynamics(config.model.width, config.model.latent_dim)
+  def build(self, m: ModelSettings):
+    return MLPDynamics(m.width, m.latent_dim)
 
-  def init_args(self, config):
-    return jnp.zeros((1, config.model.latent_dim)), jnp.zeros((1, config.action_dim))
+  def init_args(self, m: ModelSettings):
+    return jnp.zeros((1, m.latent_dim)), jnp.zeros((1, m.action_dim))
 
-  def loss(self, config, module, params, z, action, key, rngs):
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
     """MSE of the prediction of sg(z_{i+1}) from (z_i, a_i), i <= H -> []."""
     z_in, a_in = transitions(z, action)
     z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(z_in.shape)
     z_pred = module.apply({'params': params['dynamics']}, z_in, a_in)
     return jnp.mean((z_pred - z_next) ** 2)
 
-  def make_step(self, config, module, steps: int, eta: float) -> Callable:
+  def make_step(self, m: ModelSettings, module, steps: int, eta: float) -> Callable:
     return lambda params, z_cur, a_cur, key: module.apply({'params': params['dynamics']},
                                                            z_cur, a_cur)
 
@@ -219,16 +217,12 @@ DYNAMICS.register('diffusion_traj', DiffusionTrajectory())
 DYNAMICS.register('mlp', DeterministicMLP())
 
 
-def get(config: ml_collections.ConfigDict):
-  """The entry of config.model.dynamics_type (ValueError naming the kinds if unknown)."""
-  return DYNAMICS.get(config.model.dynamics_type)
+def get(m: ModelSettings):
+  """The entry of `model.dynamics_type` (ValueError naming the kinds if unknown)."""
+  return DYNAMICS.get(m.dynamics_type)
 
 
-def make_transition(config: ml_collections.ConfigDict, module: nn.Module,
-                    steps: Optional[int] = None, eta: Optional[float] = None) -> Callable:
+def make_transition(m: ModelSettings, module: nn.Module, steps: int, eta: float) -> Callable:
   """One-step kinds: step(params, z [N, D], a [N, A], key) -> z_next [N, D], sampled in `steps`
-  denoising steps with `eta` (default: `plan.dynamics_steps` and `plan.dynamics_eta`)."""
-  p = config.plan
-  steps = p.dynamics_steps if steps is None else steps
-  eta = p.dynamics_eta if eta is None else eta
-  return get(config).make_step(config, module, steps, eta)
+  denoising steps with `eta` (the planner's: `plan.dynamics_steps` and `plan.dynamics_eta`)."""
+  return get(m).make_step(m, module, steps, eta)

@@ -3,6 +3,7 @@ acting, its intrinsic exploration term in J (optimism over the value members and
 draws' disagreement, annealed), and the noise on the executed action (white inside the jitted
 plan, or correlated here). Evaluation never uses them."""
 
+import dataclasses
 from typing import Tuple
 
 import ml_collections
@@ -11,35 +12,34 @@ import numpy as np
 from ld_mpc_jax.configs import schedule_end
 from ld_mpc_jax.model import proposals
 from ld_mpc_jax.model.objective import Intrinsic
+from ld_mpc_jax.model.settings import PlanSettings
 
 SCHEDULES = ('constant', 'linear')
 
 
-def acting_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """A copy of config for the planner while acting: `config.online`'s exploration noise on its
-  candidates, its acting pessimism (`online.act_pessimism`; evaluation keeps `plan.pessimism`):
-  unfamiliar states are model error offline, opportunity online; and its acting selection
+def acting_plan(config: ml_collections.ConfigDict) -> PlanSettings:
+  """The planner's settings while acting: `dataclasses.replace` of the evaluation's
+  (PlanSettings.from_config) with `config.online`'s exploration noise on its candidates, its
+  acting pessimism (`online.act_pessimism`; evaluation keeps `plan.pessimism`): unfamiliar
+  states are model error offline, opportunity online; and its acting selection
   (`online.act_safe_selection`; evaluation keeps `plan.safe_selection`; `plan.safe_confirm`
   and `plan.fallback_drop` apply while acting only with it), its search
   (`online.act_num_gaussian`, `online.act_iterations`; evaluation keeps `plan.num_gaussian`
   and `plan.iterations`), its dynamics draws (`online.act_dynamics_draws`, 0: the plan's) and,
   with `online.act_proposal` off, no proposal candidates. Under `online.act_schedule='linear'`
   the acting pessimism is no setting but the plan's traced `intrinsic` (`acting_intrinsic`), so
-  `plan.pessimism` is 0 here."""
-  o, c = config.online, ml_collections.ConfigDict(config.to_dict())
-  c.plan.action_noise_std = o.action_noise_std
-  c.plan.prior_noise_std = o.prior_noise_std
-  c.plan.pessimism = o.act_pessimism if o.act_schedule == 'constant' else 0.0
-  c.plan.safe_selection = o.act_safe_selection
-  c.plan.safe_confirm = config.plan.safe_confirm and o.act_safe_selection
-  # The fallback hands the rest of an episode to the actor prior: a safe-selection gate too.
-  c.plan.fallback_drop = config.plan.fallback_drop if o.act_safe_selection else 0.0
-  c.plan.num_gaussian = o.act_num_gaussian
-  c.plan.iterations = o.act_iterations
-  c.plan.dynamics_draws = o.act_dynamics_draws or config.plan.dynamics_draws
-  if not o.act_proposal:  # The first round without the proposal's K - P sequences.
-    c.plan.num_candidates = config.plan.num_prior_candidates
-  return c
+  `pessimism` is 0 here."""
+  o, p = config.online, PlanSettings.from_config(config)
+  return dataclasses.replace(
+      p, action_noise_std=o.action_noise_std, prior_noise_std=o.prior_noise_std,
+      pessimism=o.act_pessimism if o.act_schedule == 'constant' else 0.0,
+      safe_selection=o.act_safe_selection, safe_confirm=p.safe_confirm and o.act_safe_selection,
+      # The fallback hands the rest of an episode to the actor prior: a safe-selection gate too.
+      fallback_drop=p.fallback_drop if o.act_safe_selection else 0.0,
+      num_gaussian=o.act_num_gaussian, iterations=o.act_iterations,
+      dynamics_draws=o.act_dynamics_draws or p.dynamics_draws,
+      # Without the proposal, the first round holds the actor prior's candidates alone.
+      num_candidates=p.num_candidates if o.act_proposal else p.num_prior_candidates)
 
 
 def _linear(start: float, end: float, env_steps: int, first: int, total: int) -> float:
@@ -93,7 +93,7 @@ def acting_intrinsic(config: ml_collections.ConfigDict, env_steps: int,
                      plan_start: int) -> Intrinsic:
   """The acting planner's traced intrinsic term at `env_steps` (planner.make_plan's `intrinsic`,
   float32 scalars): `acting_exploration`'s values and `acting_novelty`'s, except the pessimism
-  under the 'constant' schedule, which `acting_config` sets as `plan.pessimism` (0 here), as
+  under the 'constant' schedule, which `acting_plan` sets as the plan's `pessimism` (0 here), as
   before the schedule."""
   pessimism, disagreement = acting_exploration(config, env_steps, plan_start)
   if config.online.act_schedule == 'constant':
@@ -129,7 +129,7 @@ def validate_acting(config: ml_collections.ConfigDict) -> None:
                      'config.loss.w_novelty > 0 (its loss weight) too')
   if o.act_proposal:
     return
-  if not proposals.get(config).sequence:
+  if not proposals.PROPOSALS.get(config.model.proposal_type).sequence:
     raise ValueError('config.online.act_proposal=False drops whole proposal sequences from the '
                      f'first round; proposal_type {config.model.proposal_type!r} has none')
   if p.num_prior_candidates + o.act_num_gaussian < 1:

@@ -1,7 +1,8 @@
 """The LD-MPC networks: encoder, action proposal, latent dynamics, sequence objective, actor.
 
-All are plain flax modules. `build_networks(config)` instantiates them from a config;
-`init_params(config, key)` returns a dict of their parameters, one entry per network.
+All are plain flax modules. `build_networks(model)` instantiates them from the model's settings
+(ld_mpc_jax.model.settings.ModelSettings.from_config(config)); `init_params(config, key)` returns a
+dict of their parameters, one entry per network.
 
 The proposal and the dynamics come in kinds, one registry entry each: `config.model.
 proposal_type` (ld_mpc_jax.model.proposals.PROPOSALS) and `config.model.dynamics_type`
@@ -27,6 +28,7 @@ from ld_mpc_jax.model.dynamics import LatentDynamics, MLPDynamics, TrajectoryDyn
 from ld_mpc_jax.nets import MLP, Transformer, position_embedding
 from ld_mpc_jax.ops.numerics import rms_normalize
 from ld_mpc_jax.model.proposals import ActionProposal, MLPProposal  # noqa: F401
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 class Encoder(nn.Module):
@@ -72,7 +74,7 @@ class IdentityEncoder(nn.Module):
 ENCODER_TYPES = ('mlp', 'identity')
 
 
-def build_encoder(m: ml_collections.ConfigDict) -> nn.Module:
+def build_encoder(m: ModelSettings) -> nn.Module:
   """The encoder `model.encoder_type` names (a config saved before the field migrates to 'mlp')."""
   if m.encoder_type == 'identity':
     return IdentityEncoder(m.normalize_obs)
@@ -162,26 +164,25 @@ class Networks(NamedTuple):
   novelty: Optional[nn.Module] = None  # The learned exploration value (ld_mpc_jax.model.novelty).
 
 
-def uses_critics(config: ml_collections.ConfigDict) -> bool:
+def uses_critics(m: ModelSettings) -> bool:
   """Whether the model has Q and V ensembles: its value kind or its actor kind needs them."""
-  return objective.get(config).needs_critics or actors.get(config).needs_critics
+  return objective.get(m).needs_critics or actors.get(m).needs_critics
 
 
-def build_networks(config: ml_collections.ConfigDict) -> Networks:
-  """Instantiates the networks from `config.model` and the kinds' entries (no parameters yet)."""
-  m = config.model
+def build_networks(m: ModelSettings) -> Networks:
+  """Instantiates the networks from the model's settings and the kinds' entries (no parameters
+  yet)."""
   common = dict(width=m.width, num_heads=m.num_heads, mlp_ratio=m.mlp_ratio, dropout=m.dropout)
   return Networks(
       encoder=build_encoder(m),
-      proposal=proposals.get(config).build(config),
-      dynamics=dynamics.get(config).build(config),
+      proposal=proposals.get(m).build(m),
+      dynamics=dynamics.get(m).build(m),
       objective=SequenceObjective(num_blocks=m.objective_blocks, num_bins=m.num_bins, **common),
-      actor=Actor(tuple(m.actor_hidden), config.action_dim,
-                  stochastic=actors.get(config).stochastic,
-                  log_std_map=config.critic.log_std_map),
-      critics=build_critics(config) if uses_critics(config) else None,
-      progress=progress.build(config) if progress.enabled(config) else None,
-      novelty=novelty.build(config) if novelty.enabled(config) else None,
+      actor=Actor(tuple(m.actor_hidden), m.action_dim, stochastic=actors.get(m).stochastic,
+                  log_std_map=m.log_std_map),
+      critics=build_critics(m) if uses_critics(m) else None,
+      progress=progress.build(m) if m.progress else None,
+      novelty=novelty.build(m) if m.novelty else None,
   )
 
 
@@ -195,23 +196,23 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   (about 16 s against 4 s on a 2-core CPU at smoke size).
   """
   validate_config(config)
-  return _jitted_init(config)(key)
+  return _jitted_init(ModelSettings.from_config(config))(key)
 
 
-@config_cache.by_config  # Traced once per config value in a process.
-def _jitted_init(config: ml_collections.ConfigDict):
-  return jax.jit(functools.partial(_init_params, config))
+@config_cache.by_settings  # Traced once per settings value in a process.
+def _jitted_init(m: ModelSettings):
+  return jax.jit(functools.partial(_init_params, m))
 
 
-def _init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
-  nets = build_networks(config)
-  h, d, a = config.horizon, config.model.latent_dim, config.action_dim
+def _init_params(m: ModelSettings, key: jax.Array) -> dict:
+  nets = build_networks(m)
+  h, d, a = m.horizon, m.latent_dim, m.action_dim
   names = Networks._fields[:5]  # The critics' key is apart, so the others do not depend on it.
   keys = dict(zip(names, jax.random.split(key, len(names))), critics=jax.random.fold_in(key, 1))
-  obs = jnp.zeros((1, config.obs_dim))
+  obs = jnp.zeros((1, m.obs_dim))
   z = jnp.zeros((1, d))
-  proposal_args = proposals.get(config).init_args(config)
-  dynamics_args = dynamics.get(config).init_args(config)
+  proposal_args = proposals.get(m).init_args(m)
+  dynamics_args = dynamics.get(m).init_args(m)
   params = {
       'encoder': nets.encoder.init(keys['encoder'], obs)['params'],
       'proposal': nets.proposal.init(keys['proposal'], *proposal_args)['params'],
@@ -226,7 +227,7 @@ def _init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
     params['progress'] = nets.progress.init(jax.random.fold_in(key, 3), z)['params']
   if nets.novelty is not None:  # Its own key too.
     params['novelty'] = novelty.init(nets.novelty, jax.random.fold_in(key, 4), d, a)
-  return tasks.init_task_params(config, jax.random.fold_in(key, 2), params)
+  return tasks.init_task_params(m, jax.random.fold_in(key, 2), params)
 
 
 def count_params(params) -> int:

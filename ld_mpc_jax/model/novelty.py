@@ -27,9 +27,9 @@ Evaluation never adds it.
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import ml_collections
 
 from ld_mpc_jax.model.objective import stable_std
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.nets import MLP
 from ld_mpc_jax.ops.numerics import window_returns
 
@@ -60,26 +60,18 @@ class Novelty(nn.Module):
     return self(z, a), self.value(z)
 
 
-def enabled(config: ml_collections.ConfigDict) -> bool:
-  """Whether the model has the novelty members and value (their loss weight is positive)."""
-  return config.loss.w_novelty > 0
-
-
 # Added to each coordinate's batch spread of the observation's change (the units of
 # 'obs'-target members): Meta-World's positions are in metres, so 1 mm per step; a coordinate
 # that never moves in the batch is then fitted to 0, not divided by 0.
 OBS_SCALE_FLOOR = 1e-3
 
 
-def predicts_obs(config: ml_collections.ConfigDict) -> bool:
-  """Whether the members predict the observation's next change (else the next latent)."""
-  return config.model.novelty_target == 'obs'
-
-
-def build(config: ml_collections.ConfigDict) -> Novelty:
-  out = config.obs_dim if predicts_obs(config) else config.model.latent_dim
-  return Novelty(config.model.novelty_members, tuple(config.model.actor_hidden), out,
-                 config.model.novelty_target)
+def build(m: ModelSettings) -> Novelty:
+  """The members and value of a model with the learned exploration value (`m.novelty`:
+  `loss.w_novelty` > 0); `model.novelty_target` 'obs' predicts the observation's next change,
+  'latent' the next latent."""
+  out = m.obs_dim if m.novelty_target == 'obs' else m.latent_dim
+  return Novelty(m.novelty_members, tuple(m.actor_hidden), out, m.novelty_target)
 
 
 def init(net: Novelty, key: jax.Array, latent_dim: int, action_dim: int) -> dict:

@@ -19,10 +19,10 @@ from typing import Callable, Optional
 import flax
 import jax
 import jax.numpy as jnp
-import ml_collections
 
 from ld_mpc_jax.model import progress
 from ld_mpc_jax.model.critics import Critics
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.ops.numerics import (discounted_return, soft_cross_entropy, two_hot, two_hot_decode,
                             window_returns)
 from ld_mpc_jax.ops.registry import Registry
@@ -117,19 +117,18 @@ def make_score_draws(member_fn: ScoreFn, draws: int, pessimism: float,
   return score_draws
 
 
-def make_terminal_members(config: ml_collections.ConfigDict, critics: Critics) -> Callable:
+def make_terminal_members(m: ModelSettings, critics: Critics) -> Callable:
   """members(params, z [..., D]) -> [num_values, ...]: each expectile member's V(z), in reward
   units."""
-  scale = config.critic.value_scale
+  scale = m.value_scale
   return lambda params, z: scale * critics.apply({'params': params['critics']}, z,
                                                  method=Critics.value)
 
 
-def make_terminal_value(config: ml_collections.ConfigDict, critics: Critics,
-                        pessimism: float = 0.0) -> Callable:
+def make_terminal_value(m: ModelSettings, critics: Critics, pessimism: float = 0.0) -> Callable:
   """value(params, z [..., D]) -> [...]: the expectile members combined (mean - pessimism x
   std), in reward units. It sees the latent alone, never the actions that led to it."""
-  members = make_terminal_members(config, critics)
+  members = make_terminal_members(m, critics)
   return lambda params, z: combine(members(params, z), pessimism)
 
 
@@ -138,9 +137,9 @@ class Expectile:
   needs_critics = True
   loss = None  # The critics' term (losses.critic_term) trains it.
 
-  def make_members(self, config, nets) -> Callable:
+  def make_members(self, m: ModelSettings, nets) -> Callable:
     """members(params, latents [K, H+1, D], v_logits [K, H+1, bins]) -> [M, K]."""
-    terminal = make_terminal_members(config, nets.critics)
+    terminal = make_terminal_members(m, nets.critics)
     return lambda params, latents, v_logits: terminal(params, latents[..., -1, :])
 
 
@@ -148,22 +147,20 @@ class Behaviour:
   """V(z_H) from the sequence objective's value head, regressed on n-step returns."""
   needs_critics = False
 
-  def make_members(self, config, nets) -> Callable:
-    m = config.model
+  def make_members(self, m: ModelSettings, nets) -> Callable:
     return lambda params, latents, v_logits: two_hot_decode(v_logits[..., -1, :], m.vmin,
                                                             m.vmax)[None]
 
   @staticmethod
-  def loss(config, nets, target_params, z_ema, action, reward, v_logits):
+  def loss(m: ModelSettings, nets, target_params, z_ema, action, reward, v_logits):
     """Two-hot cross-entropy of V(z_i), i <= H, against the n-step targets
     sum_{j=i}^{H} gamma^(j-i) r_j + gamma^(H+1-i) V_ema(z_{H+1}), V_ema read by the EMA network
     on the window shifted one step. z_ema [B, H+2, D], action [B, H+1, A], reward [B, H+1],
     v_logits [..., B, H+1, bins] -> (loss [], mean target [])."""
-    m = config.model
     _, v_tgt_logits = nets.objective.apply({'params': target_params['objective']},
                                            z_ema[:, 1:], action[:, 1:])
     bootstrap = two_hot_decode(v_tgt_logits[:, -1], m.vmin, m.vmax)  # V_ema(z_{H+1}).
-    v_target = jax.lax.stop_gradient(window_returns(reward, bootstrap, config.gamma))
+    v_target = jax.lax.stop_gradient(window_returns(reward, bootstrap, m.gamma))
     return value_head_loss(v_logits, v_target, m.num_bins, m.vmin, m.vmax), v_target.mean()
 
 
@@ -177,39 +174,38 @@ VALUES.register('expectile', Expectile())
 VALUES.register('behaviour', Behaviour())
 
 
-def get(config: ml_collections.ConfigDict):
-  """The entry of config.critic.value (ValueError naming the kinds if unknown)."""
-  return VALUES.get(config.critic.value)
+def get(m: ModelSettings):
+  """The entry of `critic.value` (ValueError naming the kinds if unknown)."""
+  return VALUES.get(m.value)
 
 
-def make_member_scores(config: ml_collections.ConfigDict, nets) -> ScoreFn:
+def make_member_scores(m: ModelSettings, nets, progress_weight: float = 0.0) -> ScoreFn:
   """J under each value member: (params, latents [K, H+1, D], actions [K, H, A]) -> [M, K].
 
   J_m = sum_i gamma^i r_i + gamma^H V_m(z_H), rewards from the sequence objective (two-hot,
   decoded), V_m from the value kind (module docstring); plus w gamma^H Phi(z_H) with the learned
   progress reward (`plan.progress_weight` = w, ld_mpc_jax.model.progress)."""
-  m, gamma = config.model, config.gamma
-  members = get(config).make_members(config, nets)
+  gamma = m.gamma
+  members = get(m).make_members(m, nets)
 
-  shaped = config.plan.progress_weight > 0 and getattr(nets, 'progress', None) is not None
+  shaped = progress_weight > 0 and getattr(nets, 'progress', None) is not None
 
   def score(params, latents, actions):
     r_logits, v_logits = nets.objective.apply({'params': params['objective']}, latents, actions)
     rewards = two_hot_decode(r_logits, m.vmin, m.vmax)  # [K, H]
     scores = discounted_return(rewards[None], members(params, latents, v_logits), gamma)
     if shaped:  # The learned progress reward, as potential-based shaping (model/progress.py).
-      scores = scores + progress.bonus(config, nets.progress, params, latents)
+      scores = scores + progress.bonus(progress_weight, gamma, nets.progress, params, latents)
     return scores
 
   return score
 
 
-def make_score(config: ml_collections.ConfigDict, nets,
-               pessimism: Optional[float] = None) -> ScoreFn:
-  """J -> [K]: the member scores combined as mean - pessimism x std over the members
-  (default pessimism: `plan.pessimism`)."""
-  members = make_member_scores(config, nets)
-  pessimism = config.plan.pessimism if pessimism is None else pessimism
+def make_score(m: ModelSettings, nets, pessimism: float, progress_weight: float = 0.0
+               ) -> ScoreFn:
+  """J -> [K]: the member scores combined as mean - pessimism x std over the members (the
+  planner's: `plan.pessimism`, `plan.progress_weight`)."""
+  members = make_member_scores(m, nets, progress_weight)
   return lambda params, latents, actions: combine(members(params, latents, actions), pessimism)
 
 

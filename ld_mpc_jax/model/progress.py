@@ -16,8 +16,8 @@ planner adds w gamma^H Phi(z_H) to each candidate's J (`plan.progress_weight` = 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import ml_collections
 
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.nets import MLP
 
 
@@ -30,13 +30,9 @@ class Progress(nn.Module):
     return MLP(tuple(self.hidden) + (1,), name='mlp')(z)[..., 0]
 
 
-def enabled(config: ml_collections.ConfigDict) -> bool:
-  """Whether the model has the progress head (its loss weight is positive)."""
-  return config.loss.w_progress > 0
-
-
-def build(config: ml_collections.ConfigDict) -> Progress:
-  return Progress(tuple(config.model.actor_hidden))
+def build(m: ModelSettings) -> Progress:
+  """The head of a model with the learned progress reward (`m.progress`: `loss.w_progress` > 0)."""
+  return Progress(tuple(m.actor_hidden))
 
 
 def loss(net: Progress, params: dict, z: jnp.ndarray, target: jnp.ndarray) -> jnp.ndarray:
@@ -52,9 +48,9 @@ def phi(net: Progress, params: dict, z: jnp.ndarray) -> jnp.ndarray:
   return jax.nn.sigmoid(net.apply({'params': params['progress']}, z))
 
 
-def bonus(config: ml_collections.ConfigDict, net: Progress, params: dict,
+def bonus(weight: float, gamma: float, net: Progress, params: dict,
           latents: jnp.ndarray) -> jnp.ndarray:
-  """The shaping's part of J that differs between candidates: w gamma^H Phi(z_H), latents
-  [K, H+1, D] -> [K]."""
+  """The shaping's part of J that differs between candidates: w gamma^H Phi(z_H) (w =
+  `plan.progress_weight`), latents [K, H+1, D] -> [K]."""
   h = latents.shape[-2] - 1
-  return config.plan.progress_weight * config.gamma ** h * phi(net, params, latents[..., -1, :])
+  return weight * gamma ** h * phi(net, params, latents[..., -1, :])

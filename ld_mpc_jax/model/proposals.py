@@ -16,10 +16,10 @@ from typing import Callable, Optional, Tuple
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import ml_collections
 
 from ld_mpc_jax.ops import diffusion
 from ld_mpc_jax.nets import MLP, TimeEmbedding, Transformer, position_embedding
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.registry import Registry
 
 PROPOSALS = Registry('proposal', 'config.model.proposal_type')
@@ -91,15 +91,15 @@ def gaussian_nll(mean: jnp.ndarray, log_std: jnp.ndarray, a: jnp.ndarray) -> jnp
   return jnp.mean(0.5 * ((a - mean) * jnp.exp(-log_std)) ** 2 + log_std)
 
 
-def _diffusion_propose(config, module, horizon: int, guide: Optional[Callable]) -> Callable:
+def _diffusion_propose(m: ModelSettings, plan: PlanSettings, module, horizon: int,
+                       guide: Optional[Callable]) -> Callable:
   """propose(params, z [D] or [N, D], key, num, init=None) -> [num, horizon, A] by denoising.
 
   Cold start: `plan.action_steps` steps from noise at t = 1. Warm start (`init` [H, A] and
   `plan.warm_start_steps` > 0): `init` noised to t = `plan.warm_start_t` per candidate, then
   `warm_start_steps` steps (SDEdit-style). `guide(params, z, key, model_fn) -> model_fn`
   (optional) wraps the denoiser (energy guidance, ld_mpc_jax.plan.planner)."""
-  p, d = config.plan, config.diffusion
-  a = config.action_dim
+  p, a = plan, m.action_dim
 
   def propose(params, z, key, num, init=None):
     variables = {'params': params['proposal']}
@@ -114,11 +114,11 @@ def _diffusion_propose(config, module, horizon: int, guide: Optional[Callable]) 
     noise = jax.random.normal(init_key, (num, horizon, a))
     if init is None or p.warm_start_steps == 0:
       return diffusion.sample(model_fn, noise, sample_key, p.action_steps, p.action_eta,
-                              d.prediction, clip_x0=d.clip_actions)
+                              m.prediction, clip_x0=m.clip_actions)
     x_init = diffusion.q_sample(jnp.broadcast_to(init, (num, horizon, a)),
                                 jnp.full((num,), p.warm_start_t), noise)
     return diffusion.sample(model_fn, x_init, sample_key, p.warm_start_steps, p.action_eta,
-                            d.prediction, clip_x0=d.clip_actions, t_start=p.warm_start_t)
+                            m.prediction, clip_x0=m.clip_actions, t_start=p.warm_start_t)
 
   return propose
 
@@ -128,9 +128,9 @@ class _SingleStep:
   sequence = False
   guidable = False
 
-  def make_propose(self, config, module, guide=None) -> Callable:
+  def make_propose(self, m: ModelSettings, plan: PlanSettings, module, guide=None) -> Callable:
     """propose(params, z [D], key, num, init=None) -> [num, 1, A]: one action for z."""
-    step = self.make_step(config, module)
+    step = self.make_step(m, plan, module)
     return lambda params, z, key, num, init=None: step(
         params, jnp.broadcast_to(z, (num,) + z.shape), key)[:, None]
 
@@ -141,59 +141,57 @@ class DiffusionSequence:
   guidable = True
   conditioning = (('cond_proj',),)
 
-  def build(self, config):
-    m = config.model
-    return ActionProposal(config.horizon, config.action_dim, m.width, m.proposal_blocks,
-                          m.num_heads, m.mlp_ratio, m.dropout)
+  def build(self, m: ModelSettings):
+    return ActionProposal(m.horizon, m.action_dim, m.width, m.proposal_blocks, m.num_heads,
+                          m.mlp_ratio, m.dropout)
 
-  def init_args(self, config):
-    z = jnp.zeros((1, config.model.latent_dim))
-    return jnp.zeros((1, config.horizon, config.action_dim)), jnp.zeros((1,)), z
+  def init_args(self, m: ModelSettings):
+    z = jnp.zeros((1, m.latent_dim))
+    return jnp.zeros((1, m.horizon, m.action_dim)), jnp.zeros((1,)), z
 
-  def loss(self, config, module, params, z, action, key, rngs):
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
     """Denoising loss of a_{0:H-1} given z_0: z [B, H+2, D], action [B, H+1, A] -> []."""
-    h = config.horizon
+    h = m.horizon
     fn = lambda a_t, t: module.apply({'params': params['proposal']}, a_t, t, z[:, 0],
                                      deterministic=False, rngs=rngs)
-    return diffusion.denoising_loss(fn, action[:, :h], key, config.diffusion.prediction).mean()
+    return diffusion.denoising_loss(fn, action[:, :h], key, m.prediction).mean()
 
-  def make_propose(self, config, module, guide=None):
-    return _diffusion_propose(config, module, config.horizon, guide)
+  def make_propose(self, m: ModelSettings, plan: PlanSettings, module, guide=None):
+    return _diffusion_propose(m, plan, module, m.horizon, guide)
 
 
 class DiffusionStep(_SingleStep):
   """Diffusion over one action a_i given z_i."""
   conditioning = (('cond_proj',),)
 
-  def build(self, config):
-    m = config.model
-    return ActionProposal(1, config.action_dim, m.width, m.proposal_blocks, m.num_heads,
+  def build(self, m: ModelSettings):
+    return ActionProposal(1, m.action_dim, m.width, m.proposal_blocks, m.num_heads,
                           m.mlp_ratio, m.dropout)
 
-  def init_args(self, config):
-    z = jnp.zeros((1, config.model.latent_dim))
-    return jnp.zeros((1, 1, config.action_dim)), jnp.zeros((1,)), z
+  def init_args(self, m: ModelSettings):
+    z = jnp.zeros((1, m.latent_dim))
+    return jnp.zeros((1, 1, m.action_dim)), jnp.zeros((1,)), z
 
-  def loss(self, config, module, params, z, action, key, rngs):
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
     """Denoising loss of a_i given z_i, all i <= H: z [B, H+2, D], action [B, H+1, A] -> []."""
     z_in, a_in = transitions(z, action)
     fn = lambda a_t, t: module.apply({'params': params['proposal']}, a_t, t, z_in,
                                      deterministic=False, rngs=rngs)
-    return diffusion.denoising_loss(fn, a_in[:, None], key, config.diffusion.prediction).mean()
+    return diffusion.denoising_loss(fn, a_in[:, None], key, m.prediction).mean()
 
-  def make_step(self, config, module) -> Callable:
+  def make_step(self, m: ModelSettings, plan: PlanSettings, module) -> Callable:
     """step(params, zs [N, D], key) -> [N, A] in [-1, 1], `plan.action_steps` steps."""
-    p, d = config.plan, config.diffusion
+    p = plan
 
     def step(params, zs, key):
       variables = {'params': params['proposal']}
       init_key, sample_key = jax.random.split(key)
-      noise = jax.random.normal(init_key, zs.shape[:-1] + (1, config.action_dim))
+      noise = jax.random.normal(init_key, zs.shape[:-1] + (1, m.action_dim))
       cond = module.apply(variables, zs, method=ActionProposal.embed_cond)  # [N, 1, W]
       model_fn = lambda a_t, t: module.apply(variables, a_t, t, cond,
                                              method=ActionProposal.denoise)
       a = diffusion.sample(model_fn, noise, sample_key, p.action_steps, p.action_eta,
-                           d.prediction, clip_x0=d.clip_actions)
+                           m.prediction, clip_x0=m.clip_actions)
       return jnp.clip(a[..., 0, :], -1.0, 1.0)
 
     return step
@@ -203,23 +201,23 @@ class GaussianMLP(_SingleStep):
   """Gaussian MLP policy over a_i given z_i; trained by negative log-likelihood."""
   conditioning = (('mlp', 'dense_0'),)
 
-  def build(self, config):
-    return MLPProposal(tuple(config.model.actor_hidden), config.action_dim)
+  def build(self, m: ModelSettings):
+    return MLPProposal(tuple(m.actor_hidden), m.action_dim)
 
-  def init_args(self, config):
-    return (jnp.zeros((1, config.model.latent_dim)),)
+  def init_args(self, m: ModelSettings):
+    return (jnp.zeros((1, m.latent_dim)),)
 
-  def loss(self, config, module, params, z, action, key, rngs):
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
     """Gaussian NLL per dimension of a_i given z_i, all i <= H -> []."""
     z_in, a_in = transitions(z, action)
     mean, log_std = module.apply({'params': params['proposal']}, z_in)
     return gaussian_nll(mean, log_std, a_in)
 
-  def make_step(self, config, module) -> Callable:
+  def make_step(self, m: ModelSettings, plan: PlanSettings, module) -> Callable:
     """step(params, zs [N, D], key) -> [N, A]: mean + std noise, clipped to [-1, 1]."""
     def step(params, zs, key):
       init_key, _ = jax.random.split(key)
-      noise = jax.random.normal(init_key, zs.shape[:-1] + (1, config.action_dim))
+      noise = jax.random.normal(init_key, zs.shape[:-1] + (1, m.action_dim))
       mean, log_std = module.apply({'params': params['proposal']}, zs)
       return jnp.clip(mean + jnp.exp(log_std) * noise[..., 0, :], -1.0, 1.0)
 
@@ -231,6 +229,6 @@ PROPOSALS.register('diffusion_step', DiffusionStep())
 PROPOSALS.register('mlp', GaussianMLP())
 
 
-def get(config: ml_collections.ConfigDict):
-  """The entry of config.model.proposal_type (ValueError naming the kinds if unknown)."""
-  return PROPOSALS.get(config.model.proposal_type)
+def get(m: ModelSettings):
+  """The entry of `model.proposal_type` (ValueError naming the kinds if unknown)."""
+  return PROPOSALS.get(m.proposal_type)

@@ -38,36 +38,37 @@ from typing import Callable, NamedTuple, Optional, Tuple
 
 import jax
 import jax.numpy as jnp
-import ml_collections
 import numpy as np
 
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.registry import Registry
-
 
 
 @dataclasses.dataclass(frozen=True)
 class CandidateKind:
   """One kind of candidate of `plan`.
 
-  First-round kinds (named in `plan.first_round`) carry `count(config)` (how many sequences) and
-  `make(config, nets, propose)` -> draw(params, z [D], prop_key, noise_key, init) -> [n, H, A]
-  sequences in [-1, 1] (`propose` is the planner's proposal sampler, `init` the previous plan
+  First-round kinds (named in `plan.first_round`) carry `count(plan)` (how many sequences, from
+  the PlanSettings) and `make(model, plan, nets, propose)` -> draw(params, z [D], prop_key,
+  noise_key, init) -> [n, H, A] sequences in [-1, 1] (`model` and `plan` are the
+  ld_mpc_jax.model.settings, `propose` the planner's proposal sampler, `init` the previous plan
   shifted, or None; derive your own keys with jax.random.fold_in). The actor prior's rollouts
   and the refinement rounds are built by the planner itself (count and make None). A kind whose
-  count is above 0 must be named in `plan.first_round` (so read the count from a config field).
+  count is above 0 must be named in `plan.first_round` (so read the count from a plan field).
   """
   description: str
-  count: Optional[Callable[[ml_collections.ConfigDict], int]] = None
+  count: Optional[Callable[[PlanSettings], int]] = None
   make: Optional[Callable] = None
 
 
-def _proposal_count(config: ml_collections.ConfigDict) -> int:
-  return config.plan.num_candidates - config.plan.num_prior_candidates
+def _proposal_count(plan: PlanSettings) -> int:
+  return plan.num_candidates - plan.num_prior_candidates
 
 
-def _proposal_draws(config: ml_collections.ConfigDict, nets, propose: Callable) -> Callable:
+def _proposal_draws(model: ModelSettings, plan: PlanSettings, nets, propose: Callable
+                    ) -> Callable:
   """The proposal's K - P sequences, with `plan.action_noise_std` Gaussian noise (clipped)."""
-  num, noise_std = _proposal_count(config), config.plan.action_noise_std
+  num, noise_std = _proposal_count(plan), plan.action_noise_std
 
   def draw(params, z, prop_key, noise_key, init):
     out = propose(params, z, prop_key, num, init)
@@ -77,10 +78,11 @@ def _proposal_draws(config: ml_collections.ConfigDict, nets, propose: Callable) 
   return draw
 
 
-def _gaussian_draws(config: ml_collections.ConfigDict, nets, propose: Callable) -> Callable:
+def _gaussian_draws(model: ModelSettings, plan: PlanSettings, nets, propose: Callable
+                    ) -> Callable:
   """`plan.num_gaussian` sequences N(previous plan or 0, `plan.gaussian_std`^2), clipped."""
-  num, std = config.plan.num_gaussian, config.plan.gaussian_std
-  shape = (num, config.horizon, config.action_dim)
+  num, std = plan.num_gaussian, plan.gaussian_std
+  shape = (num, model.horizon, model.action_dim)
 
   def draw(params, z, prop_key, noise_key, init):
     centre = jnp.zeros(shape[1:]) if init is None else init
@@ -100,16 +102,19 @@ CANDIDATES.register('actor_prior', CandidateKind(
     'actor-prior rollouts: a_i = Actor(z_i) along their own rollout'))
 CANDIDATES.register('gaussian', CandidateKind(
     'broad Gaussian sequences around the previous plan (or 0)',
-    lambda config: config.plan.num_gaussian, _gaussian_draws))
+    lambda plan: plan.num_gaussian, _gaussian_draws))
 CANDIDATES.register('refined', CandidateKind('samples of a refinement round around the elites'))
 CANDIDATE_KINDS = CANDIDATES.names()  # The built-in kinds; CANDIDATES.names() has any added.
 
 
-def first_round_counts(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, int], ...]:
+def first_round_counts(plan: PlanSettings) -> Tuple[Tuple[str, int], ...]:
   """(kind, how many) of the first round's drawn kinds, in `plan.first_round` order (the P
   actor-prior candidates follow them)."""
-  return tuple((name, int(CANDIDATES.get(name).count(config)))
-               for name in config.plan.first_round)
+  return tuple((name, int(CANDIDATES.get(name).count(plan))) for name in plan.first_round)
+
+
+SELECTIONS = ('argmax', 'softmax')
+MARGIN_SCALINGS = ('none', 'expected_max')
 
 
 def first_action_spread(actions: jnp.ndarray, mask: Optional[jnp.ndarray] = None) -> jnp.ndarray:
@@ -122,10 +127,6 @@ def first_action_spread(actions: jnp.ndarray, mask: Optional[jnp.ndarray] = None
   mean = jnp.sum(w * first, axis=0) / n
   std = jnp.sqrt(jnp.sum(w * (first - mean) ** 2, axis=0) / n)
   return jnp.where(jnp.sum(w) > 0, jnp.mean(std), -1.0)
-
-
-SELECTIONS = ('argmax', 'softmax')
-MARGIN_SCALINGS = ('none', 'expected_max')
 
 
 def elite_moments(actions: jnp.ndarray, scores: jnp.ndarray, temperature: float,
@@ -247,75 +248,25 @@ def expected_max(n: int) -> float:
   return float(integrate.trapezoid(x * n * pdf * special.ndtr(x) ** (n - 1), x))
 
 
-def num_scored(config: ml_collections.ConfigDict) -> int:
+def num_scored(plan: PlanSettings) -> int:
   """Candidates `plan` scores in one call: the first round (the actor prior's included) and
   `plan.num_refine` per refinement round."""
-  p = config.plan
-  first = sum(n for _, n in first_round_counts(config)) + p.num_prior_candidates
-  return first + p.iterations * p.num_refine
+  first = sum(n for _, n in first_round_counts(plan)) + plan.num_prior_candidates
+  return first + plan.iterations * plan.num_refine
 
 
-def effective_margin(config: ml_collections.ConfigDict) -> float:
+def effective_margin(plan: PlanSettings) -> float:
   """The safe-selection margin used by `plan`: `plan.safe_margin`, times
   expected_max(candidates scored) under `plan.safe_margin_scaling='expected_max'`."""
-  p = config.plan
-  if p.safe_margin_scaling == 'expected_max':
-    return p.safe_margin * expected_max(num_scored(config))
-  return float(p.safe_margin)
+  if plan.safe_margin_scaling == 'expected_max':
+    return plan.safe_margin * expected_max(num_scored(plan))
+  return float(plan.safe_margin)
 
 
-def gates(config: ml_collections.ConfigDict) -> Tuple[bool, bool]:
-  """(confirm, fallback): whether safe selection's confirmation (`plan.safe_confirm`) and its
-  fallback to the actor prior (`plan.fallback_drop` > 0) act. Both are gates of safe selection:
-  without `plan.safe_selection` they are inert, so that their defaults can be the recommended
-  values and `--config.plan.safe_selection=True` alone switches the recommended setting on."""
-  p = config.plan
-  return bool(p.safe_selection and p.safe_confirm), bool(p.safe_selection and p.fallback_drop > 0)
-
-
-def validate_search(config: ml_collections.ConfigDict) -> None:
-  """One-line ValueErrors for the search and selection settings of config.plan."""
-  p = config.plan
-  if p.selection not in SELECTIONS:
-    raise ValueError(f'config.plan.selection must be one of {SELECTIONS}, got {p.selection!r}')
-  for name in ('num_gaussian', 'iterations'):
-    if p[name] < 0:
-      raise ValueError(f'config.plan.{name} must be >= 0, got {p[name]}')
-  if p.iterations and (p.num_refine < 1 or p.num_elites < 1):
-    raise ValueError('config.plan.num_refine and config.plan.num_elites must be >= 1 when '
-                     f'config.plan.iterations > 0, got {p.num_refine} and {p.num_elites}')
-  counts = _check_first_round(config)
-  num_first = sum(n for _, n in counts) + p.num_prior_candidates
-  if p.iterations and p.num_elites > num_first:
-    raise ValueError(f'config.plan.num_elites ({p.num_elites}) exceeds the first round\'s '
-                     f'candidates ({num_first})')
-  if p.min_std <= 0 or p.gaussian_std <= 0:
-    raise ValueError('config.plan.min_std and config.plan.gaussian_std must be > 0')
-  if p.safe_selection and p.num_prior_candidates < 1:
-    raise ValueError('config.plan.safe_selection needs the actor prior\'s own sequence as a '
-                     'candidate: set config.plan.num_prior_candidates >= 1')
-  if p.safe_margin < 0:
-    raise ValueError(f'config.plan.safe_margin must be >= 0, got {p.safe_margin}')
-  if p.confirm_draws < 1:
-    raise ValueError(f'config.plan.confirm_draws must be >= 1, got {p.confirm_draws}')
-  if not 0.0 <= p.fallback_drop < 1.0:
-    raise ValueError(f'config.plan.fallback_drop must be in [0, 1), got {p.fallback_drop}')
-  scaling = p.safe_margin_scaling
-  if scaling not in MARGIN_SCALINGS:
-    raise ValueError(f'config.plan.safe_margin_scaling must be one of {MARGIN_SCALINGS}, '
-                     f'got {scaling!r}')
-  from ld_mpc_jax.model import proposals  # pylint: disable=g-import-not-at-top
-  others = any(n for name, n in counts if name != 'proposal')
-  if (others or p.iterations) and not proposals.get(config).sequence:
-    raise ValueError('config.plan.num_gaussian (any first-round kind but the proposal) and '
-                     'config.plan.iterations need whole action sequences, not proposal_type '
-                     f'{config.model.proposal_type!r}')
-
-
-def _check_first_round(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, int], ...]:
+def check_first_round(plan: PlanSettings) -> Tuple[Tuple[str, int], ...]:
   """`plan.first_round`: registered kinds that draw sequences, each once, the proposal among
-  them; -> first_round_counts(config)."""
-  names = tuple(config.plan.first_round)
+  them; -> first_round_counts(plan). One-line ValueErrors (PlanSettings.validate)."""
+  names = tuple(plan.first_round)
   drawn = tuple(n for n in CANDIDATES.names() if CANDIDATES.get(n).make is not None)
   for name in names:
     if CANDIDATES.check(name) not in drawn:
@@ -325,8 +276,47 @@ def _check_first_round(config: ml_collections.ConfigDict) -> Tuple[Tuple[str, in
     raise ValueError(f"config.plan.first_round must name each kind once, 'proposal' among them, "
                      f'got {names}')
   for name in drawn:  # A kind given a count but left out of the first round would be ignored.
-    if name not in names and CANDIDATES.get(name).count(config) > 0:
+    if name not in names and CANDIDATES.get(name).count(plan) > 0:
       raise ValueError(f'config.plan.first_round leaves out {name!r}, which its settings give '
-                       f'{CANDIDATES.get(name).count(config)} candidates: add it, or set its '
+                       f'{CANDIDATES.get(name).count(plan)} candidates: add it, or set its '
                        'count to 0')
-  return first_round_counts(config)
+  return first_round_counts(plan)
+
+
+def validate_plan(plan: PlanSettings, sequence_proposal: bool, proposal_type: str) -> None:
+  """One-line ValueErrors for the search and selection settings; `sequence_proposal`: whether
+  the model's proposal kind (`proposal_type`) draws whole sequences."""
+  if plan.selection not in SELECTIONS:
+    raise ValueError(f'config.plan.selection must be one of {SELECTIONS}, '
+                     f'got {plan.selection!r}')
+  for name in ('num_gaussian', 'iterations'):
+    if getattr(plan, name) < 0:
+      raise ValueError(f'config.plan.{name} must be >= 0, got {getattr(plan, name)}')
+  if plan.iterations and (plan.num_refine < 1 or plan.num_elites < 1):
+    raise ValueError('config.plan.num_refine and config.plan.num_elites must be >= 1 when '
+                     f'config.plan.iterations > 0, got {plan.num_refine} and '
+                     f'{plan.num_elites}')
+  counts = check_first_round(plan)
+  num_first = sum(n for _, n in counts) + plan.num_prior_candidates
+  if plan.iterations and plan.num_elites > num_first:
+    raise ValueError(f'config.plan.num_elites ({plan.num_elites}) exceeds the first round\'s '
+                     f'candidates ({num_first})')
+  if plan.min_std <= 0 or plan.gaussian_std <= 0:
+    raise ValueError('config.plan.min_std and config.plan.gaussian_std must be > 0')
+  if plan.safe_selection and plan.num_prior_candidates < 1:
+    raise ValueError('config.plan.safe_selection needs the actor prior\'s own sequence as a '
+                     'candidate: set config.plan.num_prior_candidates >= 1')
+  if plan.safe_margin < 0:
+    raise ValueError(f'config.plan.safe_margin must be >= 0, got {plan.safe_margin}')
+  if plan.confirm_draws < 1:
+    raise ValueError(f'config.plan.confirm_draws must be >= 1, got {plan.confirm_draws}')
+  if not 0.0 <= plan.fallback_drop < 1.0:
+    raise ValueError(f'config.plan.fallback_drop must be in [0, 1), got {plan.fallback_drop}')
+  if plan.safe_margin_scaling not in MARGIN_SCALINGS:
+    raise ValueError(f'config.plan.safe_margin_scaling must be one of {MARGIN_SCALINGS}, '
+                     f'got {plan.safe_margin_scaling!r}')
+  others = any(n for name, n in counts if name != 'proposal')
+  if (others or plan.iterations) and not sequence_proposal:
+    raise ValueError('config.plan.num_gaussian (any first-round kind but the proposal) and '
+                     'config.plan.iterations need whole action sequences, not proposal_type '
+                     f'{proposal_type!r}')

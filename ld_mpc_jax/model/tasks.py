@@ -27,11 +27,11 @@ from typing import Callable, Dict, Tuple
 import flax
 import jax
 import jax.numpy as jnp
-import ml_collections
 
 # The config-level helpers live with the environments (data and evaluation use them too); they
 # are re-exported here for the model's callers.
 from ld_mpc_jax.envs.tasks import check_tasks, is_multitask, num_tasks, task_config, task_names
+from ld_mpc_jax.model.settings import ModelSettings
 
 # The layers that read a network's input (the observation for the encoder, a latent for the
 # others), by parameter path within the network, for the networks that have one kind; the
@@ -45,26 +45,25 @@ INPUT_LAYERS = {
 NETWORKS = ('encoder', 'proposal', 'dynamics', 'objective', 'actor', 'critics')
 
 
-def input_layers(config: ml_collections.ConfigDict) -> Dict[str, Tuple[Tuple[str, ...], ...]]:
+def input_layers(m: ModelSettings) -> Dict[str, Tuple[Tuple[str, ...], ...]]:
   """{network: parameter paths of its task-conditioned input layers}, in NETWORKS order."""
   from ld_mpc_jax.model import dynamics, proposals  # pylint: disable=g-import-not-at-top
-  kinds = {'proposal': proposals.get(config).conditioning,
-           'dynamics': dynamics.get(config).conditioning}
+  kinds = {'proposal': proposals.get(m).conditioning, 'dynamics': dynamics.get(m).conditioning}
   return {net: tuple(kinds[net] if net in kinds else INPUT_LAYERS[net]) for net in NETWORKS}
 
 
-def init_task_params(config: ml_collections.ConfigDict, key: jax.Array, params: dict) -> dict:
+def init_task_params(m: ModelSettings, key: jax.Array, params: dict) -> dict:
   """`params` plus params['task'] for a multi-task config; unchanged for a single task.
 
   The embedding starts N(0, 1) like torch's nn.Embedding (clipped to unit norm when used); each
   W_e is LeCun-normal over the task_dim inputs it adds to its layer.
   """
-  if not is_multitask(config):
+  if not m.multitask:
     return params
-  dim = config.model.task_dim
+  dim = m.task_dim
   k_emb, k_proj = jax.random.split(key)
   proj, i = {}, 0
-  for net, paths in input_layers(config).items():
+  for net, paths in input_layers(m).items():
     if net not in params:  # The critics, for a model without them.
       continue
     for path in paths:
@@ -76,7 +75,7 @@ def init_task_params(config: ml_collections.ConfigDict, key: jax.Array, params: 
       w = jax.random.normal(jax.random.fold_in(k_proj, i), shape) * dim ** -0.5
       proj[(net,) + path] = w
       i += 1
-  embedding = jax.random.normal(k_emb, (num_tasks(config), dim))
+  embedding = jax.random.normal(k_emb, (m.num_tasks, dim))
   return dict(params, task={'embedding': embedding,
                             'proj': flax.traverse_util.unflatten_dict(proj)})
 

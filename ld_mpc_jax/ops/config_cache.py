@@ -1,4 +1,4 @@
-"""One built function per distinct config, so that building it again traces nothing.
+"""One built function per distinct config or settings, so that building it again traces nothing.
 
 `jax.jit` caches its traces per function object. A builder such as `make_update(config)` makes a
 new closure at every call, so a second run of the same config in one process traces and lowers
@@ -37,6 +37,27 @@ def by_config(build: Callable) -> Callable:
       entries.move_to_end(key)
       return entries[key]
     fn = build(copy.deepcopy(config))
+    entries[key] = fn
+    while len(entries) > MAX_ENTRIES:
+      entries.popitem(last=False)
+    return fn
+
+  cached.cache_size = lambda: len(entries)
+  return cached
+
+
+def by_settings(build: Callable) -> Callable:
+  """Wraps build(*settings) -> fn, its arguments frozen and hashable (ld_mpc_jax.model.settings):
+  returns the same fn for equal arguments while no registry changes."""
+  entries = collections.OrderedDict()
+
+  @functools.wraps(build)
+  def cached(*settings):
+    key = (registry.generation(),) + settings
+    if key in entries:
+      entries.move_to_end(key)
+      return entries[key]
+    fn = build(*settings)
     entries[key] = fn
     while len(entries) > MAX_ENTRIES:
       entries.popitem(last=False)

@@ -11,8 +11,7 @@ call for N environments), so the two give the same episodes. With a device mesh
 environment keeps its keys, so the actions are those of a single device.
 """
 
-import json
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence, Tuple, Union
 
 import jax
 import jax.numpy as jnp
@@ -22,10 +21,14 @@ import numpy as np
 
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.plan.modes import (  # noqa: F401 (the modes' names, re-exported)
-    MODES, NO_PLAN_INFO, POLICY_MODES, PolicyMode, make_act_fn, uses_prev)
+    MODES, NO_PLAN_INFO, POLICY_MODES, ActSettings, PolicyMode, make_act_fn, uses_prev)
+
+# What the functions below are built from: a config (checked, then its ActSettings) or the
+# ActSettings themselves (the acting planner's: exploration.acting_plan).
+Settings = Union[ml_collections.ConfigDict, ActSettings]
 
 
-def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
+def make_act(settings: Settings, mode: str = 'plan') -> Callable:
   """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0, intrinsic=None) ->
   (action [A], carry, info [6] float32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
   (objective.Intrinsic; acting only) are traced: annealing them never recompiles.
@@ -36,7 +39,7 @@ def make_act(config: ml_collections.ConfigDict, mode: str = 'plan') -> Callable:
   next `prev`: the sequence [H, A], or for the planner with `plan.fallback_drop` > 0 the pair
   (sequence, planner.Guard).
   """
-  act = make_act_fn(config, mode)
+  act = make_act_fn(ActSettings.of(settings), mode)
   jitted = jax.jit(lambda params, obs, key, t, prev, noise, intrinsic: act(
       params, obs, jax.random.fold_in(key, t), prev, noise, intrinsic))
   return lambda params, obs, key, t, prev, noise=0.0, intrinsic=None: jitted(
@@ -63,8 +66,8 @@ def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
   return jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), seeds)
 
 
-def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
-                   chunk: Optional[int] = None, mesh: Optional[Mesh] = None) -> Callable:
+def make_batch_act(settings: Settings, mode: str = 'plan', chunk: Optional[int] = None,
+                   mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise [],
   intrinsic=None).
 
@@ -76,7 +79,7 @@ def make_batch_act(config: ml_collections.ConfigDict, mode: str = 'plan',
   (`jax.shard_map`; N is padded with inactive rows to a multiple of the device count) and each
   device maps over its share as above; `params` should be replicated (sharding.replicate).
   """
-  act = make_act_fn(config, mode)
+  act = make_act_fn(ActSettings.of(settings), mode)
 
   def one(params, t, knobs, has_prev, inputs):  # knobs: (noise, intrinsic), acting's.
     obs, key, prev, active = inputs
@@ -136,23 +139,23 @@ class BatchAgentPolicy:
   one environment at a time on each device.
   """
 
-  def __init__(self, config: ml_collections.ConfigDict, params, mode: str = 'plan',
-               seed: int = 0, chunk: Optional[int] = None, mesh: Optional[Mesh] = None,
+  def __init__(self, settings: Settings, params, mode: str = 'plan', seed: int = 0,
+               chunk: Optional[int] = None, mesh: Optional[Mesh] = None,
                action_noise: float = 0.0, intrinsic=None):
     self.seed, self.mesh = seed, mesh
     self.set_params(params)
     if mesh is not None:
       chunk = 1 if chunk == 0 else chunk
-    self.warm = uses_prev(config, mode)
+    settings = ActSettings.of(settings)
+    self.warm = uses_prev(settings.plan, mode)
     self.per_env = chunk == 0  # One jitted call per environment (the single-env act).
-    self.action_dim = config.action_dim
-    # One jitted function per setting, compiled once per process; the task name does not change
-    # the function, so the tasks of a multi-task agent (tasks.bind) share it.
-    spec = {k: v for k, v in config.to_dict().items() if k != 'task'}
-    key = (json.dumps(spec, sort_keys=True, default=str), mode, chunk, mesh)
+    self.action_dim = settings.model.action_dim
+    # One jitted function per setting, compiled once per process; the task name is no setting,
+    # so the tasks of a multi-task agent (tasks.bind) share it.
+    key = (settings, mode, chunk, mesh)
     if key not in _BATCH_ACTS:
-      _BATCH_ACTS[key] = (make_act(config, mode) if self.per_env
-                          else make_batch_act(config, mode, chunk, mesh))
+      _BATCH_ACTS[key] = (make_act(settings, mode) if self.per_env
+                          else make_batch_act(settings, mode, chunk, mesh))
     self.act = _BATCH_ACTS[key]
     self.keys = self.prev = None
     # The executed action's noise std and the planner's objective.Intrinsic (acting only).
@@ -214,7 +217,7 @@ class BatchAgentPolicy:
     return actions
 
 
-def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', seed: int = 0
+def make_policy(settings: Settings, params, mode: str = 'plan', seed: int = 0
                 ) -> Tuple[Callable[[np.ndarray], np.ndarray], Callable[..., None]]:
   """(policy, reset) for one episode at a time: policy(obs [obs_dim]) -> action [A].
 
@@ -222,8 +225,9 @@ def make_policy(config: ml_collections.ConfigDict, params, mode: str = 'plan', s
   key schedule from `episode.reset_seed` (module docstring; `reset()` without an episode keeps
   counting decisions under the last key). `policy.warmup(obs)` compiles it.
   """
-  act = make_act(config, mode)
-  warm = uses_prev(config, mode)
+  settings = ActSettings.of(settings)
+  act = make_act(settings, mode)
+  warm = uses_prev(settings.plan, mode)
   state = {'t': 0, 'prev': None, 'key': jax.random.key(seed)}
 
   def policy(obs: np.ndarray) -> np.ndarray:

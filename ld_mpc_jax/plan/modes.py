@@ -6,17 +6,44 @@ registry entry (POLICY_MODES) whose act works on the latent; `make_act_fn` puts 
 ld_mpc_jax.plan.agent jits and batches them.
 """
 
+import dataclasses
 from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax.model import dynamics, search
+from ld_mpc_jax.model import dynamics
+from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.models import build_networks
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.numerics import rms_normalize
 from ld_mpc_jax.ops.registry import Registry
-from ld_mpc_jax.plan.planner import make_plan, make_propose
+from ld_mpc_jax.plan.mppi import MPPIConfig, make_ldmpc_mppi, mppi_settings
+from ld_mpc_jax.plan.planner import build_plan, make_propose
+
+
+@dataclasses.dataclass(frozen=True)
+class ActSettings:
+  """What a policy mode is built from: the model's settings, the planner's (the acting
+  planner's are a dataclasses.replace of the evaluation's: exploration.acting_plan) and MPPI's.
+  Frozen and hashable: equal settings share one jitted act (ld_mpc_jax.plan.agent)."""
+  model: ModelSettings
+  plan: PlanSettings
+  mppi: MPPIConfig
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'ActSettings':
+    """The settings of a config, after its checks (one-line ValueErrors)."""
+    validate_config(config)
+    return cls(ModelSettings.from_config(config), PlanSettings.from_config(config),
+               mppi_settings(config))
+
+  @classmethod
+  def of(cls, settings) -> 'ActSettings':
+    """`settings` as they are, or those of a config (the agent's functions take either)."""
+    return settings if isinstance(settings, cls) else cls.from_config(settings)
+
 
 # What a decision reports beside its action: float32 [6] = (kind of the winning candidate, an
 # index into search.CANDIDATES.names() or -1 for policies that do not plan; the refinement round it
@@ -27,17 +54,18 @@ from ld_mpc_jax.plan.planner import make_plan, make_propose
 NO_PLAN_INFO = (-1, 0, 0, -1, -1, -1)
 
 # Policy modes: name -> PolicyMode. A mode's act(params, z [latent_dim], key, prev, noise [],
-# intrinsic) -> (action [A], carry, info [6]) is built by make_act(config, nets), not jitted;
+# intrinsic) -> (action [A], carry, info [6]) is built by make_act(settings, nets) (ActSettings),
+# not jitted;
 # `intrinsic` (acting only, objective.Intrinsic or None) is the planner's; `carry` is what
 # the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
 # MPPI's mean; the planner with the fallback adds its planner.Guard);
-# `uses_prev(config)`: whether it acts on the previous decision's carry.
+# `uses_prev(plan)` (PlanSettings): whether it acts on the previous decision's carry.
 POLICY_MODES = Registry('policy mode', 'mode')
 
 
 class PolicyMode(NamedTuple):
   make_act: Callable
-  uses_prev: Callable = lambda config: False
+  uses_prev: Callable = lambda plan: False
 
 
 def _encode(nets, params, obs):
@@ -48,12 +76,12 @@ def _no_plan_info():
   return jnp.asarray(NO_PLAN_INFO, jnp.float32)
 
 
-def _plan_act(config, nets):
+def _plan_act(s: ActSettings, nets):
   """The planner (ld_mpc_jax.plan.planner); info is (kind, iteration, departed, fallen). With
   `plan.fallback_drop` > 0 what it carries to the next decision is (sequence, Guard): the
   previous sequence and the fallback's state (planner.Guard); else the sequence alone."""
-  plan = make_plan(config)
-  guarded, warm = search.gates(config)[1], config.plan.warm_start_steps > 0
+  plan = build_plan(s.model, s.plan)
+  guarded, warm = s.plan.gates[1], s.plan.warm_start_steps > 0
 
   def act(params, z, key, prev, noise, intrinsic=None):
     if guarded:  # The sequence travels only to warm-start, as without the guard.
@@ -75,21 +103,20 @@ def _with_noise(action, noise, key):
   return jnp.where(noise > 0, noisy, action)
 
 
-def _actor_act(config, nets):
+def _actor_act(s: ActSettings, nets):
   """The actor prior's mode, held over the horizon; `noise` (acting online with
   `online.act_mode = 'actor'`, or `eval.action_noise`) is the std of Gaussian noise on its
   action, 0 in evaluation by default."""
   def act(params, z, key, prev, noise, intrinsic=None):
     a = nets.actor.apply({'params': params['actor']}, z)
     a = _with_noise(a, noise, key)
-    return a, jnp.broadcast_to(a, (config.horizon,) + a.shape), _no_plan_info()
+    return a, jnp.broadcast_to(a, (s.model.horizon,) + a.shape), _no_plan_info()
   return act
 
 
-def _mppi_act(config, nets):
+def _mppi_act(s: ActSettings, nets):
   """MPPI on the learned model (config.mppi); `prev` is its previous Gaussian mean."""
-  from ld_mpc_jax.plan.mppi import make_ldmpc_mppi  # pylint: disable=g-import-not-at-top
-  mppi_plan = make_ldmpc_mppi(config)
+  mppi_plan = make_ldmpc_mppi(s.model, s.plan, s.mppi)
 
   def act(params, z, key, prev, noise, intrinsic=None):
     out = mppi_plan(params, z, key, prev)
@@ -98,46 +125,46 @@ def _mppi_act(config, nets):
   return act
 
 
-def _proposal_act(config, nets):
+def _proposal_act(s: ActSettings, nets):
   """One sample of the proposal alone (single-step kinds: the one action, held)."""
-  propose = make_propose(config, nets)
+  propose = make_propose(s.model, s.plan, nets)
 
   def act(params, z, key, prev, noise, intrinsic=None):
     seq = jnp.clip(propose(params, z, key, 1)[0], -1.0, 1.0)
     if seq.shape[0] == 1:  # Single-step proposal kinds: hold the one action.
-      seq = jnp.repeat(seq, config.horizon, axis=0)
+      seq = jnp.repeat(seq, s.model.horizon, axis=0)
     return (_with_noise(seq[0], noise, jax.random.fold_in(key, 7)), seq, _no_plan_info())
   return act
 
 
 POLICY_MODES.register('plan', PolicyMode(
-    _plan_act, lambda config: config.plan.warm_start_steps > 0 or search.gates(config)[1]))
+    _plan_act, lambda plan: plan.warm_start_steps > 0 or plan.gates[1]))
 POLICY_MODES.register('actor', PolicyMode(_actor_act))
 POLICY_MODES.register('proposal', PolicyMode(_proposal_act))
-POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda config: True))
+POLICY_MODES.register('mppi', PolicyMode(_mppi_act, lambda plan: True))
 MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the registry's names.
 
 
-def make_act_fn(config: ml_collections.ConfigDict, mode: str) -> Callable:
+def make_act_fn(s: ActSettings, mode: str) -> Callable:
   """act(params, obs [obs_dim], key, prev, noise [], intrinsic=None) -> (action [A], carry,
   info [6]), not jitted: the encoder's latent (filtered with `plan.latent_filter`), then the
   mode's act. `noise`: std of Gaussian noise on the executed action of the planner or the actor
   prior (acting only); `intrinsic`: the planner's (acting only)."""
-  entry, nets = POLICY_MODES.get(mode), build_networks(config)
-  inner = entry.make_act(config, nets)
-  if config.plan.latent_filter == 0:
+  entry, nets = POLICY_MODES.get(mode), build_networks(s.model)
+  inner = entry.make_act(s, nets)
+  if s.plan.latent_filter == 0:
     return lambda params, obs, key, prev, noise, intrinsic=None: inner(
         params, _encode(nets, params, obs), key, prev, noise, intrinsic)
-  return _filtered(config, nets, inner, entry.uses_prev(config))
+  return _filtered(s, nets, inner, entry.uses_prev(s.plan))
 
 
-def _filtered(config: ml_collections.ConfigDict, nets, inner: Callable, inner_prev: bool
-              ) -> Callable:
+def _filtered(s: ActSettings, nets, inner: Callable, inner_prev: bool) -> Callable:
   """`inner` acting on the latent filtered with the model: z_t = rms(f z'_t + (1 - f) enc(o_t)),
   z'_t the dynamics model's one-step prediction from the previous decision's (filtered) latent and
   executed action (f = `plan.latent_filter`; base.py). Its carry is (the inner carry, z_t, a_t)."""
-  f = config.plan.latent_filter
-  transition = dynamics.make_transition(config, nets.dynamics)
+  f = s.plan.latent_filter
+  transition = dynamics.make_transition(s.model, nets.dynamics, s.plan.dynamics_steps,
+                                        s.plan.dynamics_eta)
 
   def act(params, obs, key, prev, noise, intrinsic=None):
     z = _encode(nets, params, obs)
@@ -151,7 +178,7 @@ def _filtered(config: ml_collections.ConfigDict, nets, inner: Callable, inner_pr
   return act
 
 
-def uses_prev(config: ml_collections.ConfigDict, mode: str) -> bool:
+def uses_prev(plan: PlanSettings, mode: str) -> bool:
   """Whether `mode` acts on the previous decision's carry (warm-started planner, MPPI; every
   mode with `plan.latent_filter`)."""
-  return config.plan.latent_filter > 0 or POLICY_MODES.get(mode).uses_prev(config)
+  return plan.latent_filter > 0 or POLICY_MODES.get(mode).uses_prev(plan)

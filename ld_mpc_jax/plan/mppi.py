@@ -26,6 +26,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.model.tdmpc2_world import TDMPC2Config, TDMPC2Model
 
 ValueFn = Callable[[dict, jnp.ndarray, jnp.ndarray, jax.Array], jnp.ndarray]
@@ -176,48 +177,50 @@ def make_tdmpc2_mppi(mppi_cfg: MPPIConfig = MPPIConfig(),
 # This project's world model under MPPI.
 
 
-def make_ldmpc_value_fn(config: ml_collections.ConfigDict) -> ValueFn:
+def make_ldmpc_value_fn(m: ModelSettings, plan: PlanSettings) -> ValueFn:
   """J of each sequence under LD-MPC's diffusion dynamics and learned sequence objective.
 
-  MPPI's horizon must equal config.horizon. The rollout is the planner's own (K = N candidates,
+  MPPI's horizon must equal the model's. The rollout is the planner's own (K = N candidates,
   no actor-prior mixing: MPPI supplies its prior trajectories itself).
   """
   from ld_mpc_jax.model import objective  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.plan import planner  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.model.models import build_networks  # pylint: disable=g-import-not-at-top
-  nets = build_networks(config)
-  score = objective.make_score(config, nets)
+  nets = build_networks(m)
+  score = objective.make_score(m, nets, plan.pessimism, plan.progress_weight)
 
   def value_fn(params, z, actions, key):
-    c = ml_collections.ConfigDict(config.to_dict())
-    c.plan.num_candidates, c.plan.num_prior_candidates = actions.shape[0], 0
-    _, latents = planner.make_rollout(c, nets)(params, z, actions, key)
+    p = dataclasses.replace(plan, num_candidates=actions.shape[0], num_prior_candidates=0)
+    _, latents = planner.make_rollout(m, p, nets)(params, z, actions, key)
     return score(params, latents, actions)
 
   return value_fn
 
 
-def make_ldmpc_prior_fn(config: ml_collections.ConfigDict) -> PriorFn:
+def make_ldmpc_prior_fn(m: ModelSettings, plan: PlanSettings) -> PriorFn:
   """Actor-prior trajectories of LD-MPC's actor rolled out through its learned dynamics."""
   from ld_mpc_jax.plan import planner
   from ld_mpc_jax.model.models import build_networks
-  nets = build_networks(config)
-  h, a = config.horizon, config.action_dim
+  nets = build_networks(m)
+  h, a = m.horizon, m.action_dim
 
   def prior_fn(params, z, key, num):
-    c = ml_collections.ConfigDict(config.to_dict())
-    c.plan.num_candidates, c.plan.num_prior_candidates = num, num
-    actions, _ = planner.make_rollout(c, nets)(params, z, jnp.zeros((0, h, a)), key)
+    p = dataclasses.replace(plan, num_candidates=num, num_prior_candidates=num)
+    actions, _ = planner.make_rollout(m, p, nets)(params, z, jnp.zeros((0, h, a)), key)
     return actions
 
   return prior_fn
 
 
-def make_ldmpc_mppi(config: ml_collections.ConfigDict) -> Callable:
-  """MPPI (settings from config.mppi) on LD-MPC's learned dynamics, objective and actor prior.
+def mppi_settings(config: ml_collections.ConfigDict) -> MPPIConfig:
+  """MPPI's settings of a config (`config.mppi`, at the model's horizon and action size)."""
+  return MPPIConfig(action_dim=config.action_dim, horizon=config.horizon, **config.mppi)
+
+
+def make_ldmpc_mppi(m: ModelSettings, plan: PlanSettings, cfg: MPPIConfig) -> Callable:
+  """MPPI (`cfg`: mppi_settings(config)) on LD-MPC's learned dynamics, objective and actor prior.
 
   Returns plan(params, z [latent_dim], key, prev_mean [H, A] | None) -> MPPIOutput.
   """
-  cfg = MPPIConfig(action_dim=config.action_dim, horizon=config.horizon, **config.mppi)
-  prior_fn = make_ldmpc_prior_fn(config) if cfg.num_prior else None
-  return make_mppi_plan(cfg, make_ldmpc_value_fn(config), prior_fn)
+  prior_fn = make_ldmpc_prior_fn(m, plan) if cfg.num_prior else None
+  return make_mppi_plan(cfg, make_ldmpc_value_fn(m, plan), prior_fn)

@@ -16,6 +16,7 @@ One call of `plan`:
      candidate it was (diffusion proposal or actor prior).
 """
 
+import dataclasses
 from typing import Callable, Optional
 
 import flax
@@ -24,17 +25,18 @@ import jax.numpy as jnp
 import ml_collections
 
 from ld_mpc_jax.ops import config_cache, diffusion
-from ld_mpc_jax.model import dynamics, novelty, proposals, search
+from ld_mpc_jax.model import dynamics, novelty, proposals
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.models import Networks, build_networks
 from ld_mpc_jax.model.objective import (Intrinsic, ScoreFn, as_members, make_member_scores,
                                        make_score, make_score_draws)
 from ld_mpc_jax.model.search import (CANDIDATE_KINDS, CANDIDATES, Pool, beats, effective_margin,
                                      first_action_spread, first_round_counts, refine, select,
-                                     validate_search)
+                                     validate_plan)
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
-__all__ = ['CANDIDATE_KINDS', 'Guard', 'PlanOutput', 'ScoreFn', 'make_plan', 'make_propose',
-           'make_rollout', 'make_member_scores', 'shift_sequence']
+__all__ = ['CANDIDATE_KINDS', 'Guard', 'PlanOutput', 'ScoreFn', 'build_plan', 'make_plan',
+           'make_propose', 'make_rollout', 'make_member_scores', 'shift_sequence']
 
 
 @flax.struct.dataclass
@@ -79,15 +81,7 @@ class PlanOutput:
   spread: jnp.ndarray
 
 
-def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
-  """A copy of config with plan fields replaced."""
-  out = ml_collections.ConfigDict(config.to_dict())
-  for name, value in plan.items():
-    out.plan[name] = value
-  return out
-
-
-def make_guide(config: ml_collections.ConfigDict, nets: Networks) -> Optional[Callable]:
+def make_guide(m: ModelSettings, p: PlanSettings, nets: Networks) -> Optional[Callable]:
   """Energy guidance (`plan.guidance_scale` > 0, else None): guide(params, z [D], key, model_fn)
   -> model_fn whose prediction x0(a_t) [N, H, A] moves along the gradient of J.
 
@@ -95,13 +89,13 @@ def make_guide(config: ml_collections.ConfigDict, nets: Networks) -> Optional[Ca
   transition); the step is x0 + scale (1 - alpha_bar(t)) g, g = dJ/da_t scaled to unit RMS per
   candidate (so `scale` is in action units), and guidance fades with the noise.
   """
-  scale, clip = config.plan.guidance_scale, config.diffusion.clip_actions
+  scale, clip = p.guidance_scale, m.clip_actions
   if not scale:
     return None
-  guide_rollout = make_rollout(_with_plan(config, dynamics_steps=config.plan.
-                                          guidance_dynamics_steps, dynamics_eta=0.0,
-                                          num_prior_candidates=0), nets)
-  score = make_score(config, nets)
+  guide_rollout = make_rollout(m, dataclasses.replace(
+      p, dynamics_steps=p.guidance_dynamics_steps, dynamics_eta=0.0, num_prior_candidates=0),
+                               nets)
+  score = make_score(m, nets, p.pessimism, p.progress_weight)
 
   def guide(params, z, key, unguided):
     def model_fn(a_t, t):
@@ -118,14 +112,14 @@ def make_guide(config: ml_collections.ConfigDict, nets: Networks) -> Optional[Ca
   return guide
 
 
-def make_propose(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+def make_propose(m: ModelSettings, p: PlanSettings, nets: Networks) -> Callable:
   """Returns propose(params, z [D], key, num, init=None) -> [num, H, A] action sequences: the
   proposal kind's sampler (ld_mpc_jax.model.proposals), energy-guided with `plan.guidance_scale` > 0.
 
   `init` [H, A] warm-starts sequence kinds (`plan.warm_start_steps`). Single-step proposal
   kinds return [num, 1, A]: one action for z (the proposal-alone policy).
   """
-  return proposals.get(config).make_propose(config, nets.proposal, make_guide(config, nets))
+  return proposals.get(m).make_propose(m, p, nets.proposal, make_guide(m, p, nets))
 
 
 def shift_sequence(sequence: jnp.ndarray) -> jnp.ndarray:
@@ -133,7 +127,7 @@ def shift_sequence(sequence: jnp.ndarray) -> jnp.ndarray:
   return jnp.concatenate([sequence[1:], sequence[-1:]], axis=0)
 
 
-def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+def make_rollout(m: ModelSettings, p: PlanSettings, nets: Networks) -> Callable:
   """Returns rollout(params, z [D], proposals, key) -> (actions [K, H, A], latents [K, H+1, D]).
 
   `proposals` is either fixed action sequences [N, H, A], or an int N: then each of the N
@@ -142,20 +136,20 @@ def make_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
   a_i = Actor(z_i) along their own rollout. latents[:, 0] = z. One-step dynamics kinds roll out
   with a lax.scan over H (`_scan_rollout`); the others through their entry's `make_rollout`.
   """
-  kind = dynamics.get(config)
+  kind = dynamics.get(m)
   if not kind.one_step:
-    roll = kind.make_rollout(config, nets.dynamics)
+    roll = kind.make_rollout(m, p, nets.dynamics)
     return lambda params, z, actions, key: (actions, roll(params, z, actions, key))
-  return _scan_rollout(config, nets)
+  return _scan_rollout(m, p, nets)
 
 
-def _scan_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+def _scan_rollout(m: ModelSettings, p: PlanSettings, nets: Networks) -> Callable:
   """make_rollout for one-step dynamics kinds: an outer lax.scan over the H transitions."""
-  p, h = config.plan, config.horizon
+  h = m.horizon
   num_prior = p.num_prior_candidates
-  transition = dynamics.make_transition(config, nets.dynamics)
-  proposal = proposals.get(config)
-  step_propose = None if proposal.sequence else proposal.make_step(config, nets.proposal)
+  transition = dynamics.make_transition(m, nets.dynamics, p.dynamics_steps, p.dynamics_eta)
+  proposal = proposals.get(m)
+  step_propose = None if proposal.sequence else proposal.make_step(m, p, nets.proposal)
 
   def prior_actions(params, z_prior, step_key):
     a_pi = nets.actor.apply({'params': params['actor']}, z_prior)
@@ -190,42 +184,39 @@ def _scan_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable
   return rollout
 
 
-def _make_first_round(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+def _make_first_round(m: ModelSettings, p: PlanSettings, nets: Networks) -> Callable:
   """first(params, z, prop_key, noise_key, init) -> the first round's proposals: the sequences
   [N, H, A] of the kinds in `plan.first_round` (ld_mpc_jax.model.search.CANDIDATES; by default the
   proposal's K - P, then `plan.num_gaussian` broad Gaussian ones), or for single-step proposal
   kinds the int K - P (drawn inside the rollout)."""
-  p = config.plan
-  if not proposals.get(config).sequence:
+  if not proposals.get(m).sequence:
     num = p.num_candidates - p.num_prior_candidates
     return lambda params, z, prop_key, noise_key, init: num
-  propose = make_propose(config, nets)
-  draws = [CANDIDATES.get(name).make(config, nets, propose)
-           for name, num in first_round_counts(config) if num]
+  propose = make_propose(m, p, nets)
+  draws = [CANDIDATES.get(name).make(m, p, nets, propose)
+           for name, num in first_round_counts(p) if num]
 
   def first(params, z, prop_key, noise_key, init):
     if not draws:  # Only the actor prior's candidates (num_candidates == num_prior_candidates).
-      return jnp.zeros((0, config.horizon, config.action_dim))
+      return jnp.zeros((0, m.horizon, m.action_dim))
     return jnp.concatenate([draw(params, z, prop_key, noise_key, init) for draw in draws])
 
   return first
 
 
-def _first_kinds(config: ml_collections.ConfigDict) -> jnp.ndarray:
+def _first_kinds(p: PlanSettings) -> jnp.ndarray:
   """[N + P] int32 candidate kinds of the first round, in the candidates' order."""
   return jnp.concatenate(
-      [jnp.full(num, CANDIDATES.index(name), jnp.int32)
-       for name, num in first_round_counts(config)]
-      + [jnp.full(config.plan.num_prior_candidates, CANDIDATES.index('actor_prior'), jnp.int32)])
+      [jnp.full(num, CANDIDATES.index(name), jnp.int32) for name, num in first_round_counts(p)]
+      + [jnp.full(p.num_prior_candidates, CANDIDATES.index('actor_prior'), jnp.int32)])
 
 
-def _make_refine(config: ml_collections.ConfigDict, score_draws: Callable,
-                 plain_rollout: Callable) -> Optional[Callable]:
+def _make_refine(p: PlanSettings, score_draws: Callable, plain_rollout: Callable
+                 ) -> Optional[Callable]:
   """`plan.iterations` refinement rounds (ld_mpc_jax.model.search.refine), or None without:
   refine(params, z, key, first: Pool, intrinsic) -> the first round's pool with the rounds'
   elites appended, and `unique` [K'] bool (elites kept from the first round appear twice: once
   only in the softmax over elites)."""
-  p = ml_collections.ConfigDict(config.plan.to_dict())
   if not p.iterations:
     return None
   def refine_pool(params, z, key, first, intrinsic):
@@ -245,7 +236,7 @@ def _make_refine(config: ml_collections.ConfigDict, score_draws: Callable,
 def _fall_back(p, pool: Pool, anchor: int, sequence, index, departed, guard: Optional[Guard],
                active: bool):
   """(sequence, index, departed, prior_score, guard) after the fallback (`plan.fallback_drop`,
-  `active` with safe selection: search.gates): the guard advanced by the actor prior's score,
+  `active` with safe selection: PlanSettings.gates): the guard advanced by the actor prior's score,
   and once it has fallen, the actor prior's own sequence whatever won. Without an actor prior
   among the candidates: unchanged, prior_score NaN."""
   guard = initial_guard() if guard is None else guard
@@ -272,20 +263,29 @@ def _warm_start(prev_sequence: Optional[jnp.ndarray], h: int, a_dim: int
 
 def make_plan(config: ml_collections.ConfigDict,
               score_fn: Optional[ScoreFn] = None) -> Callable:
+  """Builds the jit-compiled planner of a config: `build_plan` of its model's and planner's
+  settings (ld_mpc_jax.model.settings), after the config's checks."""
+  validate_config(config)
+  return build_plan(ModelSettings.from_config(config), PlanSettings.from_config(config),
+                    score_fn)
+
+
+def build_plan(model: ModelSettings, plan: PlanSettings,
+               score_fn: Optional[ScoreFn] = None) -> Callable:
   """Builds the jit-compiled planner.
 
   Args:
-    config: an LD-MPC config (see ld_mpc_jax/configs/base.py).
+    model: the networks' settings (ModelSettings.from_config(config)).
+    plan: the planner's (PlanSettings.from_config(config), or a dataclasses.replace of them).
     score_fn: optional replacement for the learned objective,
       (params, latents [K, H+1, D], actions [K, H, A]) -> J [K] or J per member [M, K]; for
       tests and custom objectives.
   Returns:
     plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0, guard=None,
-    intrinsic=None) -> PlanOutput, one jitted pure function, the same one for every config of
-    the same value in this process (ld_mpc_jax.ops.config_cache; a `score_fn` always builds a
-    new one). With `plan.warm_start_steps` > 0, passing the previous call's `sequence` as
-    `prev_sequence` warm-starts the proposal (and centres the Gaussian set) on it, shifted by
-    one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
+    intrinsic=None) -> PlanOutput, one jitted pure function, the same one for equal settings
+    in this process (ld_mpc_jax.ops.config_cache; a `score_fn` always builds a new one). With
+    `plan.warm_start_steps` > 0, passing the previous call's `sequence` as `prev_sequence`
+    warm-starts the proposal (and centres the Gaussian set) on it, shifted by one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
     the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
     `guard` is the previous call's `PlanOutput.guard` in the same episode (None at its start):
     with `plan.fallback_drop` > 0 the planner executes the actor prior's own sequence once the
@@ -300,47 +300,44 @@ def make_plan(config: ml_collections.ConfigDict,
   `plan.iterations` refinement rounds follow (ld_mpc_jax.model.search.refine), whose elites are
   appended to `candidates` and `scores`. Selection: ld_mpc_jax.model.search.select.
   """
-  validate_config(config)
-  validate_search(config)
-  if score_fn is None:  # One traced planner per config value in a process (config_cache).
-    return _cached_plan(config)
-  return _build_plan(config, score_fn)
+  validate_plan(plan, proposals.get(model).sequence, model.proposal_type)
+  if score_fn is None:  # One traced planner per settings value in a process (config_cache).
+    return _cached_plan(model, plan)
+  return _build_plan(model, plan, score_fn)
 
 
-@config_cache.by_config  # Traced once per config value in a process.
-def _cached_plan(config: ml_collections.ConfigDict) -> Callable:
-  return _build_plan(config, None)
+@config_cache.by_settings  # Traced once per settings value in a process.
+def _cached_plan(model: ModelSettings, plan: PlanSettings) -> Callable:
+  return _build_plan(model, plan, None)
 
 
-def _novelty_fn(config: ml_collections.ConfigDict, nets: Networks) -> Optional[ScoreFn]:
+def _novelty_fn(m: ModelSettings, nets: Networks) -> Optional[ScoreFn]:
   """The learned exploration value's bonus in the acting J (ld_mpc_jax.model.novelty), or None
   for a model without it."""
   if nets.novelty is None:
     return None
-  return lambda params, lats, acts: novelty.bonus(nets.novelty, params, lats, acts, config.gamma)
+  return lambda params, lats, acts: novelty.bonus(nets.novelty, params, lats, acts, m.gamma)
 
 
-def _build_plan(config: ml_collections.ConfigDict, score_fn: Optional[ScoreFn]) -> Callable:
-  nets = build_networks(config)
-  # Settings read now, not at trace time: a config changed after make_plan changes nothing.
-  p = ml_collections.ConfigDict(config.plan.to_dict())
-  d, h, a_dim = config.model.latent_dim, config.horizon, config.action_dim
-  member_fn = make_member_scores(config, nets) if score_fn is None else (
+def _build_plan(m: ModelSettings, p: PlanSettings, score_fn: Optional[ScoreFn]) -> Callable:
+  nets = build_networks(m)
+  d, h, a_dim = m.latent_dim, m.horizon, m.action_dim
+  member_fn = make_member_scores(m, nets, p.progress_weight) if score_fn is None else (
       lambda *args: as_members(score_fn(*args)))
-  first_round = _make_first_round(config, nets)
-  rollout = make_rollout(config, nets)
-  score_draws = make_score_draws(member_fn, p.dynamics_draws, p.pessimism, config.gamma,
-                                 _novelty_fn(config, nets))
-  confirm_draws = make_score_draws(member_fn, p.confirm_draws, p.pessimism, config.gamma)
+  first_round = _make_first_round(m, p, nets)
+  rollout = make_rollout(m, p, nets)
+  score_draws = make_score_draws(member_fn, p.dynamics_draws, p.pessimism, m.gamma,
+                                 _novelty_fn(m, nets))
+  confirm_draws = make_score_draws(member_fn, p.confirm_draws, p.pessimism, m.gamma)
   # Fixed sequences, no actor-prior rollouts among them: refined samples, and the pair that
   # plan.safe_confirm rolls again.
-  plain_rollout = make_rollout(_with_plan(config, num_prior_candidates=0), nets)
-  refine_pool = _make_refine(config, score_draws, plain_rollout)
-  kinds, num_first = _first_kinds(config), sum(n for _, n in first_round_counts(config))
+  plain_rollout = make_rollout(m, dataclasses.replace(p, num_prior_candidates=0), nets)
+  refine_pool = _make_refine(p, score_draws, plain_rollout)
+  kinds, num_first = _first_kinds(p), sum(n for _, n in first_round_counts(p))
   anchor = num_first if p.num_prior_candidates else -1  # The actor prior's own sequence.
-  margin = effective_margin(config)  # plan.safe_margin, scaled by K if asked.
+  margin = effective_margin(p)  # plan.safe_margin, scaled by K if asked.
   confirm_margin = p.safe_margin if p.confirm_margin < 0 else p.confirm_margin
-  confirm, fallback = search.gates(config)  # Inert without plan.safe_selection.
+  confirm, fallback = p.gates  # Inert without plan.safe_selection.
 
   def plan(params, z, key, prev_sequence=None, action_noise=0.0, guard=None,
            intrinsic: Optional[Intrinsic] = None) -> PlanOutput:

@@ -8,7 +8,7 @@ scripted data do, and start from the goals of MT1 seed `config.data.seed` (or, w
 waves of the first `online.seed_steps` environment steps act with uniform random actions; after
 them the agent acts with its planner and EMA parameters (one jitted plan per environment, or
 `online.plan_chunk` environments per vmap, `agent.BatchAgentPolicy`), with the exploration noise
-`online.action_noise_std` / `online.prior_noise_std` on its candidates (`acting_config`), which
+`online.action_noise_std` / `online.prior_noise_std` on its candidates (`acting_plan`), which
 evaluation never uses. Updates interleave with acting: once learning has started, after every
 decision updates run until floor(`online.update_ratio` x environment steps) have been made, so
 from scratch the seed steps' share comes at once (TD-MPC2 pretrains on its seed data likewise).
@@ -29,6 +29,7 @@ sampler's RNG state in its metadata). Every other random draw is a function of `
 those counters, so a resumed run continues exactly as the uninterrupted one.
 """
 
+import dataclasses
 import json
 import os
 import sys
@@ -45,11 +46,12 @@ from ld_mpc_jax import data, envs
 from ld_mpc_jax.runs import loop as runs, online_report
 from ld_mpc_jax.runs.progress import progress_bar
 from ld_mpc_jax.model.config_checks import validate_config
-from ld_mpc_jax.model.exploration import (acting_config, acting_intrinsic, executed_noise,
+from ld_mpc_jax.model.exploration import (acting_intrinsic, acting_plan, executed_noise,
                                           plan_start)
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
 from ld_mpc_jax.ops.seed_groups import SeedGroups
+from ld_mpc_jax.plan.agent import ActSettings
 
 from ld_mpc_jax.data.demos import demo_share, sparse_dataset
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
@@ -139,7 +141,8 @@ class OnlineJob:
     self.keys = self.groups.split(jnp.stack([seat.update_key for seat in self.seats]))
     # Each seed's update key at an update count: one jitted call, not one per seed.
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
-    self.act_config = acting_config(config)
+    # The acting policy's settings: the evaluation's, with the acting planner's (acting_plan).
+    self.acting = dataclasses.replace(ActSettings.from_config(config), plan=acting_plan(config))
     self.metrics, self.last = [], None  # `last`: (mode, seconds, WaveRecords) of the last wave.
     self.runs = SeatRuns(self.seats)
     self.bar = progress_bar(o.env_steps, self.counters['env_steps'], 'online', unit='env step')

@@ -19,7 +19,6 @@ from ld_mpc_jax.plan.agent import BatchAgentPolicy
 from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
 from ld_mpc_jax.data.demos import get_demos
 from ld_mpc_jax.data.online_buffer import Buffer
-from ld_mpc_jax.model import novelty
 from ld_mpc_jax.model.exploration import (acting_exploration, acting_novelty, ar1_noise,
                                            executed_noise)
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
@@ -107,7 +106,7 @@ class Seat:
     out = dict(planned=int(wave.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
                spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
                act_disagreement=disagreement)
-    if novelty.enabled(self.config):  # Only runs with the exploration value have the column.
+    if self.config.loss.w_novelty > 0:  # Only runs with the exploration value have the column.
       out['act_novelty'] = (acting_novelty(self.config, before, job.plan_start)
                             if mode == 'plan' else float('nan'))
     return out
@@ -138,13 +137,13 @@ class WavePolicy:
                  intrinsic=schedule.intrinsic)  # The planner's intrinsic term's weights.
     if self.single:
       mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
-              if job.act_config.eval.data_parallel else None)
-      self.inner = BatchAgentPolicy(job.act_config, job.views()[0], schedule.mode,
+              if job.config.eval.data_parallel else None)
+      self.inner = BatchAgentPolicy(job.acting, job.views()[0], schedule.mode,
                                     seed=job.seats[0].config.seed, chunk=o.plan_chunk,
                                     mesh=mesh, **knobs)
       self.inner.start(waves[0].episodes)
     else:
-      self.inner = SeedsAgentPolicy(job.act_config, job.group_ema_params(), schedule.mode,
+      self.inner = SeedsAgentPolicy(job.acting, job.group_ema_params(), schedule.mode,
                                     [seat.config.seed for seat in job.seats], job.groups,
                                     **knobs)
       self.inner.start([w.episodes for w in waves])

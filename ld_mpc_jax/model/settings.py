@@ -1,0 +1,151 @@
+"""Typed, frozen settings of the model and of its planner, built once from a config.
+
+The ConfigDict stays the command line's surface and the saved `config.json`; what builds the
+networks and `plan` takes these instead:
+
+  model = ModelSettings.from_config(config)   # sizes, config.model, config.diffusion, critics
+  plan = PlanSettings.from_config(config)     # config.plan
+  acting = dataclasses.replace(plan, pessimism=0.0)   # a variant, not a cloned config
+
+Both are frozen and hashable, so a builder cached on them (functools.lru_cache) traces once
+per value in a process. Their defaults and the reasons for them stay in configs/base.py (one
+place to read a choice); ld_mpc_jax.model.search.validate_plan holds the planner's checks.
+"""
+
+import dataclasses
+from typing import Any, Tuple
+
+import ml_collections
+
+_MODEL_FIELDS = (
+    'latent_dim', 'encoder_hidden', 'width', 'num_heads', 'mlp_ratio', 'dropout',
+    'proposal_blocks', 'dynamics_blocks', 'objective_blocks', 'actor_hidden', 'novelty_members',
+    'novelty_target', 'proposal_type', 'dynamics_type', 'normalize_obs', 'obs_mask_constant',
+    'task_dim', 'normalize_dynamics', 'encoder_type', 'num_bins', 'vmin', 'vmax')
+
+
+def _frozen(value: Any) -> Any:
+  """Lists (as a config may hold them) as tuples, so that settings hash."""
+  return tuple(_frozen(v) for v in value) if isinstance(value, (list, tuple)) else value
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelSettings:
+  """What builds, initialises and applies the networks (ld_mpc_jax.model.models): the sizes,
+  `config.model`, `config.diffusion`, the critics' kinds and sizes (`config.critic`) and which
+  optional networks exist (`config.loss`'s weights of the progress reward and the exploration
+  value). Field names are the config's, within their section."""
+  obs_dim: int
+  action_dim: int
+  horizon: int
+  gamma: float
+  num_tasks: int  # len(config.tasks) of a multi-task config, else 1 (which task is no setting).
+  # config.model
+  latent_dim: int
+  encoder_hidden: int
+  width: int
+  num_heads: int
+  mlp_ratio: int
+  dropout: float
+  proposal_blocks: int
+  dynamics_blocks: int
+  objective_blocks: int
+  actor_hidden: Tuple[int, ...]
+  novelty_members: int
+  novelty_target: str
+  proposal_type: str
+  dynamics_type: str
+  normalize_obs: bool
+  obs_mask_constant: bool
+  task_dim: int
+  normalize_dynamics: bool
+  encoder_type: str
+  num_bins: int
+  vmin: float
+  vmax: float
+  # config.diffusion
+  prediction: str
+  clip_actions: float
+  # config.critic: the kinds, the ensembles' sizes, the value's units
+  value: str
+  actor: str
+  log_std_map: str
+  critic_hidden: Tuple[int, ...]
+  num_values: int
+  num_q: int
+  value_scale: float
+  # config.loss: whether the learned progress reward and exploration value exist
+  progress: bool
+  novelty: bool
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'ModelSettings':
+    tasks = tuple(config.tasks) if 'tasks' in config and config.tasks else ()
+    m, o = config.model, config.critic
+    return cls(
+        obs_dim=config.obs_dim, action_dim=config.action_dim, horizon=config.horizon,
+        gamma=config.gamma, num_tasks=max(len(tasks), 1), **{f: _frozen(m[f]) for f in _MODEL_FIELDS},
+        prediction=config.diffusion.prediction, clip_actions=config.diffusion.clip_actions,
+        value=o.value, actor=o.actor, log_std_map=o.log_std_map,
+        critic_hidden=_frozen(o.hidden), num_values=o.num_values, num_q=o.num_q,
+        value_scale=o.value_scale, progress=config.loss.w_progress > 0,
+        novelty=config.loss.w_novelty > 0)
+
+  @property
+  def multitask(self) -> bool:
+    """Whether the agent is task-conditioned (two or more tasks; ld_mpc_jax.model.tasks)."""
+    return self.num_tasks > 1
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanSettings:
+  """`config.plan`: how `plan` draws, rolls out, scores and selects candidates (configs/base.py
+  gives each field's default and reason). The acting planner's are a `dataclasses.replace` of
+  these (ld_mpc_jax.model.exploration.acting_plan)."""
+  num_candidates: int
+  action_steps: int
+  dynamics_steps: int
+  action_eta: float
+  dynamics_eta: float
+  num_prior_candidates: int
+  prior_noise_std: float
+  action_noise_std: float
+  warm_start_steps: int
+  warm_start_t: float
+  guidance_scale: float
+  guidance_dynamics_steps: int
+  pessimism: float
+  dynamics_draws: int
+  num_gaussian: int
+  gaussian_std: float
+  first_round: Tuple[str, ...]
+  iterations: int
+  num_refine: int
+  num_elites: int
+  temperature: float
+  min_std: float
+  selection: str
+  safe_selection: bool
+  safe_margin: float
+  safe_margin_scaling: str
+  safe_confirm: bool
+  confirm_draws: int
+  confirm_margin: float
+  fallback_drop: float
+  fallback_floor: float
+  latent_filter: float
+  progress_weight: float
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'PlanSettings':
+    p = config.plan
+    return cls(**{f.name: _frozen(p[f.name]) for f in dataclasses.fields(cls)})
+
+  @property
+  def gates(self) -> Tuple[bool, bool]:
+    """(confirm, fallback): whether safe selection's confirmation (`safe_confirm`) and its
+    fallback to the actor prior (`fallback_drop` > 0) act. Both are gates of safe selection:
+    without `safe_selection` they are inert, so that their defaults can be the recommended
+    values and `--config.plan.safe_selection=True` alone switches the recommended setting on."""
+    return (bool(self.safe_selection and self.safe_confirm),
+            bool(self.safe_selection and self.fallback_drop > 0))
