@@ -14,7 +14,7 @@ from ld_mpc_jax.model import critics, models, objective
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.plan import planner
 from ld_mpc_jax.ops.numerics import discounted_return, two_hot_decode
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 
 
 def test_expectile_loss_hand_computed():
@@ -60,7 +60,8 @@ def _toy_values(smoke_config, expectile: float, steps: int = 600):
   reward = jnp.array([w[2] for w in windows])
   net = critics.build_critics(ModelSettings.from_config(config))
   params = {'critics': net.init(jax.random.key(0), z[:, 0], action[:, 0])['params']}
-  loss_fn = critics.make_critic_loss(config, net)
+  loss_fn = critics.make_critic_loss(ModelSettings.from_config(config),
+      LossSettings.from_config(config), net)
   tx = optax.adam(1e-2)
 
   @jax.jit
@@ -160,7 +161,8 @@ def test_policy_td_targets_against_hand_computed_values(smoke_config):
   params = {'critics': net.init(jax.random.key(0), z[:, :2], action)['params']}
   target = {'critics': jax.tree_util.tree_map(lambda x: x * 0.5, params['critics'])}
   policy = lambda p, zz: jnp.broadcast_to(a_pi, zz.shape[:-1] + (a_dim,))
-  loss = critics.make_critic_loss(c, net, policy)
+  loss = critics.make_critic_loss(ModelSettings.from_config(c),
+      LossSettings.from_config(c), net, policy)
   losses, _, _ = loss(params, target, z, z_ema, None, action, reward)
 
   def linear(p, head, x):  # Every member of one ensemble: [num, ...].

@@ -70,20 +70,24 @@ def test_removed_presets_say_what_to_use():
 def test_executed_noise_anneals_linearly():
   c = door_open_online.get_config('cpu')
   start, end = c.online.exec_noise_start, c.online.exec_noise_end
-  assert exploration.executed_noise(c, 0, 1_600) == pytest.approx(start)  # Before learning starts.
-  assert exploration.executed_noise(c, 1_600, 1_600) == pytest.approx(start)
+  noise = exploration.ActingSchedule.from_config(c, 1_600).executed_noise
+  assert noise(0) == pytest.approx(start)  # Before learning starts.
+  assert noise(1_600) == pytest.approx(start)
   mid = (1_600 + c.online.env_steps) // 2
-  assert exploration.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
-  assert exploration.executed_noise(c, c.online.env_steps, 1_600) == pytest.approx(end)
+  assert noise(mid) == pytest.approx((start + end) / 2)
+  assert noise(c.online.env_steps) == pytest.approx(end)
   # online.schedule_steps moves where every schedule ends (a run continued to more steps).
   c.online.schedule_steps = c.online.env_steps
   c.online.env_steps *= 2
-  assert exploration.executed_noise(c, mid, 1_600) == pytest.approx((start + end) / 2)
-  assert exploration.executed_noise(c, c.online.schedule_steps, 1_600) == pytest.approx(end)
+  noise = exploration.ActingSchedule.from_config(c, 1_600).executed_noise
+  assert noise(mid) == pytest.approx((start + end) / 2)
+  assert noise(c.online.schedule_steps) == pytest.approx(end)
   c.online.act_schedule, c.online.act_pessimism, c.online.act_pessimism_end = 'linear', -1.0, 0.0
-  assert exploration.acting_exploration(c, c.online.schedule_steps, 0)[0] == pytest.approx(0.0)
+  at = exploration.ActingSchedule.from_config(c, 0).exploration
+  assert at(c.online.schedule_steps)[0] == pytest.approx(0.0)
   c.online.schedule_steps = 0
-  assert exploration.acting_exploration(c, c.online.env_steps // 2, 0)[0] == pytest.approx(-0.5)
+  at = exploration.ActingSchedule.from_config(c, 0).exploration
+  assert at(c.online.env_steps // 2)[0] == pytest.approx(-0.5)
   c.online.schedule_steps = -1
   with pytest.raises(ValueError, match='schedule_steps must be an integer >= 0'):
     exploration.validate_acting(c)
@@ -94,7 +98,7 @@ def test_correlated_noise_has_the_annealed_std_and_its_correlation():
   lag-one autocorrelation = the configured correlation."""
   c = door_open_online.get_config('cpu')
   c.online.exec_noise_start = c.online.exec_noise_end = 0.3
-  std = exploration.executed_noise(c, 5_000, 1_600)
+  std = exploration.ActingSchedule.from_config(c, 1_600).executed_noise(5_000)
   rng, noise, draws = np.random.default_rng(0), np.zeros((4, 4)), []
   for _ in range(5_000):
     noise = exploration.ar1_noise(noise, std, c.online.exec_noise_corr, rng)
@@ -192,7 +196,7 @@ def test_changing_the_traced_intrinsic_term_never_recompiles(smoke_config, smoke
   scores = []
   for steps in (c.online.seed_steps, 3_000, c.online.env_steps):  # The annealed schedule.
     out = plan(smoke_params, z, jax.random.key(0), None, 0.0, None,
-               exploration.acting_intrinsic(c, steps, c.online.seed_steps))
+               exploration.ActingSchedule.from_config(c, c.online.seed_steps).intrinsic(steps))
     scores.append(np.asarray(out.scores))
     if steps == c.online.seed_steps:
       first = (len(traces), plan._cache_size())
@@ -212,31 +216,33 @@ def exploration_config(schedule):
 def test_the_schedule_starts_at_the_first_planner_wave_and_ends_at_env_steps():
   c = exploration_config('linear')
   start, end = c.online.seed_steps, c.online.env_steps  # From scratch: after the seed waves.
-  at = lambda steps: exploration.acting_exploration(c, steps, start)
+  at = lambda steps: exploration.ActingSchedule.from_config(c, start).exploration(steps)
   assert at(0) == at(start) == pytest.approx((-1.0, 40.0))
   assert at((start + end) // 2) == pytest.approx((-0.6, 20.0))
   assert at(end) == at(end + 800) == pytest.approx((-0.2, 0.0))
   # Linear: acting's pessimism is the traced term alone; the acting config's is 0.
-  bonus = exploration.acting_intrinsic(c, end, start)
+  bonus = exploration.ActingSchedule.from_config(c, start).intrinsic(end)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((-0.2, 0.0))
   acting = exploration.acting_plan(c)
   assert (acting.pessimism, acting.dynamics_draws) == (0.0, 4)
   assert (c.plan.pessimism, c.plan.dynamics_draws) == (1.0, 1)  # Evaluation's, unchanged.
   # Constant (the default): the start values throughout; the pessimism stays a setting.
   c = exploration_config('constant')
-  assert exploration.acting_exploration(c, end, start) == pytest.approx((-1.0, 40.0))
-  bonus = exploration.acting_intrinsic(c, end, start)
+  schedule = exploration.ActingSchedule.from_config(c, start)
+  assert schedule.exploration(end) == pytest.approx((-1.0, 40.0))
+  bonus = exploration.ActingSchedule.from_config(c, start).intrinsic(end)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((0.0, 40.0))
   assert exploration.acting_plan(c).pessimism == -1.0
 
 
 def test_the_first_planner_wave_follows_the_actor_prior_seed_waves():
   c = door_open_online.get_config('cpu')
-  assert exploration.plan_start(c, c.online.seed_steps) == c.online.seed_steps  # From scratch.
+  first = lambda learn_start: exploration.ActingSchedule.from_config(c, learn_start).plan_start
+  assert first(c.online.seed_steps) == c.online.seed_steps  # From scratch.
   c.online.demos = 5  # Learning starts at once; the planner acts from the first wave ...
-  assert exploration.plan_start(c, 0) == 0
+  assert first(0) == 0
   c.online.demo_seed_actor = True  # ... or after the actor prior's seed waves.
-  assert exploration.plan_start(c, 0) == c.online.seed_steps
+  assert first(0) == c.online.seed_steps
 
 
 @pytest.mark.parametrize('overrides,match', [
@@ -254,7 +260,7 @@ def test_bad_intrinsic_settings_fail_in_one_line(overrides, match):
 
 def test_defaults_add_no_intrinsic_term_and_old_runs_load_them(tmp_path):
   c = door_open_online.get_config('cpu')
-  bonus = exploration.acting_intrinsic(c, 50_000, c.online.seed_steps)
+  bonus = exploration.ActingSchedule.from_config(c, c.online.seed_steps).intrinsic(50_000)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == (0.0, 0.0)
   assert exploration.acting_plan(c).pessimism == c.online.act_pessimism  # As before.
   raw = json.loads(c.to_json_best_effort())

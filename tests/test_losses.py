@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ld_mpc_jax.learn import losses
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 
 
 def test_maxq_actor_climbs_a_toy_q(smoke_config):
@@ -72,6 +72,11 @@ def _cfg():
                 w_novelty=12.0)))
 
 
+def _losses():
+  """The loss settings' fields that the losses read, at _cfg()'s values."""
+  return types.SimpleNamespace(**_cfg().loss, entropy_coef=0.1)
+
+
 def _model():
   """The model settings' fields that the kinds' losses read, at _cfg()'s values."""
   return types.SimpleNamespace(horizon=2, action_dim=2, gamma=0.5, prediction='x0', num_bins=5,
@@ -111,11 +116,10 @@ def test_consistency_loss_hand_computed():
 
 
 def test_weighted_sum_order_and_absent_terms():
-  config = _cfg()
   terms = {name: jnp.asarray(1.0) for name, _ in losses.WEIGHTS}
-  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 78.0)
+  np.testing.assert_allclose(losses.weighted_sum(terms, _losses()), 78.0)
   del terms['q'], terms['consistency']  # Absent terms count 0.
-  np.testing.assert_allclose(losses.weighted_sum(terms, config.loss), 78.0 - 7.0 - 6.0)
+  np.testing.assert_allclose(losses.weighted_sum(terms, _losses()), 78.0 - 7.0 - 6.0)
 
 
 @pytest.mark.parametrize('kind', ['diffusion_seq', 'diffusion_step'])
@@ -152,7 +156,7 @@ def test_regression_actor_losses_hand_computed(kind):
   from ld_mpc_jax.model.actors import ACTORS
   nets = type('Nets', (), {'actor': _Zeros(jnp.zeros((2, 3, 2)))})
   weights = jnp.array([[1.0, 0.0, 2.0], [0.0, 0.0, 1.0]])
-  got = ACTORS.get(kind).loss(_cfg(), nets, PARAMS, Z, A, weights, jax.random.key(0))
+  got = ACTORS.get(kind).loss(_losses(), nets, PARAMS, Z, A, weights, jax.random.key(0))
   sq = jnp.sum(A ** 2, axis=-1)  # [B, H+1]
   want = jnp.mean(sq) if kind == 'bc' else jnp.mean(weights * sq)  # BC ignores the weights.
   np.testing.assert_allclose(got, want, rtol=1e-6)
@@ -177,7 +181,7 @@ def test_maxq_actor_loss_hand_computed():
       return jnp.stack([jnp.ones(z.shape[:-1]), 3 * jnp.ones(z.shape[:-1])])
 
   nets = type('Nets', (), {'actor': Actor(), 'critics': Critics()})
-  got = ACTORS.get('maxq').loss(_cfg(), nets, PARAMS, Z, A, None, jax.random.key(0))
+  got = ACTORS.get('maxq').loss(_losses(), nets, PARAMS, Z, A, None, jax.random.key(0))
   np.testing.assert_allclose(got, 0.1 * -1.0 - 2.0, rtol=1e-6)
 
 
@@ -205,11 +209,14 @@ def test_loss_metrics_and_total(smoke_config):
     c = with_overrides(smoke_config, overrides[name])
     params = models.init_params(c, jax.random.key(0))
     # One jitted program: operation by operation, the loss compiles hundreds of small ones.
-    loss_fn = jax.jit(losses.make_loss_fn(c, models.build_networks(ModelSettings.from_config(c))))
+    m = ModelSettings.from_config(c)
+    loss_fn = jax.jit(losses.make_loss_fn(m, LossSettings.from_config(c),
+                                          models.build_networks(m)))
     loss, metrics = loss_fn(params, params, batch, jax.random.key(1))
     assert set(metrics) == names, name
     terms = {n: metrics[f'loss_{n}'] for n, _ in losses.WEIGHTS if f'loss_{n}' in metrics}
-    np.testing.assert_allclose(loss, losses.weighted_sum(terms, c.loss), rtol=1e-6)
+    np.testing.assert_allclose(loss, losses.weighted_sum(terms, LossSettings.from_config(c)),
+                               rtol=1e-6)
 
 
 def test_rolled_and_unrolled_training_rollouts_agree(smoke_config):
@@ -224,7 +231,8 @@ def test_rolled_and_unrolled_training_rollouts_agree(smoke_config):
   out = {}
   for unroll in (False, True):
     c.critic.rollout_unroll = unroll
-    rollout = losses.make_model_rollout(c, models.build_networks(ModelSettings.from_config(c)))
+    m = ModelSettings.from_config(c)
+    rollout = losses.make_model_rollout(m, LossSettings.from_config(c), models.build_networks(m))
     out[unroll] = np.asarray(jax.jit(rollout)(params, z0, actions, jax.random.key(3)))
   assert out[True].shape == (3, c.horizon + 1, c.model.latent_dim)
   assert np.abs(out[True][:, -1] - out[True][:, 0]).max() > 1e-3  # The latents move.

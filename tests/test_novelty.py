@@ -16,7 +16,7 @@ from ld_mpc_jax.model import exploration, models, novelty, objective
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.ops.numerics import window_returns
 from ld_mpc_jax.plan import planner
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 
 ON = {'loss.w_novelty': 1.0}
 D, A = 6, 2
@@ -134,7 +134,8 @@ def test_the_model_and_its_loss_have_the_term_only_when_on(smoke_config, target)
            'action': jnp.asarray(rng.uniform(-1, 1, (2, h + 1, 4)), jnp.float32),
            'reward': jnp.zeros((2, h + 1), jnp.float32)}
   nets = models.build_networks(ModelSettings.from_config(c))
-  _, metrics = jax.jit(losses.make_loss_fn(c, nets))(params, params, batch, jax.random.key(1))
+  _, metrics = jax.jit(losses.make_loss_fn(ModelSettings.from_config(c),
+      LossSettings.from_config(c), nets))(params, params, batch, jax.random.key(1))
   z = models.encode(params, batch['obs'])
   obs = batch['obs']  # Read only by members of target 'obs'.
   preds = nets.novelty.apply({'params': params['novelty']}, z[:, :-1], batch['action'])
@@ -175,9 +176,10 @@ def test_the_weight_is_annealed_and_validated():
   c.loss.w_novelty = 1.0
   c.online.act_schedule, c.online.act_novelty, c.online.act_novelty_end = 'linear', 2.0, 0.0
   c.online.env_steps = 1000
-  assert exploration.acting_novelty(c, 0, 0) == 2.0
-  assert exploration.acting_novelty(c, 500, 0) == pytest.approx(1.0)
-  assert float(exploration.acting_intrinsic(c, 1000, 0).novelty) == 0.0
+  schedule = exploration.ActingSchedule.from_config(c, 0)
+  assert schedule.novelty(0) == 2.0
+  assert schedule.novelty(500) == pytest.approx(1.0)
+  assert float(schedule.intrinsic(1000).novelty) == 0.0
   exploration.validate_acting(c)
   c.loss.w_novelty = 0.0
   with pytest.raises(ValueError, match='needs the learned exploration value'):

@@ -12,7 +12,7 @@ from ld_mpc_jax.eval import evaluation_suite, noise_sweep
 from ld_mpc_jax.learn import losses
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan.agent import make_act, uses_prev
-from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
 
 CONSTANT = (5, 11, 12)  # Features constant in the toy data below.
 
@@ -89,7 +89,9 @@ def test_training_noise_only_with_augmentation(smoke_config):
   for aug in (0.0, 0.1):
     c = with_overrides(smoke_config, {'train.obs_noise_aug': aug, 'critic.value': 'behaviour',
                                       'critic.actor': 'bc', 'critic.latent_rollout': False})
-    loss_fn = jax.jit(losses.make_loss_fn(c, models.build_networks(ModelSettings.from_config(c))))
+    m = ModelSettings.from_config(c)
+    loss_fn = jax.jit(losses.make_loss_fn(m, LossSettings.from_config(c),
+                                          models.build_networks(m)))
     out[aug] = loss_fn(params, params, batch, jax.random.key(1))[1]
   assert 'loss_noise_inv' not in out[0.0]
   assert float(out[0.1]['loss_noise_inv']) > 0  # A noisy latent away from the clean one.

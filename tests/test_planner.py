@@ -35,7 +35,7 @@ def test_plan_shapes_and_bounds(smoke_config, smoke_params, z):
 def test_plan_same_key_same_action_and_no_recompile(smoke_config, smoke_params, z):
   plan = make_plan(smoke_config)
   a = plan(smoke_params, z, jax.random.key(7))
-  traced = plan._cache_size()  # Other tests of this config share the planner (config_cache).
+  traced = plan._cache_size()  # Other tests of this config share the planner (build_cache).
   b = plan(smoke_params, z, jax.random.key(7))
   c = plan(smoke_params, z + 0.1, jax.random.key(8))
   np.testing.assert_array_equal(a.action, b.action)

@@ -10,7 +10,7 @@ from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import replay
 from ld_mpc_jax.model import progress
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 
 ON = {'loss.w_progress': 1.0, 'plan.progress_weight': 5.0}
 
@@ -92,7 +92,8 @@ def test_the_loss_has_the_term_only_with_the_head_and_targets(smoke_config):
            'action': jnp.asarray(rng.uniform(-1, 1, (2, h + 1, 4)), jnp.float32),
            'reward': jnp.zeros((2, h + 1), jnp.float32),
            'progress': jnp.asarray(rng.uniform(0, 1, (2, h + 2)), jnp.float32)}
-  loss_fn = losses.make_loss_fn(c, models.build_networks(ModelSettings.from_config(c)))
+  m = ModelSettings.from_config(c)
+  loss_fn = losses.make_loss_fn(m, LossSettings.from_config(c), models.build_networks(m))
   # The metrics and the gradient from one compiled program (compiling dominates this test).
   (_, metrics), grads = jax.jit(jax.value_and_grad(loss_fn, has_aux=True))(
       params, params, batch, jax.random.key(1))

@@ -11,7 +11,7 @@ from ld_mpc_jax.model import models, tasks
 from ld_mpc_jax.model.critics import Critics
 from ld_mpc_jax.learn.losses import make_loss_fn
 from ld_mpc_jax.plan.planner import make_plan
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 
 
 @pytest.fixture(scope='module')
@@ -99,7 +99,8 @@ def test_task_conditioning_changes_every_network(mt_config, mt_params):
 
 def test_multitask_loss_trains_each_task_on_its_share(mt_config, mt_params):
   nets = models.build_networks(ModelSettings.from_config(mt_config))
-  loss = tasks.multitask_loss(make_loss_fn(mt_config, nets), 10)
+  loss = tasks.multitask_loss(make_loss_fn(ModelSettings.from_config(mt_config),
+      LossSettings.from_config(mt_config), nets), 10)
   h, b = mt_config.horizon, 2
   rng = np.random.default_rng(0)
   batch = dict(obs=rng.normal(size=(10 * b, h + 2, 39)).astype(np.float32),

@@ -74,7 +74,7 @@ def test_update_rejects_wrong_batch_shape(fit_config):
 
 def test_update_does_not_recompile(fit_config):
   state = create_train_state(fit_config, jax.random.key(0))
-  update = make_update(fit_config)  # Shared by every test of this config (config_cache).
+  update = make_update(fit_config)  # Shared by every test of this config (build_cache).
   sizes = []
   for i in range(3):
     state, _ = update(state, make_batch(fit_config, seed=i), jax.random.key(i))

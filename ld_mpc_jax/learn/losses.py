@@ -38,12 +38,11 @@ from typing import Callable, Dict
 
 import jax
 import jax.numpy as jnp
-import ml_collections
 
 from ld_mpc_jax.model import actors, dynamics, novelty, objective, progress, proposals
 from ld_mpc_jax.model.critics import make_critic_loss
 from ld_mpc_jax.model.models import Networks
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
 
 # Loss weight of each term (config.loss.<weight>), in the order they are summed.
@@ -77,13 +76,12 @@ def consistency_loss(z_model: jnp.ndarray, z_target: jnp.ndarray) -> jnp.ndarray
   return jnp.mean((z_model - jax.lax.stop_gradient(z_target)) ** 2)
 
 
-def weighted_sum(terms: Dict[str, jnp.ndarray], weights: ml_collections.ConfigDict
-                 ) -> jnp.ndarray:
-  """sum of weights[w] * terms[name] over WEIGHTS, in that order; absent terms count 0."""
+def weighted_sum(terms: Dict[str, jnp.ndarray], weights: LossSettings) -> jnp.ndarray:
+  """sum of weights.w * terms[name] over WEIGHTS, in that order; absent terms count 0."""
   total = jnp.zeros(())
-  for i, (name, weight) in enumerate(WEIGHTS):
-    term = terms.get(name, jnp.zeros(()))
-    total = weights[weight] * term if i == 0 else total + weights[weight] * term
+  for i, (name, field) in enumerate(WEIGHTS):
+    term, weight = terms.get(name, jnp.zeros(())), getattr(weights, field)
+    total = weight * term if i == 0 else total + weight * term
   return total
 
 
@@ -96,12 +94,11 @@ def demo_bc_loss(nets, params, z: jnp.ndarray, action: jnp.ndarray,
   return jnp.sum(demo * err) / jnp.maximum(jnp.sum(demo), 1.0)
 
 
-def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+def make_model_rollout(m: ModelSettings, losses: LossSettings, nets: Networks) -> Callable:
   """rollout(params, z0 [B, D], actions [B, H, A], key) -> latents [B, H+1, D] of the dynamics
   model, `critic.rollout_steps` deterministic DDIM steps per transition, a scan over H unrolled
   or not (`critic.rollout_unroll`)."""
-  transition = dynamics.make_transition(ModelSettings.from_config(config), nets.dynamics,
-                                        steps=config.critic.rollout_steps, eta=0.0)
+  transition = dynamics.make_transition(m, nets.dynamics, steps=losses.rollout_steps, eta=0.0)
 
   def rollout(params, z0, actions, key):
     def step(z_cur, inputs):
@@ -109,22 +106,20 @@ def make_model_rollout(config: ml_collections.ConfigDict, nets: Networks) -> Cal
       z_next = transition(params, z_cur, a, jax.random.fold_in(key, i))
       return z_next, z_next
     _, zs = jax.lax.scan(step, z0, (jnp.swapaxes(actions, 0, 1), jnp.arange(actions.shape[1])),
-                         unroll=config.critic.rollout_unroll)
+                         unroll=losses.rollout_unroll)
     return jnp.concatenate([z0[:, None], jnp.swapaxes(zs, 0, 1)], axis=1)
 
   return rollout
 
 
-def make_objective_terms(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+def make_objective_terms(m: ModelSettings, losses: LossSettings, nets: Networks) -> Callable:
   """terms(params, target_params, z_sets, z_ema, action, reward, rngs) -> ({'rew', 'val'}, metrics).
 
   The reward (and, for the 'behaviour' value kind, value) cross-entropies, averaged over the
   latent sets z_sets (each [B, >= H+1, D]: encoder latents, and the model's when it rolls out),
   scored in one call of the objective on a new leading axis [n, B, ...] (the batch axis stays
   second, so a data-parallel batch split is not moved)."""
-  m, h = config.model, config.horizon
-  ms = ModelSettings.from_config(config)
-  value_kind = objective.get(ms)
+  h, value_kind = m.horizon, objective.get(m)
 
   def terms(params, target_params, z_sets, z_ema, action, reward, rngs):
     z_all = jnp.stack([z_i[:, :h + 1] for z_i in z_sets])  # [n, B, H+1, D]
@@ -132,31 +127,29 @@ def make_objective_terms(config: ml_collections.ConfigDict, nets: Networks) -> C
     r_logits, v_logits = nets.objective.apply(
         {'params': params['objective']}, z_all, a_all, deterministic=False, rngs=rngs)
     out = {'rew': reward_loss(r_logits, reward[:, :h], m.num_bins, m.vmin, m.vmax,
-                              config.loss.reward_balance)}
+                              losses.reward_balance)}
     if value_kind.loss is None:
       return dict(out, val=jnp.zeros(())), {}
-    out['val'], target_mean = value_kind.loss(ms, nets, target_params, z_ema, action, reward,
+    out['val'], target_mean = value_kind.loss(m, nets, target_params, z_ema, action, reward,
                                               v_logits)
     return out, {'value_target_mean': target_mean}
 
   return terms
 
 
-def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
+def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Callable:
   """Returns loss_fn(params, target_params, batch, key) -> (loss [], metrics {name: []}).
 
   The terms and their weights: the module docstring. `target_params` are the EMA parameters:
   their encoder gives the value targets' latents z_ema, their objective or critics the targets.
   """
-  h, sg, ms = config.horizon, jax.lax.stop_gradient, ModelSettings.from_config(config)
-  proposal, dyn, actor = proposals.get(ms), dynamics.get(ms), actors.get(ms)
+  h, sg, aug = m.horizon, jax.lax.stop_gradient, losses.obs_noise_aug
+  proposal, dyn, actor = proposals.get(m), dynamics.get(m), actors.get(m)
   policy = lambda params, z: nets.actor.apply({'params': params['actor']}, z)
-  critic_loss = (make_critic_loss(config, nets.critics, policy)
+  critic_loss = (make_critic_loss(m, losses, nets.critics, policy)
                  if nets.critics is not None else None)
-  model_rollout = (make_model_rollout(config, nets) if config.critic.latent_rollout
-                   else None)
-  objective_terms = make_objective_terms(config, nets)
-  aug = config.train.obs_noise_aug
+  model_rollout = make_model_rollout(m, losses, nets) if losses.latent_rollout else None
+  objective_terms = make_objective_terms(m, losses, nets)
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
@@ -170,8 +163,8 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
       z, z_clean = encode(params, obs + aug * noise), sg(z_clean)
       terms['noise_inv'] = consistency_loss(z, z_clean)
     z_ema = sg(encode(target_params, obs))
-    terms |= {'dyn': dyn.loss(ms, nets.dynamics, params, z, action, k_dyn, drop(0)),
-              'act': proposal.loss(ms, nets.proposal, params, z, action, k_act, drop(1))}
+    terms |= {'dyn': dyn.loss(m, nets.dynamics, params, z, action, k_dyn, drop(0)),
+              'act': proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1))}
     z_sets = (z,)
     if model_rollout is not None:  # The objective also learns on the latents it scores.
       z_roll = model_rollout(params, z[:, 0], action[:, :h], k_roll)
@@ -187,14 +180,14 @@ def make_loss_fn(config: ml_collections.ConfigDict, nets: Networks) -> Callable:
                                                     action, reward)
       terms.update(critic)
       metrics.update(critic_metrics)
-    terms['actor'] = actor.loss(config, nets, params, z, action, weights, k_pi)
+    terms['actor'] = actor.loss(losses, nets, params, z, action, weights, k_pi)
     if 'demo' in batch:  # Structure, not value: known when tracing.
       terms['demo_bc'] = demo_bc_loss(nets, params, sg(z[:, :-1]), action, batch['demo'])
     if 'progress' in batch and nets.progress is not None:  # The learned progress reward.
       terms['progress'] = progress.loss(nets.progress, params, z_clean, batch['progress'])
     if nets.novelty is not None:  # The learned exploration value.
-      terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, config.gamma, obs)
-    loss = weighted_sum(terms, config.loss)
+      terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, m.gamma, obs)
+    loss = weighted_sum(terms, losses)
     metrics['loss'] = loss
     for name, _ in WEIGHTS:
       if name in terms:

@@ -1,5 +1,6 @@
 """Train state and the jitted update step."""
 
+import dataclasses
 from typing import Any, Callable, Optional
 
 import flax
@@ -9,12 +10,12 @@ from jax.sharding import Mesh
 import ml_collections
 import optax
 
-from ld_mpc_jax.ops import config_cache, sharding
+from ld_mpc_jax.ops import build_cache, sharding
 from ld_mpc_jax.model import tasks
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.learn.losses import make_loss_fn
 from ld_mpc_jax.model.models import build_networks, init_params, set_obs_normalization
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 
 
 @flax.struct.dataclass
@@ -26,9 +27,23 @@ class TrainState:
   step: jnp.ndarray
 
 
-def make_optimizer(config: ml_collections.ConfigDict) -> optax.GradientTransformation:
+@dataclasses.dataclass(frozen=True)
+class OptimSettings:
+  """The optimiser's and the EMA's settings (`config.train`): what an update reads beside the
+  model's and the loss's settings (ld_mpc_jax.model.settings)."""
+  learning_rate: float
+  warmup_steps: int
+  grad_clip: float
+  ema_decay: float
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'OptimSettings':
+    t = config.train
+    return cls(t.learning_rate, t.warmup_steps, t.grad_clip, t.ema_decay)
+
+
+def make_optimizer(t: OptimSettings) -> optax.GradientTransformation:
   """Adam with linear warmup to a constant rate, after global-norm gradient clipping."""
-  t = config.train
   warmup = max(t.warmup_steps, 1)
   # lr * min(1, (count + 1) / warmup): step 0 already uses lr / warmup (a schedule from 0 would
   # waste the first step), the full rate from step warmup - 1 on.
@@ -46,7 +61,7 @@ def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
   params = init_params(config, key)
   if obs is not None and config.model.normalize_obs:
     params = set_obs_normalization(params, obs, config.model.obs_mask_constant)
-  tx = make_optimizer(config)
+  tx = make_optimizer(OptimSettings.from_config(config))
 
   @jax.jit  # One program, not one small compiled operation per leaf.
   def fresh(params):
@@ -69,8 +84,8 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   T = H + 1 steps plus one for the value bootstrap (see losses.make_loss_fn); a multi-task
   config also needs task int32 [B], task-major (ld_mpc_jax.model.tasks.multitask_loss).
   Metrics are a dict of scalars, including the gradient norm before clipping. On one device the
-  same jitted function serves every config of the same value in this process
-  (ld_mpc_jax.ops.config_cache), so a second run of a config traces nothing again.
+  same jitted function serves every config of the same settings in this process
+  (ld_mpc_jax.ops.build_cache), so a second run of a config traces nothing again.
 
   With `config.train.data_parallel` (or a `mesh` given), the same update is compiled for a 1-D
   device mesh (default: all devices, ld_mpc_jax.ops.sharding): the batch split along its first
@@ -78,38 +93,40 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   batch through `sharding.shard_batch`. Otherwise it is a plain single-device jit.
   """
   validate_config(config)
+  settings = (ModelSettings.from_config(config), LossSettings.from_config(config),
+              OptimSettings.from_config(config))
   if mesh is None and not config.train.data_parallel:
-    return _jitted_update(config)
+    return _jitted_update(*settings)
   mesh = sharding.make_mesh() if mesh is None else mesh
   sharding.local_batch_size(config.train.batch_size, mesh)  # Raises if B % devices != 0.
   rep = sharding.replicated(mesh)
-  return jax.jit(_update_fn(config), in_shardings=(rep, sharding.batch_sharded(mesh), rep),
+  return jax.jit(_update_fn(*settings), in_shardings=(rep, sharding.batch_sharded(mesh), rep),
                  out_shardings=(rep, rep), donate_argnums=0)
 
 
-@config_cache.by_config  # Traced once per config value in a process.
-def _jitted_update(config: ml_collections.ConfigDict) -> Callable:
-  update = _update_fn(config)
+@build_cache.by_settings  # Traced once per settings value in a process.
+def _jitted_update(m: ModelSettings, losses: LossSettings, t: OptimSettings) -> Callable:
+  update = _update_fn(m, losses, t)
   jitted = jax.jit(update, donate_argnums=0)
   jitted.unjitted = update  # For make_multi_update.
   return jitted
 
 
-def _update_fn(config: ml_collections.ConfigDict) -> Callable:
+def _update_fn(m: ModelSettings, losses: LossSettings, t: OptimSettings) -> Callable:
   """The unjitted update(state, batch, key) -> (state, metrics) of `make_update`."""
-  nets = build_networks(ModelSettings.from_config(config))
-  loss_fn = make_loss_fn(config, nets)
-  if tasks.is_multitask(config):  # batch['task'] [B] too; one share per task (tasks.py).
-    loss_fn = tasks.multitask_loss(loss_fn, tasks.num_tasks(config))
-  tx = make_optimizer(config)
-  decay = config.train.ema_decay
-  h, obs_dim, act_dim = config.horizon, config.obs_dim, config.action_dim
+  nets = build_networks(m)
+  loss_fn = make_loss_fn(m, losses, nets)
+  if m.multitask:  # batch['task'] [B] too; one share per task (tasks.py).
+    loss_fn = tasks.multitask_loss(loss_fn, m.num_tasks)
+  tx = make_optimizer(t)
+  decay = t.ema_decay
+  h, obs_dim, act_dim = m.horizon, m.obs_dim, m.action_dim
 
   def update(state: TrainState, batch: dict, key: jax.Array):
     b = batch['obs'].shape[0]
     expected = {'obs': (b, h + 2, obs_dim), 'action': (b, h + 1, act_dim),
                 'reward': (b, h + 1)}
-    if tasks.is_multitask(config):
+    if m.multitask:
       expected['task'] = (b,)
     for name, shape in expected.items():
       if name not in batch or tuple(batch[name].shape) != shape:

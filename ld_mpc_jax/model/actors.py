@@ -8,7 +8,7 @@
 An entry carries whether its actor is `stochastic` (Actor.sample), whether it `needs_critics`
 (the Q and V ensembles of ld_mpc_jax.model.critics), the value kind it requires (`value`, None for
 any), and its loss term
-`loss(config, nets, params, z [B, H+2, D], action [B, H+1, A], weights [B, H+1], key) -> []`,
+`loss(losses, nets, params, z [B, H+2, D], action [B, H+1, A], weights [B, H+1], key) -> []`,
 where `weights` are the critics' AWR weights (None without critics).
 """
 
@@ -16,7 +16,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 from ld_mpc_jax.nets import MLP
 from ld_mpc_jax.ops.registry import Registry
 
@@ -104,7 +104,7 @@ class AWR:
   needs_critics = True
   value = None
 
-  def loss(self, config, nets, params, z, action, weights, key):
+  def loss(self, losses: LossSettings, nets, params, z, action, weights, key):
     a_pi = nets.actor.apply({'params': params['actor']}, jax.lax.stop_gradient(z[:, :-1]))
     return weighted_bc_loss(a_pi, action, weights)
 
@@ -115,7 +115,7 @@ class BC:
   needs_critics = False
   value = None
 
-  def loss(self, config, nets, params, z, action, weights, key):
+  def loss(self, losses: LossSettings, nets, params, z, action, weights, key):
     a_pi = nets.actor.apply({'params': params['actor']}, z[:, :-1])
     return weighted_bc_loss(a_pi, action, jnp.ones(action.shape[:-1]))
 
@@ -126,9 +126,9 @@ class MaxQ:
   needs_critics = True
   value = 'expectile'  # Its Q ensemble is trained with the expectile value's critics.
 
-  def loss(self, config, nets, params, z, action, weights, key):
+  def loss(self, losses: LossSettings, nets, params, z, action, weights, key):
     return maxq_actor_loss(nets, params, jax.lax.stop_gradient(z[:, :-1]), key,
-                           config.critic.entropy_coef)
+                           losses.entropy_coef)
 
 
 ACTORS.register('awr', AWR())

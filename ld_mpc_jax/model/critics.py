@@ -25,9 +25,8 @@ from typing import Callable, Dict, Optional
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
-import ml_collections
 
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 from ld_mpc_jax.nets import MLP
 from ld_mpc_jax.ops.numerics import window_returns
 
@@ -88,7 +87,7 @@ def awr_weights(advantage: jnp.ndarray, temperature: float, max_weight: float) -
   return jnp.minimum(jnp.exp(temperature * advantage), max_weight)
 
 
-def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
+def make_critic_loss(m: ModelSettings, losses: LossSettings, critics: Critics,
                      policy: Optional[Callable] = None) -> Callable:
   """Returns critic_loss(params, target_params, z, z_ema, z_model, action, reward).
 
@@ -101,7 +100,7 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
   V is trained as well, since that is where the planner reads it. action [B, H+1, A], reward
   [B, H+1]. -> (losses {'q', 'v'}, awr_weights [B, H+1], metrics).
   """
-  o, gamma, h = config.critic, config.gamma, config.horizon
+  o, gamma, h, scale = losses, m.gamma, m.horizon, m.value_scale
   apply = lambda p, *args, method: critics.apply({'params': p['critics']}, *args, method=method)
 
   def critic_loss(params, target_params, z, z_ema, z_model, action, reward):
@@ -112,11 +111,11 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
     if on_policy:  # TD-MPC2: the next action from the policy, the min over target Qs.
       q_next = jnp.min(apply(target_params, z_ema[:, 1:], sg(policy(params, z_ema[:, 1:])),
                              method=Critics.q_value), axis=0)
-      q_target = sg(reward / o.value_scale + gamma * q_next)
+      q_target = sg(reward / scale + gamma * q_next)
     elif o.td_target == 'window':  # n-step: rewards to the window's end.
-      q_target = sg(window_returns(reward / o.value_scale, v_next[:, -1], gamma))
+      q_target = sg(window_returns(reward / scale, v_next[:, -1], gamma))
     else:
-      q_target = sg(reward / o.value_scale + gamma * v_next)  # [B, H+1]
+      q_target = sg(reward / scale + gamma * v_next)  # [B, H+1]
     q = apply(params, z_t, action, method=Critics.q_value)  # [num_q, B, H+1]
     l_q = jnp.mean((q - q_target) ** 2)
     q_ema = sg(jnp.min(apply(target_params, ze_t, action, method=Critics.q_value), axis=0))
@@ -132,10 +131,10 @@ def make_critic_loss(config: ml_collections.ConfigDict, critics: Critics,
       l_v = jnp.mean((v_target - v_all) ** 2)
     else:
       l_v = jnp.mean(expectile_loss(q_ema - v_all, o.expectile))
-    advantage = o.value_scale * (q_ema - sg(jnp.mean(v, axis=0)))  # reward units
+    advantage = scale * (q_ema - sg(jnp.mean(v, axis=0)))  # reward units
     weights = awr_weights(advantage, o.awr_temperature, o.awr_max_weight)
     metrics: Dict[str, jnp.ndarray] = {
-        'q_mean': o.value_scale * jnp.mean(q), 'v_mean': o.value_scale * jnp.mean(v),
+        'q_mean': scale * jnp.mean(q), 'v_mean': scale * jnp.mean(v),
         'advantage_std': jnp.std(advantage), 'awr_weight_mean': jnp.mean(weights)}
     return {'q': l_q, 'v': l_v}, sg(weights), metrics
 

@@ -27,7 +27,7 @@ def acting_plan(config: ml_collections.ConfigDict) -> PlanSettings:
   (`online.act_num_gaussian`, `online.act_iterations`; evaluation keeps `plan.num_gaussian`
   and `plan.iterations`), its dynamics draws (`online.act_dynamics_draws`, 0: the plan's) and,
   with `online.act_proposal` off, no proposal candidates. Under `online.act_schedule='linear'`
-  the acting pessimism is no setting but the plan's traced `intrinsic` (`acting_intrinsic`), so
+  the acting pessimism is no setting but the plan's traced `intrinsic` (ActingSchedule), so
   `pessimism` is 0 here."""
   o, p = config.online, PlanSettings.from_config(config)
   return dataclasses.replace(
@@ -48,58 +48,72 @@ def _linear(start: float, end: float, env_steps: int, first: int, total: int) ->
   return float(start + frac * (end - start))
 
 
-def executed_noise(config: ml_collections.ConfigDict, env_steps: int, learn_start: int) -> float:
-  """Std of the noise on the executed action at `env_steps`: linear from
-  `online.exec_noise_start` when the planner starts acting to `online.exec_noise_end` at
-  `schedule_end` (`online.env_steps` by default)."""
-  o = config.online
-  return _linear(o.exec_noise_start, o.exec_noise_end, env_steps, learn_start, schedule_end(config))
+@dataclasses.dataclass(frozen=True)
+class ActingSchedule:
+  """The acting planner's settings that anneal with environment steps (`config.online`), built
+  once per run (`from_config`) where it knows when learning starts.
 
+  Each is linear from its start value at its first step to its end value at `end` (= schedule_end:
+  `online.schedule_steps`, or `online.env_steps` where that is 0), constant after:
+  - the executed action's noise std (`exec_noise_start` -> `exec_noise_end`), from `learn_start`;
+  - under `online.act_schedule='linear'` the intrinsic term's weights (`act_pessimism`,
+    `act_disagreement`, `act_novelty` -> their `_end`), from `plan_start` (the first planner
+    wave); under 'constant' those keep their start values.
+  """
+  schedule: str  # online.act_schedule: 'constant' | 'linear'.
+  end: int
+  learn_start: int
+  plan_start: int
+  exec_noise_start: float
+  exec_noise_end: float
+  act_pessimism: float
+  act_pessimism_end: float
+  act_disagreement: float
+  act_disagreement_end: float
+  act_novelty: float
+  act_novelty_end: float
 
-def plan_start(config: ml_collections.ConfigDict, learn_start: int) -> int:
-  """Environment steps at the first planner wave: after the actor prior's seed waves with
-  demonstrations and `online.demo_seed_actor`, else where learning starts (`learn_start`)."""
-  o = config.online
-  return o.seed_steps if o.demos and o.demo_seed_actor else learn_start
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict, learn_start: int) -> 'ActingSchedule':
+    """`learn_start`: environment steps where updates start. The first planner wave follows the
+    actor prior's seed waves with demonstrations and `online.demo_seed_actor`, else it is there."""
+    o = config.online
+    names = ('exec_noise_start', 'exec_noise_end', 'act_pessimism', 'act_pessimism_end',
+             'act_disagreement', 'act_disagreement_end', 'act_novelty', 'act_novelty_end')
+    first = o.seed_steps if o.demos and o.demo_seed_actor else learn_start
+    return cls(schedule=o.act_schedule, end=schedule_end(config), learn_start=learn_start,
+               plan_start=first, **{name: float(o[name]) for name in names})
 
+  def executed_noise(self, env_steps: int) -> float:
+    """Std of the noise on the executed action at `env_steps`."""
+    return _linear(self.exec_noise_start, self.exec_noise_end, env_steps, self.learn_start,
+                   self.end)
 
-def _scheduled(config: ml_collections.ConfigDict, name: str, env_steps: int,
-               plan_start: int) -> float:
-  """`online.<name>`, or under `online.act_schedule='linear'` linear from it at `plan_start`
-  (the first planner wave) to `online.<name>_end` at `schedule_end` (`online.env_steps`)."""
-  o = config.online
-  if o.act_schedule == 'constant':
-    return float(o[name])
-  return _linear(o[name], o[f'{name}_end'], env_steps, plan_start, schedule_end(config))
+  def _scheduled(self, name: str, env_steps: int) -> float:
+    start = getattr(self, name)
+    if self.schedule == 'constant':
+      return start
+    return _linear(start, getattr(self, f'{name}_end'), env_steps, self.plan_start, self.end)
 
+  def exploration(self, env_steps: int) -> Tuple[float, float]:
+    """(pessimism, disagreement weight) of the acting planner at `env_steps`."""
+    return (self._scheduled('act_pessimism', env_steps),
+            self._scheduled('act_disagreement', env_steps))
 
-def acting_exploration(config: ml_collections.ConfigDict, env_steps: int,
-                       plan_start: int) -> Tuple[float, float]:
-  """(pessimism, disagreement weight) of the acting planner at `env_steps`:
-  `online.act_pessimism` and `online.act_disagreement`, or under `online.act_schedule='linear'`
-  linear from them at `plan_start` (the first planner wave) to `online.act_pessimism_end` and
-  `online.act_disagreement_end` at `schedule_end` (`online.env_steps`)."""
-  return (_scheduled(config, 'act_pessimism', env_steps, plan_start),
-          _scheduled(config, 'act_disagreement', env_steps, plan_start))
+  def novelty(self, env_steps: int) -> float:
+    """Weight of the learned exploration value in the acting planner's J at `env_steps`
+    (ld_mpc_jax.model.novelty)."""
+    return self._scheduled('act_novelty', env_steps)
 
-
-def acting_novelty(config: ml_collections.ConfigDict, env_steps: int, plan_start: int) -> float:
-  """Weight of the learned exploration value in the acting planner's J at `env_steps`
-  (ld_mpc_jax.model.novelty): `online.act_novelty`, scheduled as `acting_exploration`'s."""
-  return _scheduled(config, 'act_novelty', env_steps, plan_start)
-
-
-def acting_intrinsic(config: ml_collections.ConfigDict, env_steps: int,
-                     plan_start: int) -> Intrinsic:
-  """The acting planner's traced intrinsic term at `env_steps` (planner.make_plan's `intrinsic`,
-  float32 scalars): `acting_exploration`'s values and `acting_novelty`'s, except the pessimism
-  under the 'constant' schedule, which `acting_plan` sets as the plan's `pessimism` (0 here), as
-  before the schedule."""
-  pessimism, disagreement = acting_exploration(config, env_steps, plan_start)
-  if config.online.act_schedule == 'constant':
-    pessimism = 0.0
-  return Intrinsic(pessimism=np.float32(pessimism), disagreement=np.float32(disagreement),
-                   novelty=np.float32(acting_novelty(config, env_steps, plan_start)))
+  def intrinsic(self, env_steps: int) -> Intrinsic:
+    """The acting planner's traced intrinsic term at `env_steps` (build_plan's `intrinsic`,
+    float32 scalars): `exploration`'s values and `novelty`'s, except the pessimism under the
+    'constant' schedule, which `acting_plan` sets as the plan's `pessimism` (0 here)."""
+    pessimism, disagreement = self.exploration(env_steps)
+    if self.schedule == 'constant':
+      pessimism = 0.0
+    return Intrinsic(pessimism=np.float32(pessimism), disagreement=np.float32(disagreement),
+                     novelty=np.float32(self.novelty(env_steps)))
 
 
 def validate_acting(config: ml_collections.ConfigDict) -> None:

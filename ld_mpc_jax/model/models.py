@@ -20,7 +20,7 @@ import ml_collections
 import numpy as np
 
 from ld_mpc_jax.model import actors, dynamics, novelty, objective, progress, proposals, tasks
-from ld_mpc_jax.ops import config_cache
+from ld_mpc_jax.ops import build_cache
 from ld_mpc_jax.model.actors import Actor
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.critics import Critics, build_critics
@@ -199,7 +199,7 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   return _jitted_init(ModelSettings.from_config(config))(key)
 
 
-@config_cache.by_settings  # Traced once per settings value in a process.
+@build_cache.by_settings  # Traced once per settings value in a process.
 def _jitted_init(m: ModelSettings):
   return jax.jit(functools.partial(_init_params, m))
 

@@ -1,14 +1,15 @@
-"""Typed, frozen settings of the model and of its planner, built once from a config.
+"""Typed, frozen settings of the model, its planner and its loss, built once from a config.
 
 The ConfigDict stays the command line's surface and the saved `config.json`; what builds the
-networks and `plan` takes these instead:
+networks, `plan` and the loss takes these instead:
 
   model = ModelSettings.from_config(config)   # sizes, config.model, config.diffusion, critics
   plan = PlanSettings.from_config(config)     # config.plan
   acting = dataclasses.replace(plan, pessimism=0.0)   # a variant, not a cloned config
+  losses = LossSettings.from_config(config)   # config.loss, the critics' loss settings
 
-Both are frozen and hashable, so a builder cached on them (functools.lru_cache) traces once
-per value in a process. Their defaults and the reasons for them stay in configs/base.py (one
+All are frozen and hashable, so a builder cached on them (ops.build_cache.by_settings) traces
+once per value in a process. Their defaults and the reasons for them stay in configs/base.py (one
 place to read a choice); ld_mpc_jax.model.search.validate_plan holds the planner's checks.
 """
 
@@ -149,3 +150,47 @@ class PlanSettings:
     values and `--config.plan.safe_selection=True` alone switches the recommended setting on."""
     return (bool(self.safe_selection and self.safe_confirm),
             bool(self.safe_selection and self.fallback_drop > 0))
+
+
+_LOSS_FIELDS = ('w_dyn', 'w_act', 'w_rew', 'w_val', 'w_actor', 'w_consistency', 'w_q', 'w_v',
+                'w_demo_bc', 'w_noise_inv', 'w_progress', 'w_novelty', 'reward_balance')
+_CRITIC_LOSS_FIELDS = ('expectile', 'awr_temperature', 'awr_max_weight', 'td_target',
+                       'entropy_coef', 'latent_rollout', 'rollout_steps', 'rollout_unroll')
+
+
+@dataclasses.dataclass(frozen=True)
+class LossSettings:
+  """What the training loss reads beside the model's settings (ld_mpc_jax.learn.losses): the
+  terms' weights (`config.loss`), the critics' and the actor's loss settings (`config.critic`)
+  and the observation-noise augmentation (`config.train.obs_noise_aug`)."""
+  # config.loss
+  w_dyn: float
+  w_act: float
+  w_rew: float
+  w_val: float
+  w_actor: float
+  w_consistency: float
+  w_q: float
+  w_v: float
+  w_demo_bc: float
+  w_noise_inv: float
+  w_progress: float
+  w_novelty: float
+  reward_balance: float
+  # config.critic
+  expectile: float
+  awr_temperature: float
+  awr_max_weight: float
+  td_target: str
+  entropy_coef: float
+  latent_rollout: bool
+  rollout_steps: int
+  rollout_unroll: bool
+  # config.train
+  obs_noise_aug: float
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'LossSettings':
+    return cls(**{f: config.loss[f] for f in _LOSS_FIELDS},
+               **{f: config.critic[f] for f in _CRITIC_LOSS_FIELDS},
+               obs_noise_aug=config.train.obs_noise_aug)

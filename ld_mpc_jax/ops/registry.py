@@ -16,7 +16,7 @@ defined. Lookups never fall back to a default: an unknown name is a one-line err
 
 from typing import Any, Callable, Dict, Iterator, Tuple
 
-_generation = [0]  # Bumped whenever any registry changes (config_cache keys on it).
+_generation = [0]  # Bumped whenever any registry changes (build_cache keys on it).
 
 
 def generation() -> int:

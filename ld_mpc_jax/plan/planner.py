@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 
-from ld_mpc_jax.ops import config_cache, diffusion
+from ld_mpc_jax.ops import build_cache, diffusion
 from ld_mpc_jax.model import dynamics, novelty, proposals
 from ld_mpc_jax.model.config_checks import validate_config
 from ld_mpc_jax.model.models import Networks, build_networks
@@ -283,7 +283,7 @@ def build_plan(model: ModelSettings, plan: PlanSettings,
   Returns:
     plan(params, z [latent_dim], key, prev_sequence=None, action_noise=0.0, guard=None,
     intrinsic=None) -> PlanOutput, one jitted pure function, the same one for equal settings
-    in this process (ld_mpc_jax.ops.config_cache; a `score_fn` always builds a new one). With
+    in this process (ld_mpc_jax.ops.build_cache; a `score_fn` always builds a new one). With
     `plan.warm_start_steps` > 0, passing the previous call's `sequence` as `prev_sequence`
     warm-starts the proposal (and centres the Gaussian set) on it, shifted by one step. `action_noise` (a traced scalar, so annealing it never recompiles) is
     the std of Gaussian noise on the executed action: exploration while acting, 0 in evaluation.
@@ -301,12 +301,12 @@ def build_plan(model: ModelSettings, plan: PlanSettings,
   appended to `candidates` and `scores`. Selection: ld_mpc_jax.model.search.select.
   """
   validate_plan(plan, proposals.get(model).sequence, model.proposal_type)
-  if score_fn is None:  # One traced planner per settings value in a process (config_cache).
+  if score_fn is None:  # One traced planner per settings value in a process (build_cache).
     return _cached_plan(model, plan)
   return _build_plan(model, plan, score_fn)
 
 
-@config_cache.by_settings  # Traced once per settings value in a process.
+@build_cache.by_settings  # Traced once per settings value in a process.
 def _cached_plan(model: ModelSettings, plan: PlanSettings) -> Callable:
   return _build_plan(model, plan, None)
 

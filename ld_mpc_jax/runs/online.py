@@ -46,8 +46,7 @@ from ld_mpc_jax import data, envs
 from ld_mpc_jax.runs import loop as runs, online_report
 from ld_mpc_jax.runs.progress import progress_bar
 from ld_mpc_jax.model.config_checks import validate_config
-from ld_mpc_jax.model.exploration import (acting_intrinsic, acting_plan, executed_noise,
-                                          plan_start)
+from ld_mpc_jax.model.exploration import ActingSchedule, acting_plan
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
 from ld_mpc_jax.ops.seed_groups import SeedGroups
@@ -135,7 +134,7 @@ class OnlineJob:
     # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
     # pretrained on them, plus the executed-action noise), learn from the start.
     self.learn_start = 0 if source is not None or o.demos else o.seed_steps
-    self.plan_start = plan_start(config, self.learn_start)  # The intrinsic term's schedule.
+    self.acting_schedule = ActingSchedule.from_config(config, self.learn_start)  # Annealed.
     self.per_call = o.updates_per_call
     self.update = {n: make_seeds_update(config, n, self.per_call) for n in set(self.groups.sizes)}
     self.keys = self.groups.split(jnp.stack([seat.update_key for seat in self.seats]))
@@ -271,8 +270,8 @@ class OnlineJob:
     term at the environment steps so far."""
     steps = self.counters['env_steps']
     return WaveSchedule(self.acting_mode(),
-                        executed_noise(self.config, steps, self.learn_start),
-                        acting_intrinsic(self.config, steps, self.plan_start))
+                        self.acting_schedule.executed_noise(steps),
+                        self.acting_schedule.intrinsic(steps))
 
   def wave(self, schedule: WaveSchedule) -> list:
     """One episode per environment of every seed, in lockstep, as `schedule` says; returns each

@@ -19,8 +19,7 @@ from ld_mpc_jax.plan.agent import BatchAgentPolicy
 from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
 from ld_mpc_jax.data.demos import get_demos
 from ld_mpc_jax.data.online_buffer import Buffer
-from ld_mpc_jax.model.exploration import (acting_exploration, acting_novelty, ar1_noise,
-                                           executed_noise)
+from ld_mpc_jax.model.exploration import ar1_noise
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.model.search import CANDIDATES
@@ -30,8 +29,8 @@ from ld_mpc_jax.model.search import CANDIDATES
 class WaveSchedule:
   """What a wave acts with, fixed at its start from the environment steps so far."""
   mode: str  # 'random' (seed waves), 'actor' or 'plan' (OnlineJob.acting_mode).
-  noise_std: float  # Std of the noise on the executed action (exploration.executed_noise).
-  intrinsic: Any = None  # The planner's intrinsic term's weights (exploration.acting_intrinsic).
+  noise_std: float  # Std of the noise on the executed action (ActingSchedule.executed_noise).
+  intrinsic: Any = None  # The planner's intrinsic term's weights (ActingSchedule.intrinsic).
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +81,7 @@ class Seat:
                **{f'won_{k}': float(wave.winners[j] / decisions)
                   for j, k in enumerate(CANDIDATES.names())},
                departed=float(wave.winners[-1] / decisions),
-               exec_noise=executed_noise(self.config, before, job.learn_start)
+               exec_noise=job.acting_schedule.executed_noise(before)
                if mode != 'random' else float('nan'),
                env_steps_per_s=(step - before) / seconds,
                **self._acting_columns(job, before, wave, mode))
@@ -101,13 +100,13 @@ class Seat:
     its earlier columns in place.)"""
     spreads = np.asarray(wave.spreads, np.float64).reshape(-1, 2)
     mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
-    pessimism, disagreement = (acting_exploration(self.config, before, job.plan_start)
+    pessimism, disagreement = (job.acting_schedule.exploration(before)
                                if mode == 'plan' else (float('nan'),) * 2)
     out = dict(planned=int(wave.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
                spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
                act_disagreement=disagreement)
     if self.config.loss.w_novelty > 0:  # Only runs with the exploration value have the column.
-      out['act_novelty'] = (acting_novelty(self.config, before, job.plan_start)
+      out['act_novelty'] = (job.acting_schedule.novelty(before)
                             if mode == 'plan' else float('nan'))
     return out
 
