@@ -157,3 +157,52 @@ def test_the_layer_check_sees_an_upward_import(monkeypatch):
   with pytest.raises(AssertionError,
                      match='ops.numerics \\(ops\\) imports ld_mpc_jax.plan.planner \\(plan\\)'):
     test_every_import_points_down_the_layers()
+
+
+# Functions that take a whole ConfigDict (issue 103: typed settings at the boundaries instead).
+# A ratchet: lower it as settings replace the config; the target is at most 30.
+MAX_CONFIG_TAKERS = 122
+
+
+def config_takers(root: str = ROOT) -> list:
+  """'module:function' for every function of the package with a parameter annotated ConfigDict
+  (or agent.Settings, a ConfigDict or its settings), or unannotated and named config or cfg."""
+  out = []
+  for d, _, files in os.walk(os.path.join(root, PACKAGE)):
+    for f in sorted(files):
+      if not f.endswith('.py'):
+        continue
+      path = os.path.join(d, f)
+      for node in ast.walk(ast.parse(open(path).read())):
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+          continue
+        args = node.args.posonlyargs + node.args.args + node.args.kwonlyargs
+        if any(_takes_config(a) for a in args):
+          out.append(f'{_module_name(path, root)}:{node.name}')
+  return out
+
+
+def _takes_config(arg: ast.arg) -> bool:
+  if arg.annotation is not None:
+    annotation = ast.unparse(arg.annotation)
+    return 'ConfigDict' in annotation or annotation == 'Settings'
+  return arg.arg in ('config', 'cfg', 'base_config', 'run_config')
+
+
+def test_fewer_functions_take_the_whole_config():
+  takers = config_takers()
+  assert len(takers) <= MAX_CONFIG_TAKERS, (len(takers), takers)
+
+
+def test_only_the_configs_clone_a_config():
+  """Variants of a config are made by configs.overrides.with_overrides (or are settings
+  replaced: dataclasses.replace), not by cloning it elsewhere."""
+  clones = []
+  for d, _, files in os.walk(os.path.join(ROOT, PACKAGE)):
+    for f in files:
+      path = os.path.join(d, f)
+      if f.endswith('.py') and os.sep + 'configs' + os.sep not in path:
+        if 'ConfigDict(' in open(path).read() and '.to_dict())' in open(path).read():
+          clones.extend(f'{path}:{i + 1}' for i, line in enumerate(open(path))
+                        if 'ConfigDict(' in line and '.to_dict())' in line)
+  assert not clones, clones

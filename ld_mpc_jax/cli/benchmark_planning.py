@@ -118,9 +118,8 @@ def variant_config(base: ml_collections.ConfigDict, sizes: ml_collections.Config
                    overrides: dict):
   """base with the network sizes of `sizes` (a preset's config: its `model` and its value and Q
   heads' `critic.hidden`) and overrides applied -> (config, resolved overrides)."""
-  c = ml_collections.ConfigDict(base.to_dict())
-  c.model = ml_collections.ConfigDict(sizes.model.to_dict())
-  c.critic.hidden = sizes.critic.hidden
+  c = with_overrides(base, {**{f'model.{name}': value for name, value in sizes.model.items()},
+                            'critic.hidden': sizes.critic.hidden})
   resolved = {dotted: value(c) if callable(value) else value
               for dotted, value in overrides.items()}
   return with_overrides(c, resolved), resolved

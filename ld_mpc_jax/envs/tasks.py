@@ -7,6 +7,7 @@ from typing import Tuple
 
 import ml_collections
 
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.envs import metaworld_env
 
 
@@ -41,8 +42,7 @@ def task_config(config: ml_collections.ConfigDict, task: int) -> ml_collections.
   task use it unchanged.
   """
   name = task_names(config)[task]
-  out = ml_collections.ConfigDict(config.to_dict())
-  out.task = name
+  out = with_overrides(config, {'task': name})
   if 'tasks' in out:
     del out['tasks']
   return out

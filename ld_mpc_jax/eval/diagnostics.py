@@ -14,24 +14,17 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
-import ml_collections
 import numpy as np
 from scipy import stats as sps
 
 from ld_mpc_jax import data
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.eval import evaluation, evaluation_suite
 from ld_mpc_jax.model import models, objective
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops import stats
 from ld_mpc_jax.plan import agent, planner
 from ld_mpc_jax.ops.numerics import discounted_return, two_hot_decode
-
-
-def _with_plan(config: ml_collections.ConfigDict, **plan) -> ml_collections.ConfigDict:
-  c = ml_collections.ConfigDict(config.to_dict())
-  for name, value in plan.items():
-    c.plan[name] = value
-  return c
 
 
 _HORIZON_MARGIN = 100  # Decisions of return a window needs after its start (1 / (1 - gamma)).
@@ -109,7 +102,7 @@ def success_by_k(config, params, ks, episodes: int, seed: int) -> list:
   rows, outcomes = [], {}
   for k in ks:
     prior = round(p.num_prior_candidates * k / p.num_candidates) if k > 1 else 0
-    cfg = _with_plan(config, num_candidates=k, num_prior_candidates=prior)
+    cfg = with_overrides(config, {'plan.num_candidates': k, 'plan.num_prior_candidates': prior})
     r = evaluation_suite.evaluate_policy(cfg, params, 'plan', episodes, seed, 'held_out')
     outcomes[k] = [rec['success'] for rec in sorted(r['records'], key=lambda x: x['episode'])]
     rows.append(dict(k=k, prior=prior, successes=r['successes'], episodes=episodes,

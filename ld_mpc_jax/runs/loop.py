@@ -23,6 +23,7 @@ import tqdm
 
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.runs.progress import INTERRUPTED, SAVING, Eta, stage
 from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
 from ld_mpc_jax.model import tasks
@@ -284,8 +285,7 @@ def seed_configs(config: ml_collections.ConfigDict, workdir: str):
     return [(config, workdir)]
   out = []
   for i in range(n):
-    c = ml_collections.ConfigDict(config.to_dict())
-    c.seed, c.train.num_seeds = config.seed + i, 1
+    c = with_overrides(config, {'seed': config.seed + i, 'train.num_seeds': 1})
     if 'online' in c and c.online.init_from:  # Each seed fine-tunes from its own offline seed.
       c.online.init_from = seed_source(c.online.init_from, c.seed)
     out.append((c, os.path.join(workdir, f'seed{c.seed}')))
