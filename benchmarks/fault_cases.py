@@ -27,8 +27,8 @@ import sys
 import time
 from typing import Any, Dict
 
-from benchmarks.fault_injection import (Runner, commands, complete_steps, judge, phase,
-                                        read_stderr, restored, total_of)
+from benchmarks.fault_runner import (Runner, commands, complete_steps, judge, phase, read_stderr,
+                                     restored, total_of)
 
 # (module, name) a crafted chunk names, and the pickle opcode that looks it up.
 PAYLOADS = [('numpy.f2py', 'os.system', 'stack'), ('os', 'system', 'global'),

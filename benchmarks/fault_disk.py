@@ -17,8 +17,8 @@ import subprocess
 import time
 from typing import Any, Dict, List
 
-from benchmarks.fault_injection import (Runner, commands, complete_steps, judge, read_stderr,
-                                        restored, verdict)
+from benchmarks.fault_runner import (Runner, commands, complete_steps, judge, read_stderr,
+                                     restored, verdict)
 
 
 def mount_disk(path: str, kib: int, remount: bool = False) -> None:

@@ -10,6 +10,7 @@ import numpy as np
 
 from benchmarks import fault_disk
 from benchmarks import fault_injection as fi
+from benchmarks import fault_runner as fr
 
 
 def _fake_workdir(root):
@@ -25,30 +26,30 @@ def _fake_workdir(root):
 
 def test_complete_steps_and_writes_in_progress(tmp_path):
   workdir = _fake_workdir(tmp_path)
-  assert fi.complete_steps(workdir) == [2, 4]
-  assert not fi.writing_checkpoint(workdir)
-  tmp = tmp_path / 'checkpoints' / f'6{fi.TMP_SUFFIX}-1234'
+  assert fr.complete_steps(workdir) == [2, 4]
+  assert not fr.writing_checkpoint(workdir)
+  tmp = tmp_path / 'checkpoints' / f'6{fr.TMP_SUFFIX}-1234'
   tmp.mkdir()
-  assert fi.complete_steps(workdir) == [2, 4] and fi.writing_checkpoint(workdir)
-  assert fi.phase(workdir, '', 12) == 'checkpoint write'
+  assert fr.complete_steps(workdir) == [2, 4] and fr.writing_checkpoint(workdir)
+  assert fr.phase(workdir, '', 12) == 'checkpoint write'
   tmp.rmdir()
   (tmp_path / 'online').mkdir()
   (tmp_path / 'online' / 'buffer_4.npz').write_bytes(b'')
-  assert not fi.writing_checkpoint(workdir)  # Its orbax step is there.
+  assert not fr.writing_checkpoint(workdir)  # Its orbax step is there.
   (tmp_path / 'online' / 'buffer_6.npz').write_bytes(b'')  # Saved before its orbax step.
-  assert fi.writing_checkpoint(workdir)
-  assert fi.complete_steps(str(tmp_path / 'none')) == []
+  assert fr.writing_checkpoint(workdir)
+  assert fr.complete_steps(str(tmp_path / 'none')) == []
 
 
 def test_phase_reads_the_progress_bar(tmp_path):
   workdir = _fake_workdir(tmp_path)
   bar = 'train:  42%|####      | 5/12 [00:03<00:04]\rtrain:  50%|#####     | 6/12 [00:04<00:04]'
-  assert fi.phase(workdir, bar, 12) == 'training at 6/12'
-  assert fi.phase(workdir, 'online:  67%|###| 80/120 [00:09]', 120) == 'acting/updates at 80/120'
-  assert fi.phase(str(tmp_path / 'new'), 'compiling', 12) == 'startup'
-  assert fi.phase(workdir, bar, 4) == 'final evaluation'  # Step 4 is the last one.
+  assert fr.phase(workdir, bar, 12) == 'training at 6/12'
+  assert fr.phase(workdir, 'online:  67%|###| 80/120 [00:09]', 120) == 'acting/updates at 80/120'
+  assert fr.phase(str(tmp_path / 'new'), 'compiling', 12) == 'startup'
+  assert fr.phase(workdir, bar, 4) == 'final evaluation'  # Step 4 is the last one.
   (tmp_path / 'report.json').write_text('{}')
-  assert fi.phase(workdir, bar, 4) == 'report written'
+  assert fr.phase(workdir, bar, 4) == 'report written'
 
 
 def test_damage_deletes_or_truncates_one_file_of_one_step(tmp_path):
@@ -56,8 +57,8 @@ def test_damage_deletes_or_truncates_one_file_of_one_step(tmp_path):
   for seed in range(12):
     workdir = _fake_workdir(tmp_path / str(seed))
     before = {s: {n: os.path.getsize(os.path.join(workdir, 'checkpoints', str(s), n))
-                  for n in fi.checkpoint_files(workdir, s)} for s in (2, 4)}
-    hurt = fi.damage(workdir, random.Random(seed))
+                  for n in fr.checkpoint_files(workdir, s)} for s in (2, 4)}
+    hurt = fr.damage(workdir, random.Random(seed))
     actions.add(hurt['action'])
     path = os.path.join(workdir, 'checkpoints', str(hurt['step']), hurt['file'])
     assert hurt['size'] == before[hurt['step']][hurt['file']]
@@ -75,22 +76,22 @@ def test_damage_deletes_or_truncates_one_file_of_one_step(tmp_path):
 def test_read_stderr_finds_tracebacks_skipped_steps_and_error_lines():
   text = ('train: 10%|#| 1/12\rwarning: checkpoint step 12 in /w/checkpoints skipped, '
           'ValueError: truncated; trying an earlier one\nerror: no intact checkpoint\n')
-  got = fi.read_stderr(text)
+  got = fr.read_stderr(text)
   assert got['skipped'] == [12] and got['skip_reasons'] == ['ValueError: truncated']
   assert got['errors'] == ['error: no intact checkpoint'] and not got['traceback']
-  assert fi.read_stderr('Traceback (most recent call last):\n  File "x"\nKeyError: 1')['traceback']
+  assert fr.read_stderr('Traceback (most recent call last):\n  File "x"\nKeyError: 1')['traceback']
 
 
 def test_compare_trees_is_exact():
   want = {'params': {'w': np.arange(6, dtype=np.float32).reshape(2, 3)}, 'step': np.int32(4)}
   same = {'params': {'w': np.arange(6, dtype=np.float32).reshape(2, 3)}, 'step': np.int32(4)}
-  assert fi.compare_trees(same, want) == dict(identical=True, max_abs_diff=0.0)
+  assert fr.compare_trees(same, want) == dict(identical=True, max_abs_diff=0.0)
   nudged = {'params': {'w': np.nextafter(want['params']['w'], np.float32(9))},
             'step': np.int32(4)}
-  got = fi.compare_trees(nudged, want)
+  got = fr.compare_trees(nudged, want)
   assert not got['identical'] and 0 < got['max_abs_diff'] < 1e-5
-  assert fi.compare_trees({'params': {}}, want)['max_abs_diff'] == float('inf')
-  assert fi.state_hash(same) == fi.state_hash(want) != fi.state_hash(nudged)
+  assert fr.compare_trees({'params': {}}, want)['max_abs_diff'] == float('inf')
+  assert fr.state_hash(same) == fr.state_hash(want) != fr.state_hash(nudged)
 
 
 def test_table_and_summary_count_every_outcome():
@@ -118,7 +119,7 @@ def test_an_error_line_after_a_progress_bar_is_read_as_one():
           'on the device of /w (writing checkpoints/6.orbax-checkpoint-tmp/x): checkpoint step 4 '
           'and those before it are kept in /w/checkpoints; free some space and rerun the same '
           'command to resume from it\n')
-  got = fi.read_stderr(text)
+  got = fr.read_stderr(text)
   assert got['errors'] == [text[text.index('error:'):].strip()] and not got['traceback']
   first = fault_disk.first_stop(dict(got, rc=2), '/w')
   assert first['first_stop_ok'] and first['first_outcome'] == (
@@ -134,15 +135,15 @@ def test_a_disk_full_trial_needs_the_one_line_stop_and_the_resume():
              final_hash='a', first_outcome='stopped (exit 2, one line naming the full disk, '
              'writing checkpoints/80.orbax-checkpoint-tmp)', trial=1, point='checkpoints at '
              'the stop: [40]', outcome='resumed from 40', restored_step=40)
-  assert fi.group_of(row) == 'disk full' and fi.verdict(row)
-  assert not fi.verdict(dict(row, first_stop_ok=False))  # A traceback or no line: not ok.
-  assert not fi.verdict(dict(row, identical=False))  # Resumed elsewhere: not ok.
-  assert fi.verdict(dict(row, first_rc=0, first_stop_ok=False))  # The disk did not fill.
+  assert fi.group_of(row) == 'disk full' and fr.verdict(row)
+  assert not fr.verdict(dict(row, first_stop_ok=False))  # A traceback or no line: not ok.
+  assert not fr.verdict(dict(row, identical=False))  # Resumed elsewhere: not ok.
+  assert fr.verdict(dict(row, first_rc=0, first_stop_ok=False))  # The disk did not fill.
   line = fi.markdown([row]).splitlines()[2]
   assert line.startswith('| 1 | online | disk full (900 KiB tmpfs) | checkpoints at the stop')
   assert ('writing checkpoints/80.orbax-checkpoint-tmp); after freeing space: resumed from 40, '
           'its checkpoint as uninterrupted | yes | no |') in line
-  assert fi.summary([dict(row, ok=fi.verdict(row))])['online disk full']['ok'] == 1
+  assert fi.summary([dict(row, ok=fr.verdict(row))])['online disk full']['ok'] == 1
 
 
 def test_top_up_leaves_the_margin_free(tmp_path, monkeypatch):
