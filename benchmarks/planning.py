@@ -38,12 +38,14 @@ def markdown(entries: list) -> str:
            f"{entries[0]['peak_gflops']:.1f} GFLOP/s (float32 matmul); 1-min load average at "
            f"start {dev['loadavg_1min_at_start']:.2f}.", '',
            '| configuration | params | K | steps | compile s | median ms | min ms | max ms '
-           '| GFLOP (hand) | GFLOP (XLA) | bound ratio | / MPPI |',
-           '| --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |']
+           '| GFLOP (hand) | GFLOP (XLA) | bound ratio | / MPPI | encode ms |',
+           '| --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: '
+           '| ---: |']
   for e in entries:
     l, vs = e['latency_ms'], e['latency_vs_mppi']
+    encode = f"{e['encode_ms']:.2f}" if 'encode_ms' in e else '-'  # MPPI's: not timed apart.
     lines.append(f"| {e['name']} | {e['num_params'] / 1e6:.2f}M | {e['num_candidates']} | "
                  f"{e['steps']} | {e['compile_s']:.1f} | {l['median']:.1f} | {l['min']:.1f} | "
                  f"{l['max']:.1f} | {e['gflop']:.2f} | {e['gflop_xla']:.2f} | "
-                 f"{e['bound_ratio']:.2f} | {'-' if vs is None else f'{vs:.2f}'} |")
+                 f"{e['bound_ratio']:.2f} | {'-' if vs is None else f'{vs:.2f}'} | {encode} |")
   return '\n'.join(lines) + '\n'

@@ -61,7 +61,7 @@ def test_an_update_trains_the_observation_dynamics():
     ('latent_dim', 64, 'latent_dim must be config.obs_dim (39)'),
     ('normalize_dynamics', True, 'normalize_dynamics=False'),
     ('normalize_obs', False, 'normalize_obs=True'),
-    ('encoder_type', 'conv', "'mlp' or 'identity'"),
+    ('encoder_type', 'cnn', "'mlp', 'identity' or 'conv'"),
     ('dynamics_type', 'mlp', 'does not go with dynamics_type=mlp'),
 ])
 def test_inconsistent_settings_are_one_line(field, value, words):

@@ -48,6 +48,14 @@ _SAFE = {'plan.safe_selection': True, 'plan.safe_margin': 2.0,
 # observation (model.encoder_type='identity'), the networks' widths unchanged.
 _OBS_SPACE = {'model.encoder_type': 'identity', 'model.latent_dim': lambda c: c.obs_dim,
               'model.normalize_dynamics': False}
+# From pixels (issue 105): flat 64 x 64 RGB images, the latent of a convolutional encoder
+# (model.encoder_type='conv'); and pixel-space planning, D-MPC on frames: the latent is the
+# image (identity encoder), the dynamics a convolutional frame denoiser ('conv_frames').
+_IMAGE_DIM = lambda c: c.model.image_size ** 2 * c.model.image_channels
+_PIXELS = {'obs_dim': _IMAGE_DIM, 'model.encoder_type': 'conv', 'model.normalize_obs': False}
+_PIXEL_SPACE = {'obs_dim': _IMAGE_DIM, 'model.encoder_type': 'identity',
+                'model.latent_dim': _IMAGE_DIM, 'model.dynamics_type': 'conv_frames',
+                'model.normalize_dynamics': False}
 _CHEAP_OBJECTIVE = {'model.objective_blocks': lambda c: max(1, c.model.objective_blocks // 5)}
 VARIANTS = {
     'reference': {},
@@ -72,6 +80,10 @@ VARIANTS = {
                            'plan.confirm_draws': 8},
     'obs_space': _OBS_SPACE,  # `reference` and `fast_warm` planning in observation space.
     'fast_warm_obs_space': {**_FAST_WARM, **_OBS_SPACE},
+    'pixels': _PIXELS,  # `reference` and `fast_warm` from pixels, in a latent and on frames.
+    'fast_warm_pixels': {**_FAST_WARM, **_PIXELS},
+    'pixel_space': _PIXEL_SPACE,
+    'fast_warm_pixel_space': {**_FAST_WARM, **_PIXEL_SPACE},
     'mppi': None,  # The baseline; runs once, independent of the width.
 }
 WIDTHS = {'ref': None, 'cpu': 'cpu'}  # width name -> preset of the config file.
@@ -128,17 +140,25 @@ def variant_config(base: ml_collections.ConfigDict, sizes: ml_collections.Config
 def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warmup: int) -> dict:
   import ld_mpc_jax as ldmpc
   from benchmarks import flops
+  from ld_mpc_jax.model.settings import ModelSettings
   params = ldmpc.init_params(config, jax.random.key(0))
   plan = ldmpc.make_plan(config)
-  z = ldmpc.encode(params, np.linspace(-1.0, 1.0, config.obs_dim, dtype=np.float32))
+  obs = np.linspace(0.0, 255.0, config.obs_dim, dtype=np.float32)  # Pixels' range, or a state.
+  z = ldmpc.encode(params, obs)
   keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
+  encode_ms = time_encoder(ModelSettings.from_config(config), params, obs, repeats, warmup)
   warm = config.plan.warm_start_steps > 0
   carry = jnp.zeros((config.horizon, config.action_dim)) if warm else None
   compiled, compile_s, first_s, lat = time_calls(
       plan, params, z, keys, (lambda out: out.sequence) if warm else None, carry, warmup)
   args = (params, z, keys[0]) + ((carry,) if warm else ())
-  xla = flops.xla_plan_flops(config, plan, args, plan_once=flops.compiled_flops(compiled))
-  hand = flops.plan_flops(config)
+  if config.model.dynamics_type == 'conv_frames':  # The counts know the transformers only.
+    nan = float('nan')
+    xla = dict(plan_once=flops.compiled_flops(compiled), total=nan)
+    hand = dict(proposal=nan, dynamics=nan, objective=nan, actor=nan, total=nan)
+  else:
+    xla = flops.xla_plan_flops(config, plan, args, plan_once=flops.compiled_flops(compiled))
+    hand = flops.plan_flops(config)
   p = config.plan
   return dict(name=f'{name}/{width}', variant=name, width=width, overrides=overrides,
               model={k: config.model[k] for k in ('latent_dim', 'width', 'proposal_blocks',
@@ -146,9 +166,26 @@ def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warm
               num_params=ldmpc.count_params(params), num_candidates=p.num_candidates,
               steps=(f'{p.warm_start_steps if warm else p.action_steps}x{p.dynamics_steps}'),
               compile_s=compile_s, first_call_s=first_s, latencies_ms=lat,
-              gflop=hand['total'] / 1e9, gflop_xla=xla['total'] / 1e9,
+              encode_ms=encode_ms, gflop=hand['total'] / 1e9, gflop_xla=xla['total'] / 1e9,
               gflop_xla_uncorrected=xla['plan_once'] / 1e9,
               gflop_breakdown={k: v / 1e9 for k, v in hand.items() if k != 'total'})
+
+
+def time_encoder(model, params, obs: np.ndarray, repeats: int, warmup: int) -> float:
+  """Median ms of the jitted encoder of `model` (ModelSettings) on one observation: a decision
+  encodes, then plans."""
+  from ld_mpc_jax.model.models import build_encoder
+  encoder = build_encoder(model)
+  fn = jax.jit(lambda p, o: encoder.apply({'params': p['encoder']}, o))
+  obs = jnp.asarray(obs)
+  for _ in range(1 + warmup):
+    jax.block_until_ready(fn(params, obs))
+  times = []
+  for _ in range(repeats):
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn(params, obs))
+    times.append(time.perf_counter() - t0)
+  return float(np.median(times) * 1e3)
 
 
 def run_mppi(repeats: int, warmup: int) -> dict:

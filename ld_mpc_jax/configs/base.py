@@ -61,6 +61,11 @@ def get_config() -> ml_collections.ConfigDict:
   # the planner searches in observation space, as D-MPC does (issue 105's comparison); set
   # normalize_dynamics=False with it (an observation is not on the encoder's sphere).
   m.encoder_type = 'mlp'
+  # Image observations ('conv' encoder, 'conv_frames' dynamics; ld_mpc_jax.model.pixels) are flat
+  # [image_size * image_size * image_channels], 3 channels per stacked RGB frame; MoDem and
+  # TD-MPC2 render 84 and 64 pixels square.
+  m.image_size = 64
+  m.image_channels = 3
   m.num_bins = 101  # Two-hot bins over symlog values on [vmin, vmax], as TD-MPC2.
   m.vmin = -10.0
   m.vmax = 10.0

@@ -42,6 +42,7 @@ import jax.numpy as jnp
 from ld_mpc_jax.model import actors, dynamics, novelty, objective, progress, proposals
 from ld_mpc_jax.model.critics import make_critic_loss
 from ld_mpc_jax.model.models import Networks
+from ld_mpc_jax.model.pixels import random_shift
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 from ld_mpc_jax.ops.numerics import soft_cross_entropy, two_hot
 
@@ -153,6 +154,8 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
+    if m.encoder_type == 'conv':  # DrQ: each image shifted at random (its own stream).
+      obs = random_shift(obs, jax.random.fold_in(key, 102), m.image_size, m.image_channels)
     k_dyn, k_act, k_drop, k_roll, k_pi = jax.random.split(key, 5)
     drop = lambda i: {'dropout': jax.random.fold_in(k_drop, i)}  # One stream per network.
     encode = lambda p, o: nets.encoder.apply({'params': p['encoder']}, o)
@@ -189,9 +192,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
       terms['novelty'] = novelty.loss(nets.novelty, params, z_clean, action, m.gamma, obs)
     loss = weighted_sum(terms, losses)
     metrics['loss'] = loss
-    for name, _ in WEIGHTS:
-      if name in terms:
-        metrics[f'loss_{name}'] = terms[name]
+    metrics.update({f'loss_{name}': terms[name] for name, _ in WEIGHTS if name in terms})
     return loss, metrics
 
   return loss_fn

@@ -28,12 +28,25 @@ TRAIN_GOALS = ('mt1', 'random')
 
 
 def _validate_encoder(config) -> None:
-  """`model.encoder_type`: 'mlp', or 'identity' (planning in observation space) with
-  latent_dim = obs_dim, standardised observations, no sphere for the dynamics, one task."""
+  """`model.encoder_type`: 'mlp'; 'conv' (flat images of `model.image_size` and
+  `model.image_channels`, not standardised); or 'identity' (planning in observation space) with
+  latent_dim = obs_dim, standardised observations, no sphere for the dynamics. The last two for
+  one task; the 'conv_frames' dynamics need the identity encoder on images."""
   m = config.model
-  kind = m.encoder_type
-  if kind not in ('mlp', 'identity'):
-    raise ValueError(f"config.model.encoder_type must be 'mlp' or 'identity', got {kind!r}")
+  kind, image_dim = m.encoder_type, m.image_size * m.image_size * m.image_channels
+  if kind not in ('mlp', 'identity', 'conv'):
+    raise ValueError(f"config.model.encoder_type must be 'mlp', 'identity' or 'conv', got {kind!r}")
+  if kind != 'mlp' and tasks.is_multitask(config):
+    raise ValueError(f'config.model.encoder_type={kind} is for one task (config.tasks is set)')
+  if (kind == 'conv' or m.dynamics_type == 'conv_frames') and config.obs_dim != image_dim:
+    raise ValueError(f'config.obs_dim must be model.image_size^2 x model.image_channels = '
+                     f'{image_dim} for image observations, got {config.obs_dim}')
+  if m.dynamics_type == 'conv_frames' and kind != 'identity':
+    raise ValueError("config.model.dynamics_type=conv_frames denoises frames: it needs "
+                     "config.model.encoder_type='identity' (the latent is the frame stack)")
+  if kind == 'conv' and m.normalize_obs:
+    raise ValueError('config.model.encoder_type=conv reads pixels in [0, 255]: set '
+                     'config.model.normalize_obs=False')
   if kind != 'identity':
     return
   if m.latent_dim != config.obs_dim:
@@ -48,8 +61,6 @@ def _validate_encoder(config) -> None:
     raise ValueError('config.model.encoder_type=identity does not go with dynamics_type=mlp nor '
                      'plan.latent_filter > 0: both RMS-normalise the latent, which an '
                      'observation is not')
-  if tasks.is_multitask(config):
-    raise ValueError('config.model.encoder_type=identity is for one task (config.tasks is set)')
 
 
 def _get(config, dotted: str):
@@ -89,11 +100,9 @@ def _validate_sections(config: ml_collections.ConfigDict) -> None:
     if not isinstance(v, int) or isinstance(v, bool) or v < 1:
       raise ValueError(f'config.{name} must be an integer >= 1, got {v!r}')
   m = config.model
-  if m.width % m.num_heads:
-    raise ValueError(f'config.model.width ({m.width}) must be divisible by '
-                     f'config.model.num_heads ({m.num_heads})')
-  if m.width % 2:
-    raise ValueError(f'config.model.width must be even for Fourier embeddings, got {m.width}')
+  if m.width % m.num_heads or m.width % 2:
+    raise ValueError(f'config.model.width ({m.width}) must be even (Fourier embeddings) and '
+                     f'divisible by config.model.num_heads ({m.num_heads})')
   if m.num_bins < 2 or not m.vmin < m.vmax:
     raise ValueError(f'config.model.num_bins must be >= 2 and vmin < vmax, got '
                      f'{m.num_bins}, [{m.vmin}, {m.vmax}]')
@@ -103,8 +112,8 @@ def _validate_sections(config: ml_collections.ConfigDict) -> None:
   if not 0.0 < config.gamma <= 1.0:
     raise ValueError(f'config.gamma must be in (0, 1], got {config.gamma}')
   if config.diffusion.prediction not in ('x0', 'eps'):
-    raise ValueError(f"config.diffusion.prediction must be 'x0' or 'eps', "
-                     f'got {config.diffusion.prediction!r}')
+    raise ValueError(f"config.diffusion.prediction must be 'x0' or 'eps', got "
+                     f'{config.diffusion.prediction!r}')
   _validate_plan(config)
   _validate_eval_and_data(config)
   _validate_variant(config)

@@ -2,7 +2,9 @@
 
   'diffusion_ar'    diffusion over z_{i+1} given (z_i, a_i), autoregressive (default);
   'diffusion_traj'  diffusion over the whole latent trajectory z_{1:H} given (z_0, a_{0:H});
-  'mlp'             deterministic MLP z_{i+1} = f(z_i, a_i).
+  'mlp'             deterministic MLP z_{i+1} = f(z_i, a_i);
+  'conv_frames'     diffusion over the next frame stack, a small convolutional denoiser (the
+                    pixel-space baseline, with the identity encoder; ld_mpc_jax.model.pixels).
 
 An entry carries everything its kind needs: the module (`build`), dummy inputs for `init`
 (`init_args`), its training loss (`loss`), how the planner rolls it out (`one_step` kinds give
@@ -19,6 +21,7 @@ import jax.numpy as jnp
 from ld_mpc_jax.ops import diffusion
 from ld_mpc_jax.nets import MLP, TimeEmbedding, Transformer, position_embedding
 from ld_mpc_jax.ops.numerics import rms_normalize
+from ld_mpc_jax.model.pixels import FrameDynamics
 from ld_mpc_jax.model.proposals import transitions
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.registry import Registry
@@ -212,9 +215,41 @@ class DeterministicMLP:
                                                            z_cur, a_cur)
 
 
+class ConvFrames:
+  """Diffusion over the next frame stack given (frames, action), autoregressive like
+  'diffusion_ar'; needs the identity encoder (the latent is the frame stack)."""
+  one_step = True
+  conditioning = ()  # One task only (config checks).
+
+  def build(self, m: ModelSettings):
+    return FrameDynamics(m.image_size, m.image_channels)
+
+  def init_args(self, m: ModelSettings):
+    z = jnp.zeros((1, m.latent_dim))
+    return z, jnp.zeros((1,)), z, jnp.zeros((1, m.action_dim))
+
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
+    """Denoising loss of sg(z_{i+1}) given (z_i, a_i), i <= H: z [B, H+2, D] -> []."""
+    z_in, a_in = transitions(z, action)
+    z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(z_in.shape)
+    fn = lambda x_t, t: module.apply({'params': params['dynamics']}, x_t, t, z_in, a_in)
+    return diffusion.denoising_loss(fn, z_next, key, m.prediction).mean()
+
+  def make_step(self, m: ModelSettings, module, steps: int, eta: float) -> Callable:
+    """step(params, z [N, D], a [N, A], key) -> z_next [N, D]."""
+    def step(params, z_cur, a_cur, key):
+      model_fn = lambda x_t, t: module.apply({'params': params['dynamics']}, x_t, t, z_cur,
+                                             a_cur)
+      x_init = jax.random.normal(jax.random.fold_in(key, 0), z_cur.shape)
+      return diffusion.sample(model_fn, x_init, jax.random.fold_in(key, 1), steps, eta,
+                              m.prediction)
+    return step
+
+
 DYNAMICS.register('diffusion_ar', DiffusionAR())
 DYNAMICS.register('diffusion_traj', DiffusionTrajectory())
 DYNAMICS.register('mlp', DeterministicMLP())
+DYNAMICS.register('conv_frames', ConvFrames())
 
 
 def get(m: ModelSettings):

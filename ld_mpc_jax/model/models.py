@@ -28,6 +28,7 @@ from ld_mpc_jax.model.dynamics import LatentDynamics, MLPDynamics, TrajectoryDyn
 from ld_mpc_jax.nets import MLP, Transformer, position_embedding
 from ld_mpc_jax.ops.numerics import rms_normalize
 from ld_mpc_jax.model.proposals import ActionProposal, MLPProposal  # noqa: F401
+from ld_mpc_jax.model.pixels import ConvEncoder
 from ld_mpc_jax.model.settings import ModelSettings
 
 
@@ -71,13 +72,16 @@ class IdentityEncoder(nn.Module):
     return _standardise(self, obs) if self.normalize_obs else obs
 
 
-ENCODER_TYPES = ('mlp', 'identity')
+ENCODER_TYPES = ('mlp', 'identity', 'conv')
 
 
 def build_encoder(m: ModelSettings) -> nn.Module:
-  """The encoder `model.encoder_type` names (a config saved before the field migrates to 'mlp')."""
+  """The encoder `model.encoder_type` names (a config saved before the field migrates to 'mlp');
+  'conv' reads flat images (ld_mpc_jax.model.pixels)."""
   if m.encoder_type == 'identity':
     return IdentityEncoder(m.normalize_obs)
+  if m.encoder_type == 'conv':
+    return ConvEncoder(m.image_size, m.image_channels, m.latent_dim)
   return Encoder(m.encoder_hidden, m.latent_dim, m.normalize_obs)
 
 
@@ -241,6 +245,8 @@ def encode(params: dict, obs: jnp.ndarray) -> jnp.ndarray:
   The encoder's sizes are read off its parameters, so no config is needed.
   """
   enc = params['encoder']
+  if 'conv_0' in enc:  # model.encoder_type='conv': flat images.
+    return _encode_images(enc, jnp.asarray(obs, jnp.float32))
   identity = 'mlp' not in enc  # model.encoder_type='identity': the standardised observation.
   obs_dim = (enc['obs_mean'] if identity else enc['mlp']['dense_0']['kernel']).shape[0]
   obs = jnp.asarray(obs, jnp.float32)
@@ -249,6 +255,28 @@ def encode(params: dict, obs: jnp.ndarray) -> jnp.ndarray:
   if identity:
     return IdentityEncoder(normalize_obs=True).apply({'params': enc}, obs)
   return _apply_encoder(enc, obs)
+
+
+def _encode_images(enc: dict, obs: jnp.ndarray) -> jnp.ndarray:
+  """ConvEncoder's latent of flat images, its image size read off the input and checked against
+  the parameters (VALID convolutions: 7 and 5 and 3 with stride 2, then 3)."""
+  channels = enc['conv_0']['kernel'].shape[2]
+  dim = obs.shape[-1] if obs.ndim else 0
+  size = int(round((dim / channels) ** 0.5))
+  out = size
+  for kernel, stride in ((7, 2), (5, 2), (3, 2), (3, 1)):
+    out = (out - kernel) // stride + 1
+  if size * size * channels != dim or out < 1 or (
+      out * out * enc['conv_3']['kernel'].shape[3] != enc['out']['kernel'].shape[0]):
+    raise ValueError(f'encode expects flat images [..., S * S * {channels}] of the size the '
+                     f'encoder was built for, got {obs.shape}')
+  return _apply_conv_encoder(enc, obs, size)
+
+
+@functools.partial(jax.jit, static_argnums=2)
+def _apply_conv_encoder(enc: dict, obs: jnp.ndarray, size: int) -> jnp.ndarray:
+  channels, latent = enc['conv_0']['kernel'].shape[2], enc['out']['kernel'].shape[1]
+  return ConvEncoder(size, channels, latent).apply({'params': enc}, obs)
 
 
 @jax.jit

@@ -22,7 +22,8 @@ _MODEL_FIELDS = (
     'latent_dim', 'encoder_hidden', 'width', 'num_heads', 'mlp_ratio', 'dropout',
     'proposal_blocks', 'dynamics_blocks', 'objective_blocks', 'actor_hidden', 'novelty_members',
     'novelty_target', 'proposal_type', 'dynamics_type', 'normalize_obs', 'obs_mask_constant',
-    'task_dim', 'normalize_dynamics', 'encoder_type', 'num_bins', 'vmin', 'vmax')
+    'task_dim', 'normalize_dynamics', 'encoder_type', 'num_bins', 'vmin', 'vmax', 'image_size',
+    'image_channels')
 
 
 def _frozen(value: Any) -> Any:
@@ -64,6 +65,8 @@ class ModelSettings:
   num_bins: int
   vmin: float
   vmax: float
+  image_size: int
+  image_channels: int
   # config.diffusion
   prediction: str
   clip_actions: float

@@ -51,7 +51,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 6
+CONFIG_VERSION = 7
 
 
 def _online_fields(config: ml_collections.ConfigDict) -> dict:
@@ -131,8 +131,19 @@ def to_v6(config: ml_collections.ConfigDict) -> None:
     fill(config, section, fields)
 
 
+# Fields added in version 7, read only by the pixel kinds: the image shape of flat image
+# observations (64 x 64 RGB).
+V7_FIELDS = {'model': dict(image_size=64, image_channels=3)}
+
+
+def to_v7(config: ml_collections.ConfigDict) -> None:
+  """Version 6 -> 7 (in place): `model.image_size` 64 and `model.image_channels` 3."""
+  for section, fields in V7_FIELDS.items():
+    fill(config, section, fields)
+
+
 # version -> the step that brings a config of version - 1 to it.
-STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6}
+STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7}
 
 
 def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:

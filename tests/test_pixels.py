@@ -1,0 +1,119 @@
+"""Pixels (issue 105, ld_mpc_jax.model.pixels): DrQ's random shift, the convolutional encoder of the
+latent agent from images, and the frame-denoising dynamics of the pixel-space planner. Tiny
+images and smoke widths."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import ld_mpc_jax as ldmpc
+from ld_mpc_jax.configs.overrides import with_overrides
+from ld_mpc_jax.learn import losses
+from ld_mpc_jax.model import dynamics, models, pixels
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings
+
+
+def test_random_shift_crops_the_edge_padded_image_at_an_offset_of_its_own():
+  rng = np.random.default_rng(0)
+  images = rng.uniform(0, 255, (16, 6, 6, 2)).astype(np.float32)
+  flat = jnp.asarray(images.reshape(16, -1))
+  assert np.array_equal(pixels.random_shift(flat, jax.random.key(0), 6, 2, pad=0), flat)
+  out = np.asarray(pixels.random_shift(flat, jax.random.key(1), 6, 2, pad=2)).reshape(images.shape)
+  padded = np.pad(images, ((0, 0), (2, 2), (2, 2), (0, 0)), mode='edge')
+  offsets = []
+  for img, pad_img in zip(out, padded):
+    found = [(i, j) for i in range(5) for j in range(5)
+             if np.array_equal(img, pad_img[i:i + 6, j:j + 6])]
+    assert found, 'not a crop of the padded image'
+    offsets.append(found[0])
+  assert len(set(offsets)) > 4  # Each image its own offset.
+
+
+@pytest.fixture(scope='module')
+def pixel_config():
+  from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
+  return with_overrides(door_open.get_config('smoke'), {
+      'obs_dim': 40 * 40 * 3, 'model.image_size': 40, 'model.encoder_type': 'conv',
+      'model.normalize_obs': False})
+
+
+def test_the_conv_encoder_maps_images_to_the_latent_sphere(pixel_config):
+  params = ldmpc.init_params(pixel_config, jax.random.key(0))
+  assert set(params['encoder']) == {'conv_0', 'conv_1', 'conv_2', 'conv_3', 'out'}
+  obs = np.random.default_rng(1).uniform(0, 255, (3, 40 * 40 * 3)).astype(np.float32)
+  z = np.asarray(ldmpc.encode(params, obs))
+  assert z.shape == (3, pixel_config.model.latent_dim)
+  np.testing.assert_allclose(np.sqrt(np.mean(z ** 2, axis=-1)), 1.0, rtol=1e-4)
+  assert not np.allclose(z[0], z[1])  # Different images, different latents.
+  with pytest.raises(ValueError, match='flat images'):
+    ldmpc.encode(params, obs[:, :-3])
+  out = ldmpc.make_plan(pixel_config)(params, z[0], jax.random.key(2))  # plan, unchanged.
+  assert out.action.shape == (4,) and np.all(np.abs(np.asarray(out.action)) <= 1.0)
+
+
+def test_training_from_pixels_reaches_the_convolutions(pixel_config):
+  m = ModelSettings.from_config(pixel_config)
+  loss_fn = jax.jit(losses.make_loss_fn(m, LossSettings.from_config(pixel_config),
+                                        models.build_networks(m)))
+  params = ldmpc.init_params(pixel_config, jax.random.key(0))
+  rng, h = np.random.default_rng(0), pixel_config.horizon
+  batch = {'obs': jnp.asarray(rng.uniform(0, 255, (2, h + 2, 40 * 40 * 3)), jnp.float32),
+           'action': jnp.asarray(rng.uniform(-1, 1, (2, h + 1, 4)), jnp.float32),
+           'reward': jnp.asarray(rng.uniform(0, 1, (2, h + 1)), jnp.float32)}
+  grads, metrics = jax.grad(loss_fn, has_aux=True)(params, params, batch, jax.random.key(1))
+  assert np.isfinite(float(metrics['loss']))
+  assert float(jnp.abs(grads['encoder']['conv_0']['kernel']).max()) > 0
+
+
+@pytest.fixture(scope='module')
+def frames_config():
+  from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
+  return with_overrides(door_open.get_config('smoke'), {
+      'obs_dim': 8 * 8 * 3, 'model.image_size': 8, 'model.latent_dim': 8 * 8 * 3,
+      'model.encoder_type': 'identity', 'model.dynamics_type': 'conv_frames',
+      'model.normalize_dynamics': False})
+
+
+def test_pixel_space_planning_denoises_frames_and_learns_them(frames_config):
+  params = ldmpc.init_params(frames_config, jax.random.key(0))
+  assert set(params['dynamics']) >= {'down', 'film', 'mid_0', 'mid_1', 'out'}
+  z = ldmpc.encode(params, np.zeros(8 * 8 * 3, np.float32))
+  out = ldmpc.make_plan(frames_config)(params, z, jax.random.key(1))
+  assert out.candidates.shape[0] == frames_config.plan.num_candidates
+  assert np.all(np.isfinite(np.asarray(out.scores)))
+  # The next frame is the current one rolled by one row: the kind's loss learns it from z.
+  import optax  # pylint: disable=g-import-not-at-top
+  m, kind = ModelSettings.from_config(frames_config), dynamics.DYNAMICS.get('conv_frames')
+  module = kind.build(m)
+  params = {'dynamics': module.init(jax.random.key(0), *kind.init_args(m))['params']}
+  rng, h = np.random.default_rng(0), frames_config.horizon
+  frames = rng.normal(size=(16, 8, 8, 3)).astype(np.float32)
+  z = np.stack([np.roll(frames, t, axis=1) for t in range(h + 2)], axis=1)
+  z = jnp.asarray(z.reshape(16, h + 2, -1))
+  action = jnp.asarray(rng.uniform(-1, 1, (16, h + 1, 4)), jnp.float32)
+  tx = optax.adam(3e-3)
+
+  @jax.jit
+  def step(params, opt, key):
+    loss, grads = jax.value_and_grad(
+        lambda p: kind.loss(m, module, p, z, action, key, {}))(params)
+    updates, opt = tx.update(grads, opt)
+    return optax.apply_updates(params, updates), opt, loss
+
+  opt, losses_ = tx.init(params), []
+  for i in range(100):
+    params, opt, loss = step(params, opt, jax.random.key(i))
+    losses_.append(float(loss))
+  assert np.mean(losses_[-10:]) < 0.5 * np.mean(losses_[:10])
+
+
+@pytest.mark.parametrize('overrides,match', [
+    ({'model.encoder_type': 'conv', 'model.normalize_obs': False}, 'obs_dim must be'),
+    ({'model.encoder_type': 'conv', 'obs_dim': 12288}, 'normalize_obs=False'),
+    ({'model.dynamics_type': 'conv_frames', 'obs_dim': 12288}, "encoder_type='identity'"),
+])
+def test_bad_pixel_settings_fail_in_one_line(overrides, match):
+  from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
+  with pytest.raises(ValueError, match=match):
+    ldmpc.validate_config(with_overrides(door_open.get_config('smoke'), overrides))
