@@ -94,8 +94,8 @@ def test_toy_dynamics_plans(toy_config):
 def test_unknown_dynamics_kind_is_a_one_line_error(smoke_config):
   config = with_overrides(smoke_config, {'model.dynamics_type': 'toy_linear'})
   with pytest.raises(ValueError, match=r"^config.model.dynamics_type must be one of "
-                                       r"'diffusion_ar', 'diffusion_traj', 'mlp', got "
-                                       r"'toy_linear'$"):
+                                       r"'diffusion_ar', 'diffusion_traj', 'mlp', 'conv_frames', "
+                                       r"got 'toy_linear'$"):
     models.init_params(config, jax.random.key(0))
 
 
