@@ -2,6 +2,9 @@
 latent agent from images, and the frame-denoising dynamics of the pixel-space planner. Tiny
 images and smoke widths."""
 
+import ctypes.util
+import os
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -117,3 +120,23 @@ def test_bad_pixel_settings_fail_in_one_line(overrides, match):
   from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
   with pytest.raises(ValueError, match=match):
     ldmpc.validate_config(with_overrides(door_open.get_config('smoke'), overrides))
+
+
+@pytest.mark.skipif(
+    os.environ.get('MUJOCO_GL') != 'osmesa' or ctypes.util.find_library('OSMesa') is None,
+    reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the tests start and '
+    'libosmesa6 (apt-get install -y libosmesa6)')
+def test_pixel_observations_stack_the_last_frames_flat():
+  from ld_mpc_jax.envs import metaworld_env  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.envs.pixels import PixelObservations  # pylint: disable=g-import-not-at-top
+  env = PixelObservations(metaworld_env.make_env('door-open-v3', seed=0), size=16, frames=2)
+  obs, info = env.reset(seed=1)
+  assert obs.shape == (env.obs_dim,) == (16 * 16 * 3 * 2,) and obs.dtype == np.float32
+  assert info['state'].shape == (39,) and 0 <= obs.min() and obs.max() <= 255
+  frames = obs.reshape(16, 16, 2, 3)  # [S, S, frames, RGB]: the stack is on the channels.
+  assert np.array_equal(frames[:, :, 0], frames[:, :, 1])  # At reset the first frame fills it.
+  for _ in range(8):
+    obs, _, _, _, info = env.step(np.array([1.0, -1.0, 1.0, 1.0], np.float32))
+  frames = obs.reshape(16, 16, 2, 3)
+  assert not np.array_equal(frames[:, :, 0], frames[:, :, 1])  # The arm moved between them.
+  env.close()

@@ -1,0 +1,77 @@
+"""Image observations of a MuJoCo task (issue 105): one camera rendered offscreen after every
+decision, the last `frames` frames stacked on the channels and flattened, as the `conv` encoder
+and the `conv_frames` dynamics read them (ld_mpc_jax.model.pixels).
+
+Rendering sets the cost: with MuJoCo's defaults a 64 x 64 frame takes about 73 ms under OSMesa on
+this 2-core CPU (84 x 84: 61 ms; the frame's size hardly matters), against about 1 ms for the
+simulator's own step; with shadows, reflections, the skybox and multisampling off (`fast`, the
+default) it takes about 6 ms (`python -m benchmarks.render`, results/benchmarks/render_cpu.md).
+The agent sees what it is trained on, so the cheaper picture is the one used throughout.
+"""
+
+from typing import Any, Dict, Tuple
+
+import numpy as np
+
+# Rendering features `fast` turns off (mujoco.mjtRndFlag names).
+SLOW_FLAGS = ('mjRND_SHADOW', 'mjRND_REFLECTION', 'mjRND_SKYBOX')
+
+
+class FrameRenderer:
+  """frame() -> uint8 [size, size, 3] of `camera` in the environment's current state."""
+
+  def __init__(self, env, size: int = 64, camera: str = 'corner2', fast: bool = True):
+    import mujoco  # pylint: disable=g-import-not-at-top (the environments' package)
+    base = env.unwrapped
+    self.data, self.camera, self.fast = base.data, camera, fast
+    if fast:  # Multisampling is the model's setting: this environment renders without it.
+      base.model.vis.quality.offsamples = 0
+    self.renderer = mujoco.Renderer(base.model, size, size)
+    self.flags = [getattr(mujoco.mjtRndFlag, name) for name in SLOW_FLAGS]
+
+  def frame(self) -> np.ndarray:
+    self.renderer.update_scene(self.data, camera=self.camera)
+    if self.fast:
+      for flag in self.flags:
+        self.renderer.scene.flags[flag] = False
+    return self.renderer.render()
+
+  def close(self) -> None:
+    self.renderer.close()
+
+
+class PixelObservations:
+  """Wraps an environment (reset, step) so that its observation is the last `frames` frames,
+  oldest first, stacked on the channels and flattened: float32 [size * size * 3 frames] in
+  [0, 255]. info['state'] keeps the state observation (for scripted policies and diagnostics).
+  At reset the first frame fills the stack."""
+
+  def __init__(self, env, size: int = 64, frames: int = 3, camera: str = 'corner2',
+               fast: bool = True):
+    if frames < 1 or size < 1:
+      raise ValueError(f'image observations need frames >= 1 and size >= 1, got {frames}, {size}')
+    self.env, self.frames = env, frames
+    self.renderer = FrameRenderer(env, size, camera, fast)
+    self.stack = []
+
+  @property
+  def obs_dim(self) -> int:
+    size = self.renderer.renderer.height
+    return size * size * 3 * self.frames
+
+  def _obs(self) -> np.ndarray:
+    return np.concatenate(self.stack, axis=-1).astype(np.float32).reshape(-1)
+
+  def reset(self, **kwargs) -> Tuple[np.ndarray, Dict[str, Any]]:
+    state, info = self.env.reset(**kwargs)
+    self.stack = [self.renderer.frame()] * self.frames
+    return self._obs(), dict(info, state=state)
+
+  def step(self, action):
+    state, reward, terminated, truncated, info = self.env.step(action)
+    self.stack = self.stack[1:] + [self.renderer.frame()]
+    return self._obs(), reward, terminated, truncated, dict(info, state=state)
+
+  def close(self) -> None:
+    self.renderer.close()
+    self.env.close()
