@@ -215,25 +215,14 @@ class DeterministicMLP:
                                                            z_cur, a_cur)
 
 
-class ConvFrames:
+class ConvFrames(DiffusionAR):
   """Diffusion over the next frame stack given (frames, action), autoregressive like
-  'diffusion_ar'; needs the identity encoder (the latent is the frame stack)."""
-  one_step = True
+  'diffusion_ar' (its loss and dummy inputs); needs the identity encoder (the latent is the
+  frame stack)."""
   conditioning = ()  # One task only (config checks).
 
   def build(self, m: ModelSettings):
     return FrameDynamics(m.image_size, m.image_channels)
-
-  def init_args(self, m: ModelSettings):
-    z = jnp.zeros((1, m.latent_dim))
-    return z, jnp.zeros((1,)), z, jnp.zeros((1, m.action_dim))
-
-  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
-    """Denoising loss of sg(z_{i+1}) given (z_i, a_i), i <= H: z [B, H+2, D] -> []."""
-    z_in, a_in = transitions(z, action)
-    z_next = jax.lax.stop_gradient(z[:, 1:]).reshape(z_in.shape)
-    fn = lambda x_t, t: module.apply({'params': params['dynamics']}, x_t, t, z_in, a_in)
-    return diffusion.denoising_loss(fn, z_next, key, m.prediction).mean()
 
   def make_step(self, m: ModelSettings, module, steps: int, eta: float) -> Callable:
     """step(params, z [N, D], a [N, A], key) -> z_next [N, D]."""
