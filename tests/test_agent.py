@@ -118,3 +118,12 @@ def test_lockstep_batch_equals_one_at_a_time(smoke_config, smoke_params, mode, c
     rec, _ = evaluation.run_episodes(batch_policy, episodes, smoke_config.task, batch_size=3,
                                      max_episode_steps=30, progress=False)
     assert [r['return'] for r in rec] != [r['return'] for r in batched]
+
+
+def test_mppi_settings_are_checked_by_the_mppi_mode_alone(smoke_config):
+  """A config.mppi that MPPI refuses leaves the other modes as they are."""
+  from ld_mpc_jax.configs.overrides import with_overrides  # pylint: disable=g-import-not-at-top
+  c = with_overrides(smoke_config, {'mppi.num_samples': 16})  # Fewer than its 24 prior ones.
+  make_act(c, 'plan')
+  with pytest.raises(ValueError, match='^config.mppi: num_prior must be in'):
+    make_act(c, 'mppi')

@@ -53,6 +53,13 @@ def test_a_registry_change_rebuilds_and_old_entries_are_dropped():
   assert build.cache_size() == build_cache.MAX_ENTRIES
 
 
+def test_settings_given_lists_still_hash():
+  """A variant made with dataclasses.replace and a list (as a config holds it) keys the cache."""
+  _, plan = _settings()
+  variant = dataclasses.replace(plan, first_round=['proposal', 'gaussian'])
+  assert variant.first_round == ('proposal', 'gaussian') and hash(variant) == hash(plan)
+
+
 def test_builders_trace_once_per_settings_value():
   config = door_open.get_config('smoke')
   assert make_plan(config) is make_plan(door_open.get_config('smoke'))

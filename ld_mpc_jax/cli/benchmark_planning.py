@@ -143,7 +143,9 @@ def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warm
   from ld_mpc_jax.model.settings import ModelSettings
   params = ldmpc.init_params(config, jax.random.key(0))
   plan = ldmpc.make_plan(config)
-  obs = np.linspace(0.0, 255.0, config.obs_dim, dtype=np.float32)  # Pixels' range, or a state.
+  images = config.model.encoder_type == 'conv' or config.model.dynamics_type == 'conv_frames'
+  low, high = (0.0, 255.0) if images else (-1.0, 1.0)  # Pixels' range, or a state's.
+  obs = np.linspace(low, high, config.obs_dim, dtype=np.float32)
   z = ldmpc.encode(params, obs)
   keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
   encode_ms = time_encoder(ModelSettings.from_config(config), params, obs, repeats, warmup)

@@ -3,7 +3,7 @@ decision, the last `frames` frames stacked on the channels and flattened, as the
 and the `conv_frames` dynamics read them (ld_mpc_jax.model.pixels).
 
 Rendering sets the cost: with MuJoCo's defaults a 64 x 64 frame takes about 73 ms under OSMesa on
-this 2-core CPU (84 x 84: 61 ms; the frame's size hardly matters), against about 1 ms for the
+this 2-core CPU (84 x 84: 59 ms; the frame's size hardly matters), against about 1 ms for the
 simulator's own step; with shadows, reflections, the skybox and multisampling off (`fast`, the
 default) it takes about 6 ms (`python -m benchmarks.render`, results/benchmarks/render_cpu.md).
 The agent sees what it is trained on, so the cheaper picture is the one used throughout.

@@ -6,13 +6,14 @@ import os
 import ml_collections
 
 from ld_mpc_jax.model import exploration, proposals, search, tasks
-from ld_mpc_jax.model.settings import PlanSettings
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops import legacy
 
 _POSITIVE_INTS = (
     'obs_dim', 'action_dim', 'horizon',
     'model.latent_dim', 'model.encoder_hidden', 'model.width', 'model.num_heads',
     'model.mlp_ratio', 'model.proposal_blocks', 'model.dynamics_blocks', 'model.objective_blocks',
+    'model.image_size', 'model.image_channels',
     'plan.num_candidates', 'plan.action_steps', 'plan.dynamics_steps',
     'train.batch_size', 'train.num_steps',
     # Intervals and how many checkpoints to keep (0 would delete every checkpoint, or divide by 0
@@ -25,42 +26,6 @@ ACT_MODES = ('plan', 'actor')
 # Goal configurations of online training episodes: the 50 of MT1 seed `data.seed`, or a fresh one
 # per episode (envs.make_env(random_goals=True)).
 TRAIN_GOALS = ('mt1', 'random')
-
-
-def _validate_encoder(config) -> None:
-  """`model.encoder_type`: 'mlp'; 'conv' (flat images of `model.image_size` and
-  `model.image_channels`, not standardised); or 'identity' (planning in observation space) with
-  latent_dim = obs_dim, standardised observations, no sphere for the dynamics. The last two for
-  one task; the 'conv_frames' dynamics need the identity encoder on images."""
-  m = config.model
-  kind, image_dim = m.encoder_type, m.image_size * m.image_size * m.image_channels
-  if kind not in ('mlp', 'identity', 'conv'):
-    raise ValueError(f"config.model.encoder_type must be 'mlp', 'identity' or 'conv', got {kind!r}")
-  if kind != 'mlp' and tasks.is_multitask(config):
-    raise ValueError(f'config.model.encoder_type={kind} is for one task (config.tasks is set)')
-  if (kind == 'conv' or m.dynamics_type == 'conv_frames') and config.obs_dim != image_dim:
-    raise ValueError(f'config.obs_dim must be model.image_size^2 x model.image_channels = '
-                     f'{image_dim} for image observations, got {config.obs_dim}')
-  if m.dynamics_type == 'conv_frames' and kind != 'identity':
-    raise ValueError("config.model.dynamics_type=conv_frames denoises frames: it needs "
-                     "config.model.encoder_type='identity' (the latent is the frame stack)")
-  if kind == 'conv' and m.normalize_obs:
-    raise ValueError('config.model.encoder_type=conv reads pixels in [0, 255]: set '
-                     'config.model.normalize_obs=False')
-  if kind != 'identity':
-    return
-  if m.latent_dim != config.obs_dim:
-    raise ValueError(f'config.model.encoder_type=identity: the latent is the observation, so '
-                     f'config.model.latent_dim must be config.obs_dim ({config.obs_dim}), got '
-                     f'{m.latent_dim}')
-  if not m.normalize_obs or m.normalize_dynamics:
-    raise ValueError('config.model.encoder_type=identity needs config.model.normalize_obs=True '
-                     'and config.model.normalize_dynamics=False (a standardised observation is '
-                     "not on the learned encoder's sphere)")
-  if m.dynamics_type == 'mlp' or config.plan.latent_filter > 0:  # Both put z on the sphere.
-    raise ValueError('config.model.encoder_type=identity does not go with dynamics_type=mlp nor '
-                     'plan.latent_filter > 0: both RMS-normalise the latent, which an '
-                     'observation is not')
 
 
 def _get(config, dotted: str):
@@ -108,7 +73,7 @@ def _validate_sections(config: ml_collections.ConfigDict) -> None:
                      f'{m.num_bins}, [{m.vmin}, {m.vmax}]')
   if not 0.0 <= m.dropout < 1.0:
     raise ValueError(f'config.model.dropout must be in [0, 1), got {m.dropout}')
-  _validate_encoder(config)
+  ModelSettings.from_config(config).check_encoder(config.plan.latent_filter)
   if not 0.0 < config.gamma <= 1.0:
     raise ValueError(f'config.gamma must be in (0, 1], got {config.gamma}')
   if config.diffusion.prediction not in ('x0', 'eps'):

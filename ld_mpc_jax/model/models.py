@@ -259,7 +259,8 @@ def encode(params: dict, obs: jnp.ndarray) -> jnp.ndarray:
 
 def _encode_images(enc: dict, obs: jnp.ndarray) -> jnp.ndarray:
   """ConvEncoder's latent of flat images, its image size read off the input and checked against
-  the parameters (VALID convolutions: 7 and 5 and 3 with stride 2, then 3)."""
+  the parameters (VALID convolutions: 7 and 5 and 3 with stride 2, then 3). Sizes that the
+  convolutions map to the same output (63 to 66 pixels, say) cannot be told apart here."""
   channels = enc['conv_0']['kernel'].shape[2]
   dim = obs.shape[-1] if obs.ndim else 0
   size = int(round((dim / channels) ** 0.5))
@@ -268,8 +269,9 @@ def _encode_images(enc: dict, obs: jnp.ndarray) -> jnp.ndarray:
     out = (out - kernel) // stride + 1
   if size * size * channels != dim or out < 1 or (
       out * out * enc['conv_3']['kernel'].shape[3] != enc['out']['kernel'].shape[0]):
-    raise ValueError(f'encode expects flat images [..., S * S * {channels}] of the size the '
-                     f'encoder was built for, got {obs.shape}')
+    raise ValueError(f'encode expects flat images [..., S * S * {channels}] of a size whose '
+                     f'convolutions give the encoder\'s {enc["out"]["kernel"].shape[0]} features, '
+                     f'got {obs.shape}')
   return _apply_conv_encoder(enc, obs, size)
 
 

@@ -265,7 +265,7 @@ def effective_margin(plan: PlanSettings) -> float:
 
 def check_first_round(plan: PlanSettings) -> Tuple[Tuple[str, int], ...]:
   """`plan.first_round`: registered kinds that draw sequences, each once, the proposal among
-  them; -> first_round_counts(plan). One-line ValueErrors (PlanSettings.validate)."""
+  them; -> first_round_counts(plan). One-line ValueErrors (validate_plan)."""
   names = tuple(plan.first_round)
   drawn = tuple(n for n in CANDIDATES.names() if CANDIDATES.get(n).make is not None)
   for name in names:

@@ -31,8 +31,16 @@ def _frozen(value: Any) -> Any:
   return tuple(_frozen(v) for v in value) if isinstance(value, (list, tuple)) else value
 
 
+class _Hashable:
+  """Settings whose list values (from a config, or given to dataclasses.replace) become tuples."""
+
+  def __post_init__(self):
+    for field in dataclasses.fields(self):
+      object.__setattr__(self, field.name, _frozen(getattr(self, field.name)))
+
+
 @dataclasses.dataclass(frozen=True)
-class ModelSettings:
+class ModelSettings(_Hashable):
   """What builds, initialises and applies the networks (ld_mpc_jax.model.models): the sizes,
   `config.model`, `config.diffusion`, the critics' kinds and sizes (`config.critic`) and which
   optional networks exist (`config.loss`'s weights of the progress reward and the exploration
@@ -100,9 +108,49 @@ class ModelSettings:
     """Whether the agent is task-conditioned (two or more tasks; ld_mpc_jax.model.tasks)."""
     return self.num_tasks > 1
 
+  def check_encoder(self, latent_filter: float) -> None:
+    """One-line ValueErrors for `model.encoder_type`: 'mlp'; 'conv' (flat images of
+    `model.image_size` >= 39, its VALID convolutions' least, and `model.image_channels`, not
+    standardised); or 'identity' (planning in observation space) with latent_dim = obs_dim,
+    standardised observations, no sphere for the dynamics (nor `plan.latent_filter`). The last
+    two for one task; the 'conv_frames' dynamics need the identity encoder on images of an even
+    size (a stride-2 convolution, then nearest upsampling)."""
+    kind, frames = self.encoder_type, self.dynamics_type == 'conv_frames'
+    image_dim = self.image_size * self.image_size * self.image_channels
+    if kind not in ('mlp', 'identity', 'conv'):
+      raise ValueError(f"config.model.encoder_type must be 'mlp', 'identity' or 'conv', got "
+                       f'{kind!r}')
+    if kind != 'mlp' and self.multitask:
+      raise ValueError(f'config.model.encoder_type={kind} is for one task (config.tasks is set)')
+    if (kind == 'conv' or frames) and self.obs_dim != image_dim:
+      raise ValueError(f'config.obs_dim must be model.image_size^2 x model.image_channels = '
+                       f'{image_dim} for image observations, got {self.obs_dim}')
+    if frames and (kind != 'identity' or self.image_size % 2):
+      raise ValueError("config.model.dynamics_type=conv_frames denoises frames: it needs "
+                       "config.model.encoder_type='identity' (the latent is the frame stack) "
+                       f'and an even config.model.image_size, got {kind!r} and {self.image_size}')
+    if kind == 'conv' and (self.normalize_obs or self.image_size < 39):
+      raise ValueError('config.model.encoder_type=conv reads pixels in [0, 255] of images of at '
+                       'least 39 x 39: set config.model.normalize_obs=False and '
+                       f'config.model.image_size >= 39 (got {self.image_size})')
+    if kind != 'identity':
+      return
+    if self.latent_dim != self.obs_dim:
+      raise ValueError(f'config.model.encoder_type=identity: the latent is the observation, so '
+                       f'config.model.latent_dim must be config.obs_dim ({self.obs_dim}), got '
+                       f'{self.latent_dim}')
+    if not self.normalize_obs or self.normalize_dynamics:
+      raise ValueError('config.model.encoder_type=identity needs config.model.normalize_obs=True '
+                       'and config.model.normalize_dynamics=False (a standardised observation is '
+                       "not on the learned encoder's sphere)")
+    if self.dynamics_type == 'mlp' or latent_filter > 0:  # Both put z on the sphere.
+      raise ValueError('config.model.encoder_type=identity does not go with dynamics_type=mlp '
+                       'nor plan.latent_filter > 0: both RMS-normalise the latent, which an '
+                       'observation is not')
+
 
 @dataclasses.dataclass(frozen=True)
-class PlanSettings:
+class PlanSettings(_Hashable):
   """`config.plan`: how `plan` draws, rolls out, scores and selects candidates (configs/base.py
   gives each field's default and reason). The acting planner's are a `dataclasses.replace` of
   these (ld_mpc_jax.model.exploration.acting_plan)."""

@@ -7,7 +7,7 @@ ld_mpc_jax.plan.agent jits and batches them.
 """
 
 import dataclasses
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple, Tuple
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +19,7 @@ from ld_mpc_jax.model.models import build_networks
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.numerics import rms_normalize
 from ld_mpc_jax.ops.registry import Registry
-from ld_mpc_jax.plan.mppi import MPPIConfig, make_ldmpc_mppi, mppi_settings
+from ld_mpc_jax.plan.mppi import make_ldmpc_mppi
 from ld_mpc_jax.plan.planner import build_plan, make_propose
 
 
@@ -30,14 +30,14 @@ class ActSettings:
   Frozen and hashable: equal settings share one jitted act (ld_mpc_jax.plan.agent)."""
   model: ModelSettings
   plan: PlanSettings
-  mppi: MPPIConfig
+  mppi: Tuple[Tuple[str, Any], ...]  # config.mppi's items: checked when the mode is 'mppi'.
 
   @classmethod
   def from_config(cls, config: ml_collections.ConfigDict) -> 'ActSettings':
     """The settings of a config, after its checks (one-line ValueErrors)."""
     validate_config(config)
     return cls(ModelSettings.from_config(config), PlanSettings.from_config(config),
-               mppi_settings(config))
+               tuple(sorted(config.mppi.items())))
 
   @classmethod
   def of(cls, settings) -> 'ActSettings':

@@ -19,7 +19,7 @@ The TD-MPC2 model itself lives in ld_mpc_jax/model/tdmpc2_world.py; here are its
 """
 
 import dataclasses
-from typing import Callable, Optional
+from typing import Any, Callable, Optional, Tuple
 
 import flax
 import jax
@@ -212,15 +212,16 @@ def make_ldmpc_prior_fn(m: ModelSettings, plan: PlanSettings) -> PriorFn:
   return prior_fn
 
 
-def mppi_settings(config: ml_collections.ConfigDict) -> MPPIConfig:
-  """MPPI's settings of a config (`config.mppi`, at the model's horizon and action size)."""
-  return MPPIConfig(action_dim=config.action_dim, horizon=config.horizon, **config.mppi)
-
-
-def make_ldmpc_mppi(m: ModelSettings, plan: PlanSettings, cfg: MPPIConfig) -> Callable:
-  """MPPI (`cfg`: mppi_settings(config)) on LD-MPC's learned dynamics, objective and actor prior.
+def make_ldmpc_mppi(m: ModelSettings, plan: PlanSettings, mppi: Tuple[Tuple[str, Any], ...]
+                    ) -> Callable:
+  """MPPI (`mppi`: the items of `config.mppi`, checked here: MPPIConfig) on LD-MPC's learned
+  dynamics, objective and actor prior, at the model's horizon and action size.
 
   Returns plan(params, z [latent_dim], key, prev_mean [H, A] | None) -> MPPIOutput.
   """
+  try:
+    cfg = MPPIConfig(action_dim=m.action_dim, horizon=m.horizon, **dict(mppi))
+  except ValueError as err:
+    raise ValueError(f'config.mppi: {err}') from None
   prior_fn = make_ldmpc_prior_fn(m, plan) if cfg.num_prior else None
   return make_mppi_plan(cfg, make_ldmpc_value_fn(m, plan), prior_fn)
