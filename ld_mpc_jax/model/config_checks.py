@@ -73,15 +73,18 @@ def _validate_sections(config: ml_collections.ConfigDict) -> None:
                      f'{m.num_bins}, [{m.vmin}, {m.vmax}]')
   if not 0.0 <= m.dropout < 1.0:
     raise ValueError(f'config.model.dropout must be in [0, 1), got {m.dropout}')
-  ModelSettings.from_config(config).check_encoder(config.plan.latent_filter)
+  model = ModelSettings.from_config(config)
+  model.check(config.plan.latent_filter)
   if not 0.0 < config.gamma <= 1.0:
     raise ValueError(f'config.gamma must be in (0, 1], got {config.gamma}')
   if config.diffusion.prediction not in ('x0', 'eps'):
     raise ValueError(f"config.diffusion.prediction must be 'x0' or 'eps', got "
                      f'{config.diffusion.prediction!r}')
-  _validate_plan(config)
+  if config.loss.w_progress < 0:
+    raise ValueError(f'config.loss.w_progress must be >= 0, got {config.loss.w_progress}')
   _validate_eval_and_data(config)
-  _validate_variant(config)
+  _validate_variant(config)  # The kinds, then what the planner asks of them.
+  search.validate_plan(PlanSettings.from_config(config), model)
   _validate_critic(config)
   _validate_online(config)
   _validate_tasks(config)
@@ -105,37 +108,6 @@ def _validate_sections(config: ml_collections.ConfigDict) -> None:
   if t.learning_rate <= 0 or t.grad_clip <= 0 or t.warmup_steps < 0:
     raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
                      f'>= 0, got {t.learning_rate}, {t.grad_clip}, {t.warmup_steps}')
-
-
-def _validate_plan(config: ml_collections.ConfigDict) -> None:
-  """config.plan settings every kind shares."""
-  p = config.plan
-  for name in ('action_eta', 'dynamics_eta'):
-    if not 0.0 <= p[name] <= 1.0:
-      raise ValueError(f'config.plan.{name} must be in [0, 1], got {p[name]}')
-  if not 0 <= p.num_prior_candidates <= p.num_candidates:
-    raise ValueError(f'config.plan.num_prior_candidates must be in [0, num_candidates='
-                     f'{p.num_candidates}], got {p.num_prior_candidates}')
-  for name in ('prior_noise_std', 'action_noise_std'):
-    if p[name] < 0:
-      raise ValueError(f'config.plan.{name} must be >= 0, got {p[name]}')
-  if not isinstance(p.warm_start_steps, int) or p.warm_start_steps < 0:
-    raise ValueError(f'config.plan.warm_start_steps must be an integer >= 0, '
-                     f'got {p.warm_start_steps!r}')
-  if not 0.0 < p.warm_start_t <= 1.0:
-    raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {p.warm_start_t}')
-  if 'latent_filter' in p and not 0.0 <= p.latent_filter < 1.0:
-    raise ValueError(f'config.plan.latent_filter must be in [0, 1), got {p.latent_filter}')
-  if 'progress_weight' in p:  # The learned progress reward (ld_mpc_jax.model.progress).
-    if p.progress_weight < 0 or config.loss.w_progress < 0:
-      raise ValueError(f'config.plan.progress_weight and config.loss.w_progress must be >= 0, '
-                       f'got {p.progress_weight} and {config.loss.w_progress}')
-    if p.progress_weight > 0 and not config.loss.w_progress > 0:
-      raise ValueError('config.plan.progress_weight > 0 needs the progress head: set '
-                       'config.loss.w_progress > 0 (its loss weight) too')
-  if config.model.novelty_target not in ('latent', 'obs'):
-    raise ValueError(f"config.model.novelty_target must be 'latent' or 'obs', got "
-                     f'{config.model.novelty_target!r}')
 
 
 def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
@@ -293,12 +265,9 @@ def _validate_acting_search(config: ml_collections.ConfigDict) -> None:
   for name in ('act_num_gaussian', 'act_iterations'):
     if not isinstance(o[name], int) or o[name] < 0:
       raise ValueError(f'config.online.{name} must be an integer >= 0, got {o[name]!r}')
-  sequence = proposals.PROPOSALS.get(config.model.proposal_type).sequence
-  # The evaluation planner's (build_plan checks it again).
-  search.validate_plan(PlanSettings.from_config(config), sequence, config.model.proposal_type)
   exploration.validate_acting(config)
-  try:  # Then the acting planner's.
-    search.validate_plan(exploration.acting_plan(config), sequence, config.model.proposal_type)
+  try:  # The acting planner's (validate_config checked the evaluation's).
+    search.validate_plan(exploration.acting_plan(config), ModelSettings.from_config(config))
   except ValueError as err:
     raise ValueError(f'while acting (config.online.act_num_gaussian, act_iterations): '
                      f'{err}') from None

@@ -11,12 +11,12 @@ through datasets, buffers and `plan` as a state observation does.
   encoder's latent.
 - `random_shift`: DrQ (Kostrikov et al. 2021): each image padded by `pad` pixels (edge values)
   and cropped back at a random offset, a different one per image.
-- `FrameDynamics` (the dynamics kind 'conv_frames' of ld_mpc_jax.model.dynamics): the next frame stack denoised from the current one, the
-  action and the diffusion time by a small convolutional net at half resolution (a convolution
-  with stride 2 over [x_t, z] stacked on the channels, the action and time as a FiLM scale and
-  shift, two convolutions, nearest upsampling, one convolution back to C channels). With the
-  identity encoder the planner's latent is then the frame stack itself, and `plan` runs
-  unchanged in pixel space.
+- `FrameDynamics` (the dynamics kind 'conv_frames' of ld_mpc_jax.model.dynamics): the next
+  frame stack denoised from the current one, the action and the diffusion time by a small
+  convolutional net at half resolution (a convolution with stride 2 over [x_t, z] stacked on
+  the channels, the action and time as a FiLM scale and shift, two convolutions, nearest
+  upsampling, one convolution back to C channels). With the identity encoder the planner's
+  latent is then the frame stack itself, and `plan` runs unchanged in pixel space.
 """
 
 import flax.linen as nn

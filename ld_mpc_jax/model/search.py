@@ -40,6 +40,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ld_mpc_jax.model import proposals
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.registry import Registry
 
@@ -283,9 +284,30 @@ def check_first_round(plan: PlanSettings) -> Tuple[Tuple[str, int], ...]:
   return first_round_counts(plan)
 
 
-def validate_plan(plan: PlanSettings, sequence_proposal: bool, proposal_type: str) -> None:
-  """One-line ValueErrors for the search and selection settings; `sequence_proposal`: whether
-  the model's proposal kind (`proposal_type`) draws whole sequences."""
+def validate_plan(plan: PlanSettings, model: ModelSettings) -> None:
+  """One-line ValueErrors for the planner's settings (`config.plan`) with `model`'s kinds: the
+  samplers', the candidates', the search's and the selection's."""
+  for name in ('action_eta', 'dynamics_eta'):
+    if not 0.0 <= getattr(plan, name) <= 1.0:
+      raise ValueError(f'config.plan.{name} must be in [0, 1], got {getattr(plan, name)}')
+  if not 0 <= plan.num_prior_candidates <= plan.num_candidates:
+    raise ValueError(f'config.plan.num_prior_candidates must be in [0, num_candidates='
+                     f'{plan.num_candidates}], got {plan.num_prior_candidates}')
+  for name in ('prior_noise_std', 'action_noise_std'):
+    if getattr(plan, name) < 0:
+      raise ValueError(f'config.plan.{name} must be >= 0, got {getattr(plan, name)}')
+  if not isinstance(plan.warm_start_steps, int) or plan.warm_start_steps < 0:
+    raise ValueError(f'config.plan.warm_start_steps must be an integer >= 0, '
+                     f'got {plan.warm_start_steps!r}')
+  if not 0.0 < plan.warm_start_t <= 1.0:
+    raise ValueError(f'config.plan.warm_start_t must be in (0, 1], got {plan.warm_start_t}')
+  if not 0.0 <= plan.latent_filter < 1.0:
+    raise ValueError(f'config.plan.latent_filter must be in [0, 1), got {plan.latent_filter}')
+  if plan.progress_weight < 0:
+    raise ValueError(f'config.plan.progress_weight must be >= 0, got {plan.progress_weight}')
+  if plan.progress_weight > 0 and not model.progress:  # ld_mpc_jax.model.progress
+    raise ValueError('config.plan.progress_weight > 0 needs the progress head: set '
+                     'config.loss.w_progress > 0 (its loss weight) too')
   if plan.selection not in SELECTIONS:
     raise ValueError(f'config.plan.selection must be one of {SELECTIONS}, '
                      f'got {plan.selection!r}')
@@ -316,7 +338,7 @@ def validate_plan(plan: PlanSettings, sequence_proposal: bool, proposal_type: st
     raise ValueError(f'config.plan.safe_margin_scaling must be one of {MARGIN_SCALINGS}, '
                      f'got {plan.safe_margin_scaling!r}')
   others = any(n for name, n in counts if name != 'proposal')
-  if (others or plan.iterations) and not sequence_proposal:
+  if (others or plan.iterations) and not proposals.PROPOSALS.get(model.proposal_type).sequence:
     raise ValueError('config.plan.num_gaussian (any first-round kind but the proposal) and '
                      'config.plan.iterations need whole action sequences, not proposal_type '
-                     f'{proposal_type!r}')
+                     f'{model.proposal_type!r}')

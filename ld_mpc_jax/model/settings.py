@@ -10,7 +10,8 @@ networks, `plan` and the loss takes these instead:
 
 All are frozen and hashable, so a builder cached on them (ops.build_cache.by_settings) traces
 once per value in a process. Their defaults and the reasons for them stay in configs/base.py (one
-place to read a choice); ld_mpc_jax.model.search.validate_plan holds the planner's checks.
+place to read a choice); ld_mpc_jax.model.search.validate_plan holds the planner's checks,
+`ModelSettings.check` the encoder's.
 """
 
 import dataclasses
@@ -96,10 +97,10 @@ class ModelSettings(_Hashable):
     m, o = config.model, config.critic
     return cls(
         obs_dim=config.obs_dim, action_dim=config.action_dim, horizon=config.horizon,
-        gamma=config.gamma, num_tasks=max(len(tasks), 1), **{f: _frozen(m[f]) for f in _MODEL_FIELDS},
+        gamma=config.gamma, num_tasks=max(len(tasks), 1), **{f: m[f] for f in _MODEL_FIELDS},
         prediction=config.diffusion.prediction, clip_actions=config.diffusion.clip_actions,
         value=o.value, actor=o.actor, log_std_map=o.log_std_map,
-        critic_hidden=_frozen(o.hidden), num_values=o.num_values, num_q=o.num_q,
+        critic_hidden=o.hidden, num_values=o.num_values, num_q=o.num_q,
         value_scale=o.value_scale, progress=config.loss.w_progress > 0,
         novelty=config.loss.w_novelty > 0)
 
@@ -108,13 +109,16 @@ class ModelSettings(_Hashable):
     """Whether the agent is task-conditioned (two or more tasks; ld_mpc_jax.model.tasks)."""
     return self.num_tasks > 1
 
-  def check_encoder(self, latent_filter: float) -> None:
-    """One-line ValueErrors for `model.encoder_type`: 'mlp'; 'conv' (flat images of
-    `model.image_size` >= 39, its VALID convolutions' least, and `model.image_channels`, not
-    standardised); or 'identity' (planning in observation space) with latent_dim = obs_dim,
-    standardised observations, no sphere for the dynamics (nor `plan.latent_filter`). The last
-    two for one task; the 'conv_frames' dynamics need the identity encoder on images of an even
-    size (a stride-2 convolution, then nearest upsampling)."""
+  def check(self, latent_filter: float) -> None:
+    """One-line ValueErrors for `model.novelty_target` and `model.encoder_type`: 'mlp'; 'conv'
+    (flat images of `model.image_size` >= 39, its VALID convolutions' least, and
+    `model.image_channels`, not standardised); or 'identity' (planning in observation space)
+    with latent_dim = obs_dim, standardised observations, no sphere for the dynamics (nor
+    `plan.latent_filter`). The last two for one task; the 'conv_frames' dynamics need the
+    identity encoder on images of an even size (a stride-2 convolution, then upsampling)."""
+    if self.novelty_target not in ('latent', 'obs'):
+      raise ValueError(f"config.model.novelty_target must be 'latent' or 'obs', got "
+                       f'{self.novelty_target!r}')
     kind, frames = self.encoder_type, self.dynamics_type == 'conv_frames'
     image_dim = self.image_size * self.image_size * self.image_channels
     if kind not in ('mlp', 'identity', 'conv'):
@@ -191,7 +195,7 @@ class PlanSettings(_Hashable):
   @classmethod
   def from_config(cls, config: ml_collections.ConfigDict) -> 'PlanSettings':
     p = config.plan
-    return cls(**{f.name: _frozen(p[f.name]) for f in dataclasses.fields(cls)})
+    return cls(**{f.name: p[f.name] for f in dataclasses.fields(cls)})
 
   @property
   def gates(self) -> Tuple[bool, bool]:

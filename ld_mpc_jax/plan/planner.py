@@ -300,7 +300,7 @@ def build_plan(model: ModelSettings, plan: PlanSettings,
   `plan.iterations` refinement rounds follow (ld_mpc_jax.model.search.refine), whose elites are
   appended to `candidates` and `scores`. Selection: ld_mpc_jax.model.search.select.
   """
-  validate_plan(plan, proposals.get(model).sequence, model.proposal_type)
+  validate_plan(plan, model)
   if score_fn is None:  # One traced planner per settings value in a process (build_cache).
     return _cached_plan(model, plan)
   return _build_plan(model, plan, score_fn)
