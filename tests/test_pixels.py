@@ -144,3 +144,27 @@ def test_pixel_observations_stack_the_last_frames_flat():
   frames = obs.reshape(16, 16, 2, 3)
   assert not np.array_equal(frames[:, :, 0], frames[:, :, 1])  # The arm moved between them.
   env.close()
+
+
+@pytest.mark.skipif(
+    os.environ.get('MUJOCO_GL') != 'osmesa' or ctypes.util.find_library('OSMesa') is None,
+    reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the tests start and '
+    'libosmesa6 (apt-get install -y libosmesa6)')
+def test_an_image_dataset_replays_the_collected_episodes(tmp_path, monkeypatch):
+  from ld_mpc_jax.data import collection, dataset, pixels as data_pixels, replay  # pylint: disable=g-import-not-at-top
+  ds = collection.collect('door-open-v3', 'medium', 2, seed=0, max_episode_steps=20,
+                          progress=False)
+  path = str(tmp_path / 'door.npz')
+  images = data_pixels.get_or_render(ds, path, 8, 1, progress=False)
+  assert images.observations.shape == (ds.num_transitions + ds.num_episodes, 8 * 8 * 3)
+  assert images.observations.dtype == np.uint8 and images.observations.max() > 0
+  assert np.array_equal(images.actions, ds.actions) and np.array_equal(images.rewards, ds.rewards)
+  batch = replay.ReplayBuffer(images, seq_len=3, seed=0).sample(4)
+  assert batch['obs'].dtype == np.float32 and batch['obs'].shape == (4, 3, 8 * 8 * 3)
+  monkeypatch.setattr(data_pixels, 'render_dataset', lambda *a, **k: pytest.fail('rendered again'))
+  assert np.array_equal(data_pixels.get_or_render(ds, path, 8, 1).observations,
+                        images.observations)  # From the file beside the state dataset's.
+  ds.actions[1] = -ds.actions[1]  # Other actions: the replay leaves the stored states.
+  monkeypatch.undo()
+  with pytest.raises(dataset.DatasetError, match='replays to other states'):
+    data_pixels.render_dataset(ds, 8, 1)

@@ -74,6 +74,8 @@ def main(argv):
   from ld_mpc_jax.model.config_checks import online_enabled, validate_config
   from ld_mpc_jax.data import DatasetError, sources
   from ld_mpc_jax.model.tasks import check_tasks
+  from ld_mpc_jax.model.settings import ModelSettings
+  from ld_mpc_jax.envs.pixels import check_rendering
   from ld_mpc_jax.runs.train import train_and_evaluate
   try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
     cli.check_workdir(_WORKDIR.value)
@@ -81,6 +83,8 @@ def main(argv):
     check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
     sources.check_source(_CONFIG.value)
     SeedGroups(t.num_seeds, devices)  # Enough devices for train.seed_devices (e.g. one GPU).
+    if ModelSettings.from_config(_CONFIG.value).images:  # Frames are rendered: can they be?
+      check_rendering()
     if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
       from ld_mpc_jax.runs.online import check_init_from
       check_init_from(_CONFIG.value)

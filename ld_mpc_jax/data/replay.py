@@ -44,7 +44,9 @@ class ReplayBuffer:
     self._starts = dataset.episode_starts.astype(np.int64)[keep]
     self._cum = np.cumsum(per_episode[keep])
     self._rng = np.random.default_rng(seed)
-    self._obs = np.asarray(dataset.observations, np.float32)
+    # Image datasets keep their uint8 frames; each sampled window becomes float32.
+    obs = dataset.observations
+    self._obs = obs if obs.dtype == np.uint8 else np.asarray(obs, np.float32)
     self._act = np.asarray(dataset.actions, np.float32)
     self._rew = np.asarray(dataset.rewards, np.float32)
     self._progress = progress_targets(dataset) if progress else None
@@ -69,7 +71,7 @@ class ReplayBuffer:
                        f'{batch_size!r}.')
     flat = self._rng.integers(0, self.num_windows, size=int(batch_size))
     rows = self.window_starts(flat)[:, None] + np.arange(self.seq_len)
-    out = dict(obs=self._obs[rows], action=self._act[rows[:, :-1]],
+    out = dict(obs=self._obs[rows].astype(np.float32, copy=False), action=self._act[rows[:, :-1]],
                reward=self._rew[rows[:, :-1]])
     if self._progress is not None:  # The learned progress reward's targets (loss.w_progress).
       out['progress'] = self._progress[rows]

@@ -21,7 +21,7 @@ from ld_mpc_jax import envs
 from ld_mpc_jax.envs import tasks
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import dataset as dataset_lib
-from ld_mpc_jax.data import multitask
+from ld_mpc_jax.data import multitask, pixels
 from ld_mpc_jax.data import tdmpc2
 from ld_mpc_jax.ops.registry import Registry
 
@@ -44,10 +44,17 @@ def _check_scripted(config: ml_collections.ConfigDict) -> None:
 
 
 def _load_scripted(config: ml_collections.ConfigDict, progress: bool) -> dataset_lib.Dataset:
-  d = config.data
-  return collection.get_or_collect(config.task, d.preset, d.episodes, d.seed, d.dir,
-                                   action_repeat=config.eval.action_repeat,
-                                   max_episode_steps=d.max_episode_steps, progress=progress)
+  """The collected episodes; for a model of images, those episodes rendered (data.pixels)."""
+  d, a = config.data, config.eval.action_repeat
+  ds = collection.get_or_collect(config.task, d.preset, d.episodes, d.seed, d.dir,
+                                 action_repeat=a, max_episode_steps=d.max_episode_steps,
+                                 progress=progress)
+  m = config.model
+  if not (m.encoder_type == 'conv' or m.dynamics_type == 'conv_frames'):  # ModelSettings.images
+    return ds
+  path = collection.dataset_path(d.dir, config.task, d.preset, d.episodes, d.seed, a,
+                                 d.max_episode_steps)
+  return pixels.get_or_render(ds, path, m.image_size, m.image_channels // 3, progress=progress)
 
 
 def _check_tdmpc2(config: ml_collections.ConfigDict) -> None:

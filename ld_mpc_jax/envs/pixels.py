@@ -9,12 +9,37 @@ default) it takes about 6 ms (`python -m benchmarks.render`, results/benchmarks/
 The agent sees what it is trained on, so the cheaper picture is the one used throughout.
 """
 
+import gc
+import sys
 from typing import Any, Dict, Tuple
+import warnings
 
 import numpy as np
 
 # Rendering features `fast` turns off (mujoco.mjtRndFlag names).
 SLOW_FLAGS = ('mjRND_SHADOW', 'mjRND_REFLECTION', 'mjRND_SKYBOX')
+
+
+def check_rendering() -> None:
+  """A one-line ValueError when MuJoCo cannot render offscreen in this process (call it before
+  long work that renders)."""
+  import mujoco  # pylint: disable=g-import-not-at-top
+  model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size="0.1"/></worldbody>'
+                                         '</mujoco>')
+  hook, sys.unraisablehook = sys.unraisablehook, lambda *_: None  # A failed Renderer's __del__.
+  failure = None
+  try:
+    with warnings.catch_warnings():
+      warnings.simplefilter('ignore')  # GLFW's own warnings without a display.
+      mujoco.Renderer(model, 8, 8).close()
+  except Exception as err:  # pylint: disable=broad-except (mujoco.FatalError, ImportError, ...)
+    failure = type(err).__name__
+  gc.collect()  # The half-made Renderer goes now, its complaint unheard.
+  sys.unraisablehook = hook
+  if failure:
+    raise ValueError(f'image observations need offscreen rendering, which fails here ({failure}): '
+                     'on a machine without a display set MUJOCO_GL=osmesa (apt-get install -y '
+                     'libosmesa6) or MUJOCO_GL=egl')
 
 
 class FrameRenderer:
@@ -75,3 +100,13 @@ class PixelObservations:
   def close(self) -> None:
     self.renderer.close()
     self.env.close()
+
+  def __getattr__(self, name):  # The rest (action_space, render for videos, ...) is the env's.
+    return getattr(self.env, name)
+
+
+def image_env_factory(size: int, frames: int, camera: str = 'corner2'):
+  """make_env(**kwargs) wrapped in PixelObservations: an evaluation's env_factory."""
+  from ld_mpc_jax.envs import metaworld_env  # pylint: disable=g-import-not-at-top
+  return lambda **kwargs: PixelObservations(metaworld_env.make_env(**kwargs), size, frames,
+                                            camera)

@@ -29,6 +29,8 @@ from ld_mpc_jax.eval.anchors import (  # noqa: F401 (re-exported: the suite's co
     against_anchor, against_anchor_by_task, anchor_markdown, behind_by_anchor_time,
     behind_markdown, by_task_markdown, departure_share)
 from ld_mpc_jax.envs import goals
+from ld_mpc_jax.envs.pixels import image_env_factory
+from ld_mpc_jax.model.settings import ModelSettings
 
 POLICY_NAMES = {'plan': 'planner', 'actor': 'actor prior', 'proposal': 'proposal alone',
                 'mppi': 'MPPI (learned model)'}
@@ -108,6 +110,9 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   key_seed = seed if e.key_seed < 0 else e.key_seed  # The episodes keep `seed`.
   policy = BatchAgentPolicy(config, params, mode, seed=key_seed, chunk=chunk, mesh=mesh)
   policy.action_noise = float(e.action_noise)  # 0: exactly the policy's action.
+  m = ModelSettings.from_config(config)
+  if env_factory is None and m.images:  # The policy observes rendered frames.
+    env_factory = image_env_factory(m.image_size, m.image_channels // 3)
   eps = episodes(config, split, seed, num_episodes)
   if only is not None:
     eps = [eps[i] for i in only]

@@ -210,6 +210,9 @@ def _validate_online(config: ml_collections.ConfigDict) -> None:
   """config.online (ld_mpc_jax.runs.online), when online training is enabled."""
   if not online_enabled(config):
     return
+  if ModelSettings.from_config(config).images:
+    raise ValueError('image observations (model.encoder_type=conv, dynamics_type=conv_frames) '
+                     'train offline only for now: online acting does not render frames yet')
   o = config.online
   for name, least in (('env_steps', 1), ('num_envs', 1), ('episode_steps', 1),
                       ('checkpoint_every', 1), ('eval_every', 1), ('seed_steps', 0),

@@ -105,6 +105,13 @@ class ModelSettings(_Hashable):
         novelty=config.loss.w_novelty > 0)
 
   @property
+  def images(self) -> bool:
+    """Whether the observations are flat images (the `conv` encoder, or `conv_frames`
+    dynamics on the images themselves): model.image_size^2 x model.image_channels, 3 channels a
+    stacked RGB frame."""
+    return self.encoder_type == 'conv' or self.dynamics_type == 'conv_frames'
+
+  @property
   def multitask(self) -> bool:
     """Whether the agent is task-conditioned (two or more tasks; ld_mpc_jax.model.tasks)."""
     return self.num_tasks > 1
@@ -126,9 +133,10 @@ class ModelSettings(_Hashable):
                        f'{kind!r}')
     if kind != 'mlp' and self.multitask:
       raise ValueError(f'config.model.encoder_type={kind} is for one task (config.tasks is set)')
-    if (kind == 'conv' or frames) and self.obs_dim != image_dim:
+    if self.images and (self.obs_dim != image_dim or self.image_channels % 3):
       raise ValueError(f'config.obs_dim must be model.image_size^2 x model.image_channels = '
-                       f'{image_dim} for image observations, got {self.obs_dim}')
+                       f'{image_dim} for image observations, the channels 3 per RGB frame, got '
+                       f'{self.obs_dim} and {self.image_channels} channels')
     if frames and (kind != 'identity' or self.image_size % 2):
       raise ValueError("config.model.dynamics_type=conv_frames denoises frames: it needs "
                        "config.model.encoder_type='identity' (the latent is the frame stack) "
