@@ -47,6 +47,12 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.train.num_steps = 4_000
     c.train.eval_every = 2_000
     return c
+  if preset == 'cpu_pixels':  # :cpu from 64 x 64 RGB frames (issue 105; docs/data.md).
+    c = get_config('cpu')
+    c.obs_dim = c.model.image_size ** 2 * c.model.image_channels
+    c.model.encoder_type = 'conv'
+    c.model.normalize_obs = False  # Pixels in [0, 255]: the encoder scales them itself.
+    return c
   if preset == 'ablation':
     # Small, so that experiments.train ablations can run on a 2-core CPU: 3 mixed seeds without the
     # expert seed took about two hours there, two sweep processes side by side (one training
@@ -113,4 +119,5 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.eval.noise_stds = (0.0,)
     c.eval.batch_size = 2
     return c
-  raise ValueError(f"unknown preset {preset!r}: use '' or 'reference', 'cpu', 'ablation', 'quick' or 'smoke'")
+  raise ValueError(f"unknown preset {preset!r}: use '' or 'reference', 'cpu', 'cpu_pixels', 'ablation', "
+                   "'quick' or 'smoke'")
