@@ -119,6 +119,8 @@ def test_pixel_space_planning_denoises_frames_and_learns_them(frames_config):
       'obs_dim': 32 * 32 * 3}, 'image_size >= 39'),
     ({'model.encoder_type': 'identity', 'model.dynamics_type': 'conv_frames', 'obs_dim': 147,
       'model.latent_dim': 147, 'model.image_size': 7, 'model.normalize_dynamics': False}, 'even'),
+    ({'model.encoder_type': 'conv', 'model.normalize_obs': False, 'obs_dim': 12288,
+      'eval.obs_noise': 0.1}, 'rendered without it'),
 ])
 def test_bad_pixel_settings_fail_in_one_line(overrides, match):
   from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top

@@ -132,6 +132,9 @@ def noise_stds(config: ml_collections.ConfigDict, params, std: Optional[float]):
   dimension, or with `eval.obs_noise_dims = 'informative'` a per-dimension std [obs_dim], 0 on
   the dimensions constant in the training data (models.informative_dims)."""
   std = float(config.eval.obs_noise if std is None else std)
+  if std > 0 and ModelSettings.from_config(config).images:
+    raise ValueError('observation noise is noise on the state, and image observations are '
+                     'rendered without it: no noise sweep for a model of images')
   if config.eval.obs_noise_dims == 'all' or std == 0:
     return std
   mask = informative_dims(params)

@@ -133,6 +133,9 @@ def _validate_eval_and_data(config: ml_collections.ConfigDict) -> None:
     if 'obs_noise_dims' in e and e.obs_noise_dims not in ('all', 'informative'):
       raise ValueError(f"config.eval.obs_noise_dims must be 'all' or 'informative', "
                        f'got {e.obs_noise_dims!r}')
+    if 'obs_noise' in e and e.obs_noise > 0 and ModelSettings.from_config(config).images:
+      raise ValueError('config.eval.obs_noise is noise on the state, and image observations are '
+                       'rendered without it: set config.eval.obs_noise=0')
   if 'data' in config:
     from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
     sources.SOURCES.check(config.data.source)
