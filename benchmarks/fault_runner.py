@@ -177,7 +177,7 @@ def final_state(workdir: str):
   try:
     config = checkpointing.load_config(workdir)
     step, state, _ = checkpointing.restore_intact(checkpointing.checkpoint_manager(workdir),
-                                                  config)
+                                                  checkpointing.abstract_state(config))
   except (checkpointing.WorkdirError, FileNotFoundError):
     return None, None
   return step, (None if state is None else jax.tree.map(np.asarray, state))

@@ -165,7 +165,7 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
       (params, z, key, prev_sequence) for a warm-started call.
     plan_once: C(plan) if already known (from the caller's own compilation).
     plan: the planner's settings of `plan_fn` when they are not the config's (the acting
-      planner's, exploration.acting_plan); default PlanSettings.from_config(config).
+      planner's, OnlineSettings.acting_plan); default PlanSettings.from_config(config).
   Returns:
     {'plan_once': C(plan), 'proposal_step', 'transition', 'dynamics_step', 'total'} in FLOPs.
   """

@@ -73,10 +73,10 @@ def _timed(totals: Dict[str, float], counts: Dict[str, int]):
 def _flops(config: ml_collections.ConfigDict) -> Dict[str, float]:
   """GFLOP of one acting decision (one environment) and of one update."""
   from benchmarks import flops, training  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.model.exploration import acting_plan  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.model.settings import ModelSettings  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.model.settings import ModelSettings, PlanSettings  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.online.settings import OnlineSettings  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.plan import planner  # pylint: disable=g-import-not-at-top
-  act = acting_plan(config)
+  act = OnlineSettings.from_config(config).acting_plan(PlanSettings.from_config(config))
   plan_fn = planner.build_plan(ModelSettings.from_config(config), act)
   decision = flops.xla_plan_flops(config, plan_fn, plan=act)['total']
   update = training.benchmark_update('update', config, repeats=1, warmup=0)  # One seed's.

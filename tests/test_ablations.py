@@ -13,6 +13,7 @@ from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.plan import agent, planner
 from ld_mpc_jax.model import models, objective
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
+from ld_mpc_jax.plan.modes import ActSettings
 
 
 def test_trajectory_dynamics_rejects_actor_prior_candidates(smoke_config):
@@ -58,7 +59,7 @@ def test_guidance_needs_a_sequence_proposal(smoke_config):
 def test_mppi_mode_acts_within_bounds_and_is_deterministic(smoke_config, smoke_params):
   config = ablations.with_overrides(smoke_config, {'mppi.num_samples': 8, 'mppi.num_elites': 2,
                                                    'mppi.num_prior': 2, 'mppi.iterations': 2})
-  act = agent.make_act(config, 'mppi')
+  act = agent.make_act(ActSettings.from_config(config), 'mppi')
   obs = jnp.linspace(-1, 1, 39)
   a1, mean, _ = act(smoke_params, obs, jax.random.key(0), 0, None)
   a2, _, _ = act(smoke_params, obs, jax.random.key(0), 0, None)

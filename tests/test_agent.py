@@ -8,6 +8,7 @@ import jax
 from ld_mpc_jax.plan.agent import make_act, make_policy
 from ld_mpc_jax.model.models import build_networks, encode
 from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.plan.modes import ActSettings
 
 
 @pytest.mark.parametrize('mode', ['plan', 'actor', 'proposal'])
@@ -18,7 +19,7 @@ def test_policies_follow_their_key_schedule(smoke_config, smoke_params, mode):
   obs = np.linspace(-1, 1, 39).astype(np.float32)
   runs = []
   for seed in (0, 0, 1):
-    policy, _ = make_policy(smoke_config, smoke_params, mode, seed=seed)
+    policy, _ = make_policy(ActSettings.from_config(smoke_config), smoke_params, mode, seed=seed)
     runs.append(np.stack([policy(obs) for _ in range(3)]))
   assert runs[0].shape == (3, smoke_config.action_dim) and np.all(np.isfinite(runs[0]))
   np.testing.assert_array_equal(runs[0], runs[1])
@@ -35,7 +36,7 @@ def test_plan_policy_acts_with_the_planners_action(smoke_config, smoke_params):
   fold_in(key(seed), t)."""
   from ld_mpc_jax.plan.planner import make_plan
   obs = np.linspace(-1, 1, 39).astype(np.float32)
-  policy, _ = make_policy(smoke_config, smoke_params, 'plan', seed=5)
+  policy, _ = make_policy(ActSettings.from_config(smoke_config), smoke_params, 'plan', seed=5)
   actions = [policy(obs) for _ in range(2)]
   plan = jax.jit(make_plan(smoke_config))
   z = encode(smoke_params, obs)
@@ -45,7 +46,7 @@ def test_plan_policy_acts_with_the_planners_action(smoke_config, smoke_params):
 
 
 def test_actor_policy_is_the_actor_prior(smoke_config, smoke_params):
-  policy, _ = make_policy(smoke_config, smoke_params, 'actor')
+  policy, _ = make_policy(ActSettings.from_config(smoke_config), smoke_params, 'actor')
   obs = np.linspace(-1, 1, 39).astype(np.float32)
   nets = build_networks(ModelSettings.from_config(smoke_config))
   expected = nets.actor.apply({'params': smoke_params['actor']}, encode(smoke_params, obs))
@@ -55,11 +56,11 @@ def test_actor_policy_is_the_actor_prior(smoke_config, smoke_params):
 def test_actor_acting_noise_only_when_asked(smoke_config, smoke_params):
   """The actor prior acting online (`online.act_mode='actor'`) gets the executed-action noise;
   at noise 0 it is exactly the actor prior."""
-  act = make_act(smoke_config, 'actor')
+  act = make_act(ActSettings.from_config(smoke_config), 'actor')
   obs = np.linspace(-1, 1, 39).astype(np.float32)
   key = jax.random.key(0)
   plain = np.asarray(act(smoke_params, obs, key, 0, None, 0.0)[0])
-  policy, _ = make_policy(smoke_config, smoke_params, 'actor')
+  policy, _ = make_policy(ActSettings.from_config(smoke_config), smoke_params, 'actor')
   np.testing.assert_allclose(plain, policy(obs), rtol=1e-5, atol=1e-6)
   noisy = np.stack([np.asarray(act(smoke_params, obs, key, t, None, 0.3)[0]) for t in range(64)])
   assert np.all(np.abs(noisy) <= 1.0)
@@ -70,7 +71,7 @@ def test_actor_acting_noise_only_when_asked(smoke_config, smoke_params):
 def test_proposal_gets_the_evaluation_action_noise_only_when_asked(smoke_config, smoke_params):
   """`eval.action_noise` perturbs the proposal's executed action as the actor prior's; at 0 it
   is exactly the proposal's sample."""
-  act = make_act(smoke_config, 'proposal')
+  act = make_act(ActSettings.from_config(smoke_config), 'proposal')
   obs = np.linspace(-1, 1, 39).astype(np.float32)
   key = jax.random.key(0)
   plain = np.stack([np.asarray(act(smoke_params, obs, key, t, None, 0.0)[0]) for t in range(64)])
@@ -87,7 +88,7 @@ def test_warm_started_policy_is_reproducible(smoke_config, smoke_params):
   obs = [np.full(39, v) for v in (0.1, 0.2, 0.3)]
   runs = []
   for _ in range(2):
-    policy, reset = make_policy(smoke_config, smoke_params, 'plan', seed=3)
+    policy, reset = make_policy(ActSettings.from_config(smoke_config), smoke_params, 'plan', seed=3)
     reset()
     runs.append([policy(o) for o in obs])
   np.testing.assert_array_equal(np.stack(runs[0]), np.stack(runs[1]))
@@ -102,10 +103,11 @@ def test_lockstep_batch_equals_one_at_a_time(smoke_config, smoke_params, mode, c
   from ld_mpc_jax.plan.agent import BatchAgentPolicy
   smoke_config.plan.warm_start_steps = 1
   episodes = evaluation.seeded_episodes(0, 3)
-  policy, reset = make_policy(smoke_config, smoke_params, mode, seed=2)
+  policy, reset = make_policy(ActSettings.from_config(smoke_config), smoke_params, mode, seed=2)
   single = evaluation.evaluate(policy, smoke_config.task, episodes=episodes, reset=reset,
                                max_episode_steps=30, progress=False)['records']
-  batch_policy = BatchAgentPolicy(smoke_config, smoke_params, mode, seed=2, chunk=chunk)
+  batch_policy = BatchAgentPolicy(ActSettings.from_config(smoke_config), smoke_params, mode,
+                                  seed=2, chunk=chunk)
   batched, _ = evaluation.run_episodes(batch_policy, episodes, smoke_config.task, batch_size=3,
                                        max_episode_steps=30, progress=False)
   assert [r['length'] for r in batched] == [r['length'] for r in single]
@@ -124,6 +126,6 @@ def test_mppi_settings_are_checked_by_the_mppi_mode_alone(smoke_config):
   """A config.mppi that MPPI refuses leaves the other modes as they are."""
   from ld_mpc_jax.configs.overrides import with_overrides  # pylint: disable=g-import-not-at-top
   c = with_overrides(smoke_config, {'mppi.num_samples': 16})  # Fewer than its 24 prior ones.
-  make_act(c, 'plan')
+  make_act(ActSettings.from_config(c), 'plan')
   with pytest.raises(ValueError, match='^config.mppi: num_prior must be in'):
-    make_act(c, 'mppi')
+    make_act(ActSettings.from_config(c), 'mppi')

@@ -16,7 +16,7 @@ from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.learn.train_state import create_train_state
 
 # Fields whose fallbacks moved into migrate_config, with what a run saved before them did.
@@ -124,7 +124,8 @@ def test_a_checkpoint_round_trip_returns_the_same_state(tmp_path):
   manager = checkpointing.checkpoint_manager(str(tmp_path))
   manager.save(int(state.step), args=ocp.args.StandardSave(state))
   manager.wait_until_finished()
-  restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)), config)
+  restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)),
+                                          checkpointing.abstract_state(config))
   chex.assert_trees_all_equal(restored, state, strict=True)
   loaded, ema_params, step = checkpointing.load_for_evaluation(str(tmp_path))
   chex.assert_trees_all_equal(ema_params, state.ema_params, strict=True)
@@ -169,7 +170,8 @@ def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
   saved = placement.read_text()
   assert '"cpu:0"' in saved.replace('\\"', '"')
   placement.write_text(saved.replace('cpu:0', 'cuda:0'))
-  restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)), config)
+  restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)),
+                                          checkpointing.abstract_state(config))
   assert int(restored.step) == int(state.step)
   for a, b in zip(jax.tree.leaves(restored.ema_params), jax.tree.leaves(state.ema_params)):
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
@@ -193,7 +195,7 @@ def test_a_workdir_of_another_config_is_refused_naming_the_fields(tmp_path):
   placed = with_overrides(door_open.get_config('smoke'), {'train.seed_devices': 3})
   assert saved.train.seed_devices != 3
   checkpointing.check_workdir(placed, workdir)
-  assert checkpointing.config_changes(saved, placed) == []
+  assert checkpointing.config_changes(saved.to_dict(), placed.to_dict()) == []
 
 
 def test_continuing_with_other_networks_is_refused_even_with_the_flag(tmp_path):
@@ -293,16 +295,17 @@ def test_a_step_without_what_the_run_needs_is_skipped(tmp_path):
   for step in (1, 2):
     manager.save(step, args=ocp.args.StandardSave(state))
   manager.wait_until_finished()
+  target = checkpointing.abstract_state(config)
   step, _, skipped = checkpointing.restore_intact(
-      manager, config, lambda s: 'no buffer_2.npz' if s == 2 else None)
+      manager, target, lambda s: 'no buffer_2.npz' if s == 2 else None)
   assert (step, skipped) == (1, [2])
   with pytest.raises(checkpointing.WorkdirError, match='no intact checkpoint .* steps 2, 1 all'):
-    checkpointing.restore_intact(manager, config, lambda s: 'no buffer file')
+    checkpointing.restore_intact(manager, target, lambda s: 'no buffer file')
   alone = checkpointing.checkpoint_manager(os.path.join(workdir, 'one'))
   alone.save(2, args=ocp.args.StandardSave(state))
   alone.wait_until_finished()
   with pytest.raises(checkpointing.WorkdirError, match=r'no intact checkpoint .*: step 2 failed '):
-    checkpointing.restore_intact(alone, config, lambda s: 'no buffer file')
+    checkpointing.restore_intact(alone, target, lambda s: 'no buffer file')
 
 
 def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_path):
@@ -356,7 +359,7 @@ def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_las
   assert sorted(os.listdir(folder)) == ['1']  # No partial step 2 left to be picked up.
   assert json.load(open(tmp_path / 'progress.json'))['step'] == 1
   step, restored, skipped = checkpointing.restore_intact(
-      checkpointing.checkpoint_manager(workdir), config)
+      checkpointing.checkpoint_manager(workdir), checkpointing.abstract_state(config))
   assert (step, skipped) == (1, [])
   same = jax.tree.map(lambda a, b: np.array_equal(a, b), restored, state.replace(step=1))
   assert all(jax.tree_util.tree_leaves(same))

@@ -1,11 +1,17 @@
-"""ld_mpc_jax.model.config_checks: bad values fail with one line naming the field; the online batch
+"""ld_mpc_jax.runs.checks.validate_config: bad values fail with one line naming the field; the online batch
 against the windows of the seed data; acting settings; the multi-task batch."""
+
+import dataclasses
 
 import numpy as np
 import pytest
 
 from ld_mpc_jax.configs import door_open, door_open_online, mt10
+from ld_mpc_jax.learn.train_state import OptimSettings
 from ld_mpc_jax.model import config_checks
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
+from ld_mpc_jax.online.settings import OnlineSettings
+from ld_mpc_jax.runs.checks import check_seeds, validate_config
 from ld_mpc_jax import data
 
 
@@ -29,23 +35,23 @@ def test_online_batch_may_be_at_most_the_seed_windows(seed_steps):
   windows = _seed_windows(config)
   assert windows == 12 * -(-seed_steps // 40)
   config.train.batch_size = windows
-  config_checks.validate_config(config)
+  validate_config(config)
   config.train.batch_size = windows + 1
   with pytest.raises(ValueError, match=f'batch_size \\({windows + 1}\\).*{windows} windows'):
-    config_checks.validate_config(config)
+    validate_config(config)
 
 
 def test_online_batch_is_not_checked_without_seed_updates():
   config = door_open_online.get_config('smoke')
   config.train.batch_size = 1000
   with pytest.raises(ValueError, match='batch_size'):
-    config_checks.check_online_budget(config)
+    OnlineSettings.from_config(config).check_budget()
   config.online.env_steps = config.online.seed_steps  # The run ends before its first update.
-  config_checks.check_online_budget(config)
+  OnlineSettings.from_config(config).check_budget()
   config.online.env_steps, config.online.update_ratio = 120, 0.0  # No update at all.
-  config_checks.check_online_budget(config)
+  OnlineSettings.from_config(config).check_budget()
   config.online.update_ratio, config.online.init_from = 0.1, '/runs/offline'  # Its dataset:
-  config_checks.check_online_budget(config)  # checked at start (runs.check_config_for_data).
+  OnlineSettings.from_config(config).check_budget()  # checked at start (runs.check_config_for_data).
 
 
 @pytest.mark.parametrize('overrides, match', [
@@ -61,47 +67,47 @@ def test_acting_settings_are_checked(overrides, match):
   c.eval.splits = ('held_out', 'train')
   c.online.update(overrides)
   with pytest.raises(ValueError, match=match):
-    config_checks.validate_config(c)
+    validate_config(c)
 
 
 def test_the_acting_search_is_checked_with_a_message_naming_it():
   c = door_open_online.get_config('cpu')
   c.online.act_iterations = -1
   with pytest.raises(ValueError, match='online.act_iterations must be an integer >= 0'):
-    config_checks.validate_config(c)
+    validate_config(c)
   c.online.act_iterations, c.online.act_num_gaussian = 3, 0
   c.plan.num_gaussian = 32
   c.plan.num_elites = 40  # Above the acting first round (24 + 8), not the evaluation's (+ 32).
   with pytest.raises(ValueError, match='while acting .*num_elites'):
-    config_checks.validate_config(c)
+    validate_config(c)
   c.online.act_num_gaussian = 32
-  config_checks.validate_config(c)
+  validate_config(c)
 
 
 def test_safe_selection_while_acting_needs_the_actor_priors_sequence():
   c = door_open_online.get_config('smoke')
   c.online.act_safe_selection, c.plan.num_prior_candidates = True, 0
   with pytest.raises(ValueError, match='act_safe_selection needs'):
-    config_checks.validate_config(c)
+    validate_config(c)
   c.plan.num_prior_candidates = 1
-  config_checks.validate_config(c)
+  validate_config(c)
 
 
 def test_batch_size_must_split_over_the_tasks():
   c = mt10.get_config('smoke')
   c.train.batch_size = 12
   with pytest.raises(ValueError, match='multiple of the number of tasks'):
-    config_checks.validate_config(c)
+    validate_config(c)
 
 
 def test_log_std_map_is_checked():
   c = door_open_online.get_config('smoke')
   c.critic.log_std_map = 'tanh'
-  config_checks.validate_config(c)
+  validate_config(c)
   c.critic.log_std_map = 'softplus'
   with pytest.raises(ValueError, match=r"^config.critic.log_std_map must be one of \('clip', "
                                        r"'tanh'\), got 'softplus'$"):
-    config_checks.validate_config(c)
+    validate_config(c)
 
 
 @pytest.mark.parametrize('field,value,words', [
@@ -113,7 +119,7 @@ def test_bad_evaluation_draws_fail_naming_the_field(field, value, words):
   config = door_open_online.get_config('smoke')
   config.eval[field] = value
   with pytest.raises(ValueError, match=words):
-    config_checks.validate_config(config)
+    validate_config(config)
 
 
 @pytest.mark.parametrize('field', ['log_every', 'checkpoint_every', 'eval_every',
@@ -124,7 +130,7 @@ def test_intervals_and_kept_checkpoints_must_be_positive(field, value):
   config.train[field] = value
   with pytest.raises(ValueError, match=rf'^config.train.{field} must be an integer >= 1, '
                                        rf'got {value}$'):
-    config_checks.validate_config(config)
+    validate_config(config)
 
 
 @pytest.mark.parametrize('field', ['train.learning_rate', 'plan.temperature', 'loss.w_dyn'])
@@ -135,4 +141,45 @@ def test_a_nan_setting_is_refused_naming_it(field):
   section, name = field.split('.')
   config[section][name] = float('nan')
   with pytest.raises(ValueError, match=f'config.{field} is NaN'):
-    config_checks.validate_config(config)
+    validate_config(config)
+
+
+def test_the_settings_check_themselves_without_a_config():
+  """Issue 103: each check takes the settings it reads, built once from the config."""
+  config = door_open.get_config('smoke')
+  model, plan = ModelSettings.from_config(config), PlanSettings.from_config(config)
+  losses, optim = LossSettings.from_config(config), OptimSettings.from_config(config)
+  with pytest.raises(ValueError, match=r'^config.model.width \(30\) must be even'):
+    dataclasses.replace(model, width=30, num_heads=4).check_sizes()
+  with pytest.raises(ValueError, match=r'^config.gamma must be in \(0, 1\], got 1.5$'):
+    dataclasses.replace(model, gamma=1.5).check_targets()
+  with pytest.raises(ValueError, match='^config.loss.w_progress must be >= 0'):
+    dataclasses.replace(losses, w_progress=-1.0).check_weights()
+  with pytest.raises(ValueError, match='^config.plan.warm_start_steps must be 0'):
+    config_checks.check_kinds(dataclasses.replace(model, proposal_type='diffusion_step'),
+                              dataclasses.replace(plan, warm_start_steps=1))
+  with pytest.raises(ValueError, match=r'^config.critic.expectile must be in \(0, 1\)'):
+    config_checks.check_critic(model, dataclasses.replace(losses, expectile=1.0), plan)
+  with pytest.raises(ValueError, match=r'^config.train.batch_size \(9\) must be a multiple'):
+    config_checks.check_tasks(dataclasses.replace(model, num_tasks=2), 9, config.data.source)
+  with pytest.raises(ValueError, match='^config.train.seed_devices must be an integer >= 0'):
+    check_seeds(2, -1, False)
+  optim.check(losses)
+
+
+def test_the_update_checks_keep_their_order():
+  """The EMA's decay, then the batch's weighting and noise, then the optimiser's rates; all
+  before the NaN check, so that a NaN decay is named by its range."""
+  losses = LossSettings.from_config(door_open.get_config('smoke'))
+  bad_losses = dataclasses.replace(losses, reward_balance=2.0, obs_noise_aug=-1.0)
+  bad = OptimSettings(learning_rate=0.0, warmup_steps=0, grad_clip=1.0, ema_decay=1.0)
+  with pytest.raises(ValueError, match='ema_decay'):
+    bad.check(bad_losses)
+  with pytest.raises(ValueError, match='reward_balance'):
+    dataclasses.replace(bad, ema_decay=0.5).check(bad_losses)
+  with pytest.raises(ValueError, match='learning_rate and grad_clip'):
+    dataclasses.replace(bad, ema_decay=0.5).check(losses)
+  config = door_open.get_config('smoke')
+  config.train.ema_decay = float('nan')
+  with pytest.raises(ValueError, match=r'^config.train.ema_decay must be in \[0, 1\), got nan$'):
+    validate_config(config)

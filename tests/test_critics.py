@@ -133,7 +133,7 @@ def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
     del old['model'][name]
   for name in ('pessimism', 'dynamics_draws'):
     del old['plan'][name]
-  old = checkpointing.migrate_config(ml_collections.ConfigDict(old))  # As on load.
+  old = checkpointing.migrate_config(old)  # As on load.
   params = models.init_params(old, jax.random.key(0))
   assert 'critics' not in params and 'obs_mean' not in params['encoder']
   out = planner.make_plan(old)(params, models.encode(params, np.ones(39)), jax.random.key(1))

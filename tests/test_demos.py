@@ -13,6 +13,7 @@ from ld_mpc_jax.runs import online
 from ld_mpc_jax.data import demos
 from ld_mpc_jax.data.online_buffer import Buffer
 from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.online.settings import OnlineSettings
 
 DEMO_OBS = 5.0  # Observations of the fake demonstrations: every window from them is all 5.0.
 
@@ -40,9 +41,9 @@ def test_demo_share_is_linear_from_start_to_end_and_zero_without_demos():
   config = door_open_online.get_config('smoke')
   o = config.online
   o.env_steps, o.demos, o.demo_share_start, o.demo_share_end = 1000, 5, 0.5, 0.25
-  assert [demos.demo_share(config, s) for s in (0, 500, 1000, 5000)] == [0.5, 0.375, 0.25, 0.25]
+  assert [OnlineSettings.from_config(config).demo_share(s) for s in (0, 500, 1000, 5000)] == [0.5, 0.375, 0.25, 0.25]
   o.demos = 0
-  assert demos.demo_share(config, 0) == 0.0
+  assert OnlineSettings.from_config(config).demo_share(0) == 0.0
 
 
 def test_schedule_steps_moves_where_the_demo_share_ends():
@@ -50,9 +51,9 @@ def test_schedule_steps_moves_where_the_demo_share_ends():
   config = door_open_online.get_config('smoke')
   o = config.online
   o.env_steps, o.demos, o.demo_share_start, o.demo_share_end = 2000, 5, 0.5, 0.25
-  assert demos.demo_share(config, 1000) == 0.375
+  assert OnlineSettings.from_config(config).demo_share(1000) == 0.375
   o.schedule_steps = 1000
-  assert [demos.demo_share(config, s) for s in (500, 1000, 2000)] == [0.375, 0.25, 0.25]
+  assert [OnlineSettings.from_config(config).demo_share(s) for s in (500, 1000, 2000)] == [0.375, 0.25, 0.25]
 
 
 @pytest.mark.parametrize('share', [0.5, 0.25, 0.0])
@@ -107,7 +108,7 @@ def test_a_run_with_demos_pretrains_on_them_and_plans_from_the_first_wave(tmp_pa
   # (0.5 -> 0.25 over the 80 steps) when the second wave reaches 0.1 x steps = 5, 6, 7, 8
   # updates (4 environment steps a decision: at 52, 60, 72 and 80).
   batch = config.train.batch_size
-  expected = [demos.demo_rows(batch, demos.demo_share(config, s)) / batch
+  expected = [demos.demo_rows(batch, OnlineSettings.from_config(config).demo_share(s)) / batch
               for s in (52, 60, 72, 80)]
   assert shares == [1.0] * 7 + expected and expected[0] > expected[-1] == 0.25
   # MoDem's seeding phase: the seed wave acts with the actor prior, then the planner.

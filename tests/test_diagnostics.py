@@ -9,6 +9,7 @@ import pytest
 from scipy import stats as sps
 
 from ld_mpc_jax.eval import diagnostics, evaluation_suite
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
@@ -26,14 +27,15 @@ def test_diagnose_windows_and_returns(monkeypatch, smoke_config, smoke_params):
                   reward=np.ones(length), success=np.zeros(length, bool))
 
   monkeypatch.setattr(data, 'get_or_collect', lambda *a, **k: OneEpisode())
-  obs, actions, returns = diagnostics.held_out_windows(smoke_config, 1, stride=5)
+  spec = EvalSpec.from_config(smoke_config)
+  obs, actions, returns = diagnostics.held_out_windows(spec, 1, stride=5)
   h, starts = smoke_config.horizon, (0, 5, 10, 15)  # Those < 120 - 100.
   assert obs.shape == (4, h + 1, 39) and actions.shape == (4, h, 4)
   ep = OneEpisode().episode(0)
   np.testing.assert_array_equal(obs[2], ep['obs'][10:10 + h + 1])
   np.testing.assert_array_equal(actions[3], ep['action'][15:15 + h])
   np.testing.assert_allclose(returns, [(1 - gamma ** (length - t)) / (1 - gamma) for t in starts])
-  corr = diagnostics.objective_correlation(smoke_config, smoke_params, obs, actions, returns)
+  corr = diagnostics.objective_correlation(spec.act, smoke_params, obs, actions, returns)
   # J of the encoder's latents of the windows, ranked against the returns here.
   nets = models.build_networks(ModelSettings.from_config(smoke_config))
   score = objective.make_score(ModelSettings.from_config(smoke_config), nets,
@@ -60,9 +62,9 @@ def test_success_by_k_pairs_each_k_with_the_largest(monkeypatch, smoke_config):
   smoke_config.plan.num_candidates, smoke_config.plan.num_prior_candidates = 8, 2
   seen = []
 
-  def fake(config, params, mode, episodes, seed, split):
-    k = config.plan.num_candidates
-    seen.append((k, config.plan.num_prior_candidates, mode, split))
+  def fake(spec, params, mode, episodes, seed, split):
+    k = spec.act.plan.num_candidates
+    seen.append((k, spec.act.plan.num_prior_candidates, mode, split))
     records = [dict(episode=i, success=int(i < k), length=10, departures=int(k > 1))
                for i in reversed(range(episodes))]  # Out of order: paired by episode.
     wins = sum(r['success'] for r in records)
@@ -70,7 +72,8 @@ def test_success_by_k_pairs_each_k_with_the_largest(monkeypatch, smoke_config):
                 success_ci95=[0.0, 1.0])
 
   monkeypatch.setattr(evaluation_suite, 'evaluate_policy', fake)
-  rows = diagnostics.success_by_k(smoke_config, None, [1, 4, 16], episodes=10, seed=0)
+  spec = EvalSpec.from_config(smoke_config)
+  rows = diagnostics.success_by_k(spec, None, [1, 4, 16], episodes=10, seed=0)
   # The actor-prior share of the config (2 of 8) kept; none for K = 1.
   assert seen == [(1, 0, 'plan', 'held_out'), (4, 1, 'plan', 'held_out'),
                   (16, 4, 'plan', 'held_out')]
@@ -82,7 +85,7 @@ def test_success_by_k_pairs_each_k_with_the_largest(monkeypatch, smoke_config):
   assert rows[2]['vs_largest_k']['p_value'] == 1.0  # Itself.
   assert rows[0]['departure_share'] == 0.0 and rows[1]['departure_share'] == pytest.approx(0.1)
   assert rows[1]['success_with_departures'] == [4, 10]
-  assert smoke_config.plan.num_candidates == 8  # The caller's config is left as it was.
+  assert spec.act.plan.num_candidates == 8  # The caller's spec is left as it was.
 
 
 def test_markdown_table_rows():
@@ -101,17 +104,18 @@ def test_markdown_table_rows():
 
 
 def test_candidate_kinds_counted_over_start_states(monkeypatch, smoke_config):
-  """planner.make_plan stubbed: the winning kind of each plan is its key's index mod 2."""
+  """planner.build_plan stubbed: the winning kind of each plan is its key's index mod 2."""
   from ld_mpc_jax.plan import planner
 
   class Out:
     def __init__(self, kind):
       self.kind = kind
 
-  monkeypatch.setattr(planner, 'make_plan', lambda config: lambda params, z, key: Out(
+  monkeypatch.setattr(planner, 'build_plan', lambda model, plan: lambda params, z, key: Out(
       int(jax.random.key_data(key)[-1]) % 2))
   monkeypatch.setattr(diagnostics.models, 'encode', lambda params, obs: obs)
-  wins = diagnostics.candidate_wins(smoke_config, None, np.zeros((4, 3)))
+  wins = diagnostics.candidate_wins(EvalSpec.from_config(smoke_config).act, None,
+                                    np.zeros((4, 3)))
   assert list(wins) == list(planner.CANDIDATE_KINDS)
   assert wins[planner.CANDIDATE_KINDS[0]] == 0.5 and wins[planner.CANDIDATE_KINDS[1]] == 0.5
   assert sum(wins.values()) == 1.0
@@ -142,7 +146,8 @@ def test_gain_parts_add_up_to_the_objective(smoke_config, smoke_params):
   seq = jax.random.uniform(jax.random.key(3), (smoke_config.horizon, smoke_config.action_dim),
                            minval=-1, maxval=1)
   key = jax.random.key(5)
-  r, v = diagnostics.gain_parts(smoke_config, nets, draws=1)(smoke_params, z, seq, key)
+  act = EvalSpec.from_config(smoke_config).act
+  r, v = diagnostics.gain_parts(act, nets, draws=1)(smoke_params, z, seq, key)
   roll = planner.make_rollout(ModelSettings.from_config(smoke_config), dataclasses.replace(
       PlanSettings.from_config(smoke_config), num_prior_candidates=1), nets)
   acts, lats = roll(smoke_params, z, seq[None], jax.random.split(key, 1)[0])
@@ -176,15 +181,15 @@ def test_departure_gains_runs_the_evaluation_episodes(smoke_config, smoke_params
   """Three decisions of held-out episode 1: one row per decision with the environment's terms,
   and the gain parts on exactly the decisions that departed."""
   smoke_config.eval.max_episode_steps = 6  # Three decisions at action repeat 2.
-  out = diagnostics.departure_gains(smoke_config, smoke_params, [1], seed=0, num_episodes=2,
-                                    draws=2)
+  spec = EvalSpec.from_config(smoke_config)
+  out = diagnostics.departure_gains(spec, smoke_params, [1], seed=0, num_episodes=2, draws=2)
   assert len(out) == 1 and out[0]['episode'] == 1
   rows = out[0]['decisions']
   assert [r['t'] for r in rows] == [0, 1, 2]
   assert all('in_place_reward' in r and 'reward' in r for r in rows)
   assert all(('value_gain' in r) == r['departed'] for r in rows)
   assert any(r['departed'] for r in rows)  # The untrained argmax leaves the actor prior.
-  records = evaluation_suite.evaluate_policy(smoke_config, smoke_params, 'plan', 2, 0,
+  records = evaluation_suite.evaluate_policy(spec, smoke_params, 'plan', 2, 0,
                                              only=[1])['records']
   assert records[0]['length'] == 3 and out[0]['success'] == records[0]['success']
 

@@ -19,9 +19,9 @@ _SCRIPT = f"""
 from absl import app
 from ld_mpc_jax.runs import loop as runs
 real = runs.run_evaluation
-def fake(config, params, mode, num_episodes, seed, video_path=None, **kwargs):
+def fake(spec, params, mode, num_episodes, seed, video_path=None, **kwargs):
   if video_path is None:
-    return real(config, params, mode, num_episodes, seed, **kwargs)
+    return real(spec, params, mode, num_episodes, seed, **kwargs)
   with open(video_path, 'wb') as f:
     f.write({MARKER!r})
   return dict(video_path=video_path)

@@ -1,6 +1,7 @@
 """ld_mpc_jax.eval.evaluation_suite: pooled summaries, paired tests and tables of hand-built records;
 the per-cell cache of `evaluate_checkpoint` (evaluations stubbed, no environment runs)."""
 
+import dataclasses
 import math
 import os
 import types
@@ -11,6 +12,7 @@ import pytest
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import evaluation_suite
+from ld_mpc_jax.eval.spec import CacheKey, EvalSpec
 
 Z95 = 1.959963984540054  # The 0.975 quantile of the standard normal.
 
@@ -86,7 +88,7 @@ def _stub_evaluations(monkeypatch):
   """evaluate_policy stubbed: 3 episodes whose successes depend on the mode and seed."""
   calls = []
 
-  def fake(config, params, mode, num_episodes, seed, split, obs_noise_std, progress):
+  def fake(spec, params, mode, num_episodes, seed, split, obs_noise_std, progress):
     calls.append((mode, split, seed))
     records = [dict(split=split, eval_seed=seed, episode=i, policy=mode,
                     success=int(mode == 'plan' or i < seed), length=4) for i in range(num_episodes)]
@@ -101,9 +103,10 @@ def _stub_evaluations(monkeypatch):
 def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
   calls = _stub_evaluations(monkeypatch)
   config, workdir, lines = door_open.get_config('smoke'), str(tmp_path), []
+  spec = EvalSpec.from_config(config)
   grid = dict(step=4, modes=('plan', 'actor'), splits=('held_out',), seeds=(0, 2),
               num_episodes=3)
-  records = evaluation_suite.evaluate_checkpoint(config, None, workdir, run=7, log=lines.append,
+  records = evaluation_suite.evaluate_checkpoint(spec, None, workdir, run=7, log=lines.append,
                                                  progress=False, **grid)
   assert calls == [('plan', 'held_out', 0), ('actor', 'held_out', 0), ('plan', 'held_out', 2),
                    ('actor', 'held_out', 2)]
@@ -113,23 +116,24 @@ def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
                       '(50 decisions/s)')
   assert len(os.listdir(os.path.join(workdir, 'evals'))) == 4
   # The same grid again: every cell from its file, the records as before, tagged with this run.
-  again = evaluation_suite.evaluate_checkpoint(config, None, workdir, run=8, log=lines.append,
+  again = evaluation_suite.evaluate_checkpoint(spec, None, workdir, run=8, log=lines.append,
                                                progress=False, **grid)
   assert len(calls) == 4 and len(lines) == 4
   assert [r['success'] for r in again] == [r['success'] for r in records]
   assert all(r['run'] == 8 for r in again)
   # A changed input that changes the episodes (here the planner's K) is a new cell.
   config.plan.num_candidates += 1
-  evaluation_suite.evaluate_checkpoint(config, None, workdir, log=lines.append, progress=False,
+  spec = EvalSpec.from_config(config)
+  evaluation_suite.evaluate_checkpoint(spec, None, workdir, log=lines.append, progress=False,
                                        **grid)
   assert len(calls) == 8 and len(os.listdir(os.path.join(workdir, 'evals'))) == 8
   # So is any cell after a code change that raised the cache version.
   monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', evaluation_suite.CACHE_VERSION + 1)
-  evaluation_suite.evaluate_checkpoint(config, None, workdir, log=lines.append, progress=False,
+  evaluation_suite.evaluate_checkpoint(spec, None, workdir, log=lines.append, progress=False,
                                        **grid)
   assert len(calls) == 12
   # Without a workdir nothing is cached.
-  evaluation_suite.evaluate_checkpoint(config, None, None, log=lines.append, progress=False,
+  evaluation_suite.evaluate_checkpoint(spec, None, None, log=lines.append, progress=False,
                                        **grid)
   assert len(calls) == 16
 
@@ -143,23 +147,26 @@ def test_cache_keys_ignore_fields_at_their_legacy_defaults(tmp_path, monkeypatch
   calls = _stub_evaluations(monkeypatch)
   config, workdir, grid = door_open.get_config('smoke'), str(tmp_path), _ONE_CELL
   config.plan.safe_margin_scaling = 'none'  # The field's legacy value (its default is another).
-  evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  evaluation_suite.evaluate_checkpoint(EvalSpec.from_config(config), None, workdir, **grid)
   # A config without a field that has a legacy default (as before the field existed) is the
-  # same cell: adding such a field at its no-change value keeps every cached evaluation.
+  # same cell: adding such a field at its no-change value keeps every cached evaluation. (Its
+  # key: the settings of such a config are read with the field at that value.)
   older = door_open.get_config('smoke')
   del older.plan['safe_margin_scaling']
   assert older.data.path == ''
   del older.data['path']
-  evaluation_suite.evaluate_checkpoint(older, None, workdir, **grid)
+  spec = dataclasses.replace(EvalSpec.from_config(config), key=CacheKey.from_config(older))
+  evaluation_suite.evaluate_checkpoint(spec, None, workdir, **grid)
   assert len(calls) == 1
   # So is the config read back from a run's config.json (tuples come back as lists).
   checkpointing.save_config(config, str(tmp_path / 'run'))
-  evaluation_suite.evaluate_checkpoint(checkpointing.load_config(str(tmp_path / 'run')), None,
-                                       workdir, **grid)
+  evaluation_suite.evaluate_checkpoint(
+      EvalSpec.from_config(checkpointing.load_config(str(tmp_path / 'run'))), None, workdir,
+      **grid)
   assert len(calls) == 1
   # The field at another value is another cell.
   config.plan.safe_margin_scaling = 'expected_max'
-  evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  evaluation_suite.evaluate_checkpoint(EvalSpec.from_config(config), None, workdir, **grid)
   assert len(calls) == 2
 
 
@@ -168,7 +175,7 @@ def test_key_seed_draws_other_keys_on_the_same_episodes(tmp_path, monkeypatch):
   at its default (-1) every cached cell keeps its key."""
   seen = {}
   class Policy:
-    def __init__(self, config, params, mode, seed, chunk, mesh):
+    def __init__(self, settings, params, mode, seed, chunk, mesh):
       seen['key_seed'] = seed
   def run_episodes(policy, eps, *args, **kwargs):
     seen['episodes'] = [e.reset_seed for e in eps]
@@ -177,13 +184,13 @@ def test_key_seed_draws_other_keys_on_the_same_episodes(tmp_path, monkeypatch):
   monkeypatch.setattr(evaluation_suite.evaluation, 'run_episodes', run_episodes)
   monkeypatch.setattr(evaluation_suite.evaluation, 'result', lambda records, info: records)
   monkeypatch.setattr(evaluation_suite, 'episodes',
-                      lambda config, split, seed, n: [types.SimpleNamespace(reset_seed=10 * seed + i)
+                      lambda source, split, seed, n: [types.SimpleNamespace(reset_seed=10 * seed + i)
                                                       for i in range(n)])
   config = door_open.get_config('smoke')
-  evaluation_suite.evaluate_policy(config, None, 'plan', 2, seed=3)
+  evaluation_suite.evaluate_policy(EvalSpec.from_config(config), None, 'plan', 2, seed=3)
   assert seen == dict(key_seed=3, episodes=[30, 31])
   config.eval.key_seed = 5
-  evaluation_suite.evaluate_policy(config, None, 'plan', 2, seed=3)
+  evaluation_suite.evaluate_policy(EvalSpec.from_config(config), None, 'plan', 2, seed=3)
   assert seen == dict(key_seed=5, episodes=[30, 31])
   # The cache: a run saved before the field (read back with it at -1) finds the default's cell,
   # another key seed is another cell.
@@ -193,7 +200,8 @@ def test_key_seed_draws_other_keys_on_the_same_episodes(tmp_path, monkeypatch):
   checkpointing.save_config(older, str(tmp_path / 'old_run'))
   older = checkpointing.load_config(str(tmp_path / 'old_run'))
   for c in (older, door_open.get_config('smoke'), config):
-    evaluation_suite.evaluate_checkpoint(c, None, str(tmp_path), **_ONE_CELL)
+    evaluation_suite.evaluate_checkpoint(EvalSpec.from_config(c), None, str(tmp_path),
+                                         **_ONE_CELL)
   assert len(calls) == 2
 
 
@@ -201,27 +209,28 @@ def test_cells_cached_by_version_2_are_found_at_version_3(tmp_path, monkeypatch)
   calls = _stub_evaluations(monkeypatch)
   config, workdir, grid = door_open.get_config('smoke'), str(tmp_path), _ONE_CELL
   monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', 2)
-  first = evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  spec = EvalSpec.from_config(config)
+  first = evaluation_suite.evaluate_checkpoint(spec, None, workdir, **grid)
   [v2_file] = os.listdir(os.path.join(workdir, 'evals'))
   monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', 3)
-  again = evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  again = evaluation_suite.evaluate_checkpoint(spec, None, workdir, **grid)
   assert len(calls) == 1 and again == first
   assert os.listdir(os.path.join(workdir, 'evals')) == [v2_file]
   # A later version (raised because episodes changed) does not reuse them.
   monkeypatch.setattr(evaluation_suite, 'CACHE_VERSION', 4)
-  evaluation_suite.evaluate_checkpoint(config, None, workdir, **grid)
+  evaluation_suite.evaluate_checkpoint(EvalSpec.from_config(config), None, workdir, **grid)
   assert len(calls) == 2
 
 
 def test_train_split_needs_data_collected_on_mt1_goals(monkeypatch):
-  config = door_open.get_config('smoke')
+  source = EvalSpec.from_config(door_open.get_config('smoke')).goals
   monkeypatch.setattr(evaluation_suite, 'dataset_goals', lambda c: (np.zeros((2, 6)), 3))
-  assert evaluation_suite.available_splits(config, ('held_out', 'train')) == ('held_out', 'train')
+  assert evaluation_suite.available_splits(source, ('held_out', 'train')) == ('held_out', 'train')
   monkeypatch.setattr(evaluation_suite, 'dataset_goals', lambda c: (np.zeros((2, 6)), None))
-  assert evaluation_suite.available_splits(config, ('held_out', 'train')) == ('held_out',)
-  assert evaluation_suite.available_splits(config, ('held_out',)) == ('held_out',)
+  assert evaluation_suite.available_splits(source, ('held_out', 'train')) == ('held_out',)
+  assert evaluation_suite.available_splits(source, ('held_out',)) == ('held_out',)
   with pytest.raises(ValueError, match='train goal split needs data collected on MT1 goals'):
-    evaluation_suite.available_splits(config, ('train',))
+    evaluation_suite.available_splits(source, ('train',))
 
 
 def _policy_records(policy, run, successes, departures=None):
@@ -305,7 +314,7 @@ def test_behind_by_anchor_time_bins_the_anchors_solved_episodes():
 def test_action_noise_reaches_the_policy_and_is_its_own_cell(tmp_path, monkeypatch):
   seen = {}
   class Policy:
-    def __init__(self, config, params, mode, seed, chunk, mesh):
+    def __init__(self, settings, params, mode, seed, chunk, mesh):
       pass
   def run_episodes(policy, eps, *args, **kwargs):
     seen['noise'] = policy.action_noise
@@ -313,12 +322,12 @@ def test_action_noise_reaches_the_policy_and_is_its_own_cell(tmp_path, monkeypat
   monkeypatch.setattr(evaluation_suite, 'BatchAgentPolicy', Policy)
   monkeypatch.setattr(evaluation_suite.evaluation, 'run_episodes', run_episodes)
   monkeypatch.setattr(evaluation_suite.evaluation, 'result', lambda records, info: records)
-  monkeypatch.setattr(evaluation_suite, 'episodes', lambda config, split, seed, n: [])
+  monkeypatch.setattr(evaluation_suite, 'episodes', lambda source, split, seed, n: [])
   config = door_open.get_config('smoke')
-  evaluation_suite.evaluate_policy(config, None, 'actor', 2, seed=0)
+  evaluation_suite.evaluate_policy(EvalSpec.from_config(config), None, 'actor', 2, seed=0)
   assert seen['noise'] == 0.0
   config.eval.action_noise = 0.05
-  evaluation_suite.evaluate_policy(config, None, 'actor', 2, seed=0)
+  evaluation_suite.evaluate_policy(EvalSpec.from_config(config), None, 'actor', 2, seed=0)
   assert seen['noise'] == 0.05
   calls = _stub_evaluations(monkeypatch)
   older = door_open.get_config('smoke')
@@ -326,5 +335,6 @@ def test_action_noise_reaches_the_policy_and_is_its_own_cell(tmp_path, monkeypat
   checkpointing.save_config(older, str(tmp_path / 'old_run'))
   older = checkpointing.load_config(str(tmp_path / 'old_run'))
   for c in (older, door_open.get_config('smoke'), config):
-    evaluation_suite.evaluate_checkpoint(c, None, str(tmp_path), **_ONE_CELL)
+    evaluation_suite.evaluate_checkpoint(EvalSpec.from_config(c), None, str(tmp_path),
+                                         **_ONE_CELL)
   assert len(calls) == 2

@@ -13,8 +13,20 @@ import pytest
 from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax import validate_config
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax.model import exploration, models, objective
+from ld_mpc_jax.model.settings import PlanSettings
+from ld_mpc_jax.online import schedule
+from ld_mpc_jax.online.settings import OnlineSettings
+from ld_mpc_jax.model import models, objective
 from ld_mpc_jax.plan import planner
+
+
+def acting_plan(config):
+  """The acting planner's settings of `config` (OnlineSettings.acting_plan)."""
+  return OnlineSettings.from_config(config).acting_plan(PlanSettings.from_config(config))
+
+
+def acting_schedule(config, learn_start):
+  return schedule.ActingSchedule.of(OnlineSettings.from_config(config), learn_start)
 
 
 def test_acting_plan_is_the_plans_with_the_online_noise_and_pessimism():
@@ -22,7 +34,7 @@ def test_acting_plan_is_the_plans_with_the_online_noise_and_pessimism():
   c.online.action_noise_std, c.online.prior_noise_std, c.online.act_pessimism = 0.3, 0.4, -0.5
   c.plan.safe_selection, c.online.act_safe_selection = True, False  # Safe only in evaluation.
   plan = c.plan.to_dict()
-  acting = exploration.acting_plan(c)
+  acting = acting_plan(c)
   assert (acting.action_noise_std, acting.prior_noise_std, acting.pessimism,
           acting.safe_selection) == (0.3, 0.4, -0.5, False)
   assert c.plan.to_dict() == plan  # The evaluation's config is left as it was.
@@ -36,7 +48,7 @@ def test_acting_searches_with_its_own_settings_and_evaluation_with_the_plans():
   c = door_open_online.get_config('cpu')
   assert (c.online.act_num_gaussian, c.online.act_iterations) == (32, 3)  # As the presets act.
   assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)  # Evaluation: proposal and prior.
-  acting = exploration.acting_plan(c)
+  acting = acting_plan(c)
   assert (acting.num_gaussian, acting.iterations) == (32, 3)
   assert (c.plan.num_gaussian, c.plan.iterations) == (0, 0)
 
@@ -44,18 +56,18 @@ def test_acting_searches_with_its_own_settings_and_evaluation_with_the_plans():
 def test_acting_keeps_the_safe_selection_gates_only_when_asked():
   c = door_open_online.get_config('cpu')
   c.plan.safe_selection, c.plan.safe_confirm, c.plan.fallback_drop = True, True, 0.1
-  acting = exploration.acting_plan(c)  # online.act_safe_selection is off in the presets.
+  acting = acting_plan(c)  # online.act_safe_selection is off in the presets.
   assert not (acting.safe_selection or acting.safe_confirm)
   assert acting.fallback_drop == 0
   c.online.act_safe_selection = True
-  acting = exploration.acting_plan(c)
+  acting = acting_plan(c)
   assert acting.safe_confirm and acting.fallback_drop == 0.1
 
 
 def test_the_cpu_preset_evaluates_without_the_search_it_acts_with():
   c = door_open_online.get_config('cpu')
   assert (c.critic.log_std_map, c.plan.num_gaussian, c.plan.iterations) == ('tanh', 0, 0)
-  acting = exploration.acting_plan(c)
+  acting = acting_plan(c)
   assert (acting.num_gaussian, acting.iterations) == (32, 3)  # Acting still searches.
   assert (acting.pessimism, c.online.exec_noise_corr, c.gamma) == (-1.0, 0.85, 0.95)
 
@@ -70,7 +82,7 @@ def test_removed_presets_say_what_to_use():
 def test_executed_noise_anneals_linearly():
   c = door_open_online.get_config('cpu')
   start, end = c.online.exec_noise_start, c.online.exec_noise_end
-  noise = exploration.ActingSchedule.from_config(c, 1_600).executed_noise
+  noise = acting_schedule(c, 1_600).executed_noise
   assert noise(0) == pytest.approx(start)  # Before learning starts.
   assert noise(1_600) == pytest.approx(start)
   mid = (1_600 + c.online.env_steps) // 2
@@ -79,18 +91,18 @@ def test_executed_noise_anneals_linearly():
   # online.schedule_steps moves where every schedule ends (a run continued to more steps).
   c.online.schedule_steps = c.online.env_steps
   c.online.env_steps *= 2
-  noise = exploration.ActingSchedule.from_config(c, 1_600).executed_noise
+  noise = acting_schedule(c, 1_600).executed_noise
   assert noise(mid) == pytest.approx((start + end) / 2)
   assert noise(c.online.schedule_steps) == pytest.approx(end)
   c.online.act_schedule, c.online.act_pessimism, c.online.act_pessimism_end = 'linear', -1.0, 0.0
-  at = exploration.ActingSchedule.from_config(c, 0).exploration
+  at = acting_schedule(c, 0).exploration
   assert at(c.online.schedule_steps)[0] == pytest.approx(0.0)
   c.online.schedule_steps = 0
-  at = exploration.ActingSchedule.from_config(c, 0).exploration
+  at = acting_schedule(c, 0).exploration
   assert at(c.online.env_steps // 2)[0] == pytest.approx(-0.5)
   c.online.schedule_steps = -1
   with pytest.raises(ValueError, match='schedule_steps must be an integer >= 0'):
-    exploration.validate_acting(c)
+    validate_config(c)
 
 
 def test_correlated_noise_has_the_annealed_std_and_its_correlation():
@@ -98,10 +110,10 @@ def test_correlated_noise_has_the_annealed_std_and_its_correlation():
   lag-one autocorrelation = the configured correlation."""
   c = door_open_online.get_config('cpu')
   c.online.exec_noise_start = c.online.exec_noise_end = 0.3
-  std = exploration.ActingSchedule.from_config(c, 1_600).executed_noise(5_000)
+  std = acting_schedule(c, 1_600).executed_noise(5_000)
   rng, noise, draws = np.random.default_rng(0), np.zeros((4, 4)), []
   for _ in range(5_000):
-    noise = exploration.ar1_noise(noise, std, c.online.exec_noise_corr, rng)
+    noise = schedule.ar1_noise(noise, std, c.online.exec_noise_corr, rng)
     draws.append(noise)
   x = np.stack(draws[100:])  # [T, 4, 4], past the start-up from zero.
   assert np.std(x) == pytest.approx(0.3, rel=0.05)
@@ -196,7 +208,7 @@ def test_changing_the_traced_intrinsic_term_never_recompiles(smoke_config, smoke
   scores = []
   for steps in (c.online.seed_steps, 3_000, c.online.env_steps):  # The annealed schedule.
     out = plan(smoke_params, z, jax.random.key(0), None, 0.0, None,
-               exploration.ActingSchedule.from_config(c, c.online.seed_steps).intrinsic(steps))
+               acting_schedule(c, c.online.seed_steps).intrinsic(steps))
     scores.append(np.asarray(out.scores))
     if steps == c.online.seed_steps:
       first = (len(traces), plan._cache_size())
@@ -216,28 +228,28 @@ def exploration_config(schedule):
 def test_the_schedule_starts_at_the_first_planner_wave_and_ends_at_env_steps():
   c = exploration_config('linear')
   start, end = c.online.seed_steps, c.online.env_steps  # From scratch: after the seed waves.
-  at = lambda steps: exploration.ActingSchedule.from_config(c, start).exploration(steps)
+  at = lambda steps: acting_schedule(c, start).exploration(steps)
   assert at(0) == at(start) == pytest.approx((-1.0, 40.0))
   assert at((start + end) // 2) == pytest.approx((-0.6, 20.0))
   assert at(end) == at(end + 800) == pytest.approx((-0.2, 0.0))
   # Linear: acting's pessimism is the traced term alone; the acting config's is 0.
-  bonus = exploration.ActingSchedule.from_config(c, start).intrinsic(end)
+  bonus = acting_schedule(c, start).intrinsic(end)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((-0.2, 0.0))
-  acting = exploration.acting_plan(c)
+  acting = acting_plan(c)
   assert (acting.pessimism, acting.dynamics_draws) == (0.0, 4)
   assert (c.plan.pessimism, c.plan.dynamics_draws) == (1.0, 1)  # Evaluation's, unchanged.
   # Constant (the default): the start values throughout; the pessimism stays a setting.
   c = exploration_config('constant')
-  schedule = exploration.ActingSchedule.from_config(c, start)
+  schedule = acting_schedule(c, start)
   assert schedule.exploration(end) == pytest.approx((-1.0, 40.0))
-  bonus = exploration.ActingSchedule.from_config(c, start).intrinsic(end)
+  bonus = acting_schedule(c, start).intrinsic(end)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == pytest.approx((0.0, 40.0))
-  assert exploration.acting_plan(c).pessimism == -1.0
+  assert acting_plan(c).pessimism == -1.0
 
 
 def test_the_first_planner_wave_follows_the_actor_prior_seed_waves():
   c = door_open_online.get_config('cpu')
-  first = lambda learn_start: exploration.ActingSchedule.from_config(c, learn_start).plan_start
+  first = lambda learn_start: acting_schedule(c, learn_start).plan_start
   assert first(c.online.seed_steps) == c.online.seed_steps  # From scratch.
   c.online.demos = 5  # Learning starts at once; the planner acts from the first wave ...
   assert first(0) == 0
@@ -260,9 +272,9 @@ def test_bad_intrinsic_settings_fail_in_one_line(overrides, match):
 
 def test_defaults_add_no_intrinsic_term_and_old_runs_load_them(tmp_path):
   c = door_open_online.get_config('cpu')
-  bonus = exploration.ActingSchedule.from_config(c, c.online.seed_steps).intrinsic(50_000)
+  bonus = acting_schedule(c, c.online.seed_steps).intrinsic(50_000)
   assert (float(bonus.pessimism), float(bonus.disagreement)) == (0.0, 0.0)
-  assert exploration.acting_plan(c).pessimism == c.online.act_pessimism  # As before.
+  assert acting_plan(c).pessimism == c.online.act_pessimism  # As before.
   raw = json.loads(c.to_json_best_effort())
   for name in ('act_schedule', 'act_pessimism_end', 'act_disagreement', 'act_disagreement_end',
                'act_dynamics_draws', 'act_proposal'):
@@ -280,5 +292,5 @@ def test_acting_without_the_proposal_needs_other_candidates():
     validate_config(c)
   c.plan.num_prior_candidates = 2
   validate_config(c)
-  assert exploration.acting_plan(c).num_candidates == 2  # The actor prior's alone.
+  assert acting_plan(c).num_candidates == 2  # The actor prior's alone.
   assert c.plan.num_candidates == 4  # Evaluation keeps the proposal's.

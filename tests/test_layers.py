@@ -120,7 +120,8 @@ def test_modules_at_most_400_lines_and_functions_at_most_60():
 
 # The package's layers, lowest first, one folder each: a module imports only modules of its own
 # folder or of folders below (BUILD.md, Layout). The root holds only __init__.py.
-LAYERS = ('ops', 'configs', 'nets', 'envs', 'data', 'model', 'learn', 'plan', 'eval', 'runs', 'cli')
+LAYERS = ('ops', 'configs', 'nets', 'envs', 'data', 'model', 'learn', 'plan', 'eval', 'online', 'runs',
+          'cli')
 
 
 def _layer_of(graph) -> dict:
@@ -160,9 +161,9 @@ def test_the_layer_check_sees_an_upward_import(monkeypatch):
 
 
 # Functions that take a whole ConfigDict (issue 103: typed settings at the boundaries instead).
-# A ratchet: lower it as settings replace the config; the target is at most 30. The migration's
-# steps (ops/legacy.py) are among them, one more per config version.
-MAX_CONFIG_TAKERS = 120
+# A ratchet: lower it as settings replace the config; the target is at most 30. (The migration's
+# steps, ops/legacy.py, are not among them: they work on the saved config.json as plain dicts.)
+MAX_CONFIG_TAKERS = 60
 
 
 def config_takers(root: str = ROOT) -> list:

@@ -9,6 +9,7 @@ import pytest
 
 from ld_mpc_jax.configs import door_open, mt10
 from ld_mpc_jax.eval import evaluation_suite, multitask_eval
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.ops import stats
 
 # Successes of held-out episodes per task (c has twice as many); the actor prior was evaluated
@@ -59,9 +60,9 @@ def _stub_checkpoint(monkeypatch):
   """evaluation_suite.evaluate_checkpoint stubbed: 2 records per (task, mode)."""
   calls = []
 
-  def fake(config, params, workdir, step, modes, splits, seeds, num_episodes, run=None,
+  def fake(spec, params, workdir, step, modes, splits, seeds, num_episodes, run=None,
            obs_noise_std=0.0, log=print):
-    calls.append((config.task, 'tasks' in config, params))
+    calls.append((spec.task, spec.multitask or spec.act.model.multitask, params))
     log(f'{modes[0]} done')
     k = len(calls)  # The k-th task: k successes of 2 (capped), k x 10 decisions/s.
     return [dict(split=splits[0], policy=m, eval_seed=seeds[0], episode=i, run=run,
@@ -75,16 +76,17 @@ def _stub_checkpoint(monkeypatch):
 def test_each_task_is_evaluated_as_a_single_task_agent(monkeypatch):
   calls = _stub_checkpoint(monkeypatch)
   config = mt10.get_config('smoke')
-  config.tasks = config.tasks[:3]
+  config.tasks, config.train.batch_size = config.tasks[:3], 12  # Equal shares (checked).
   params, lines = {'encoder': {}}, []  # No 'task' entry: tasks.bind returns it unchanged.
-  records = multitask_eval.evaluate_tasks(config, params, None, 0, ('plan',), ('held_out',),
+  spec = EvalSpec.from_config(config)
+  records = multitask_eval.evaluate_tasks(spec, params, None, 0, ('plan',), ('held_out',),
                                           (0,), 2, run=1, log=lines.append)
   names = list(config.tasks)
   assert calls == [(n, False, params) for n in names]
   assert [r['task'] for r in records] == [n for n in names for _ in range(2)]
   assert lines == [f'{n}: plan done' for n in names]
   calls.clear()
-  pooled = multitask_eval.evaluate_pooled(config, params, 'plan', 2, 0)
+  pooled = multitask_eval.evaluate_pooled(spec, params, 'plan', 2, 0)
   assert (pooled['successes'], pooled['episodes']) == (1 + 2 + 2, 6)
   assert pooled['decisions_per_s'] == 20.0  # The median of 10, 20 and 30.
 
@@ -92,20 +94,22 @@ def test_each_task_is_evaluated_as_a_single_task_agent(monkeypatch):
 def test_only_the_named_tasks_are_evaluated(monkeypatch):
   calls = _stub_checkpoint(monkeypatch)
   config = mt10.get_config('smoke')
-  config.tasks = config.tasks[:3]
-  params = {'encoder': {}}
-  records = multitask_eval.evaluate_tasks(config, params, None, 0, ('plan',), ('held_out',),
+  config.tasks, config.train.batch_size = config.tasks[:3], 12  # Equal shares (checked).
+  params, spec = {'encoder': {}}, EvalSpec.from_config(config)
+  records = multitask_eval.evaluate_tasks(spec, params, None, 0, ('plan',), ('held_out',),
                                           (0,), 2, log=lambda line: None, only=(config.tasks[2],))
   assert [c[0] for c in calls] == [config.tasks[2]]
   assert {r['task'] for r in records} == {config.tasks[2]}
   with pytest.raises(ValueError, match="task 'nope-v3' is not one of"):
-    multitask_eval.evaluate_tasks(config, params, None, 0, ('plan',), ('held_out',), (0,), 2,
+    multitask_eval.evaluate_tasks(spec, params, None, 0, ('plan',), ('held_out',), (0,), 2,
                                   only=('nope-v3',))
 
 
 def test_grid_picks_the_evaluation_for_the_config(monkeypatch):
-  splits, fn = multitask_eval.grid(mt10.get_config('smoke'), ('held_out', 'train'))
+  splits, fn = multitask_eval.grid(EvalSpec.from_config(mt10.get_config('smoke')),
+                                   ('held_out', 'train'))
   assert splits == ('held_out', 'train') and fn is multitask_eval.evaluate_tasks
   monkeypatch.setattr(evaluation_suite, 'dataset_goals', lambda c: (np.zeros((1, 6)), None))
-  splits, fn = multitask_eval.grid(door_open.get_config('smoke'), ('held_out', 'train'))
+  splits, fn = multitask_eval.grid(EvalSpec.from_config(door_open.get_config('smoke')),
+                                   ('held_out', 'train'))
   assert splits == ('held_out',) and fn is evaluation_suite.evaluate_checkpoint

@@ -12,11 +12,22 @@ from ld_mpc_jax import validate_config
 from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import losses
-from ld_mpc_jax.model import exploration, models, novelty, objective
+from ld_mpc_jax.online import schedule
+from ld_mpc_jax.online.settings import OnlineSettings
+from ld_mpc_jax.model import models, novelty, objective
 from ld_mpc_jax.ops import legacy
 from ld_mpc_jax.ops.numerics import window_returns
 from ld_mpc_jax.plan import planner
-from ld_mpc_jax.model.settings import LossSettings, ModelSettings
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
+
+
+def acting_plan(config):
+  """The acting planner's settings of `config` (OnlineSettings.acting_plan)."""
+  return OnlineSettings.from_config(config).acting_plan(PlanSettings.from_config(config))
+
+
+def acting_schedule(config, learn_start):
+  return schedule.ActingSchedule.of(OnlineSettings.from_config(config), learn_start)
 
 ON = {'loss.w_novelty': 1.0}
 D, A = 6, 2
@@ -176,17 +187,17 @@ def test_the_weight_is_annealed_and_validated():
   c.loss.w_novelty = 1.0
   c.online.act_schedule, c.online.act_novelty, c.online.act_novelty_end = 'linear', 2.0, 0.0
   c.online.env_steps = 1000
-  schedule = exploration.ActingSchedule.from_config(c, 0)
+  schedule = acting_schedule(c, 0)
   assert schedule.novelty(0) == 2.0
   assert schedule.novelty(500) == pytest.approx(1.0)
   assert float(schedule.intrinsic(1000).novelty) == 0.0
-  exploration.validate_acting(c)
+  validate_config(c)
   c.loss.w_novelty = 0.0
   with pytest.raises(ValueError, match='needs the learned exploration value'):
-    exploration.validate_acting(c)
+    validate_config(c)
   c.loss.w_novelty, c.online.act_novelty_end = 1.0, -1.0
   with pytest.raises(ValueError, match='must be >= 0'):
-    exploration.validate_acting(c)
+    validate_config(c)
 
 
 def test_a_version_2_config_gets_the_fields_off():
@@ -194,7 +205,8 @@ def test_a_version_2_config_gets_the_fields_off():
   c.version = 2
   del c.loss['w_novelty'], c.model['novelty_members'], c.model['novelty_target']
   del c.online['act_novelty'], c.online['act_novelty_end']
-  legacy.migrate(c)
+  from ld_mpc_jax.learn import checkpointing
+  c = checkpointing.migrate_config(c.to_dict())  # As on load.
   assert (c.version, c.loss.w_novelty, c.online.act_novelty, c.online.act_novelty_end) == (
       legacy.CONFIG_VERSION, 0.0, 0.0, 0.0)
   assert c.model.novelty_target == 'latent' and not c.model.novelty_target == 'obs'

@@ -9,10 +9,12 @@ import pytest
 
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.eval import evaluation_suite, noise_sweep
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.learn import losses
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan.agent import make_act, uses_prev
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
+from ld_mpc_jax.plan.modes import ActSettings
 
 CONSTANT = (5, 11, 12)  # Features constant in the toy data below.
 
@@ -49,17 +51,19 @@ def test_constant_features_are_masked_out_of_the_encoders_input(smoke_config):
 def test_evaluation_noise_only_where_configured(smoke_config):
   params = models.set_obs_normalization(
       models.init_params(smoke_config, jax.random.key(0)), _data(), mask_constant=True)
-  assert evaluation_suite.noise_stds(smoke_config, params, None) == 0.0  # The protocol.
+  spec = EvalSpec.from_config(smoke_config)
+  assert evaluation_suite.noise_stds(spec, params, None) == 0.0  # The protocol.
   c = with_overrides(smoke_config, {'eval.obs_noise': 0.02})
-  assert evaluation_suite.noise_stds(c, params, None) == 0.02  # Every dimension.
-  assert evaluation_suite.noise_stds(c, params, 0.05) == 0.05  # An explicit std wins.
-  c = with_overrides(c, {'eval.obs_noise_dims': 'informative'})
-  per_dim = evaluation_suite.noise_stds(c, params, None)
+  spec = EvalSpec.from_config(c)
+  assert evaluation_suite.noise_stds(spec, params, None) == 0.02  # Every dimension.
+  assert evaluation_suite.noise_stds(spec, params, 0.05) == 0.05  # An explicit std wins.
+  spec = EvalSpec.from_config(with_overrides(c, {'eval.obs_noise_dims': 'informative'}))
+  per_dim = evaluation_suite.noise_stds(spec, params, None)
   assert per_dim.shape == (39,) and np.all(per_dim[list(CONSTANT)] == 0)
   assert np.all(np.delete(per_dim, CONSTANT) == 0.02)
   del params['encoder']['obs_std']
   with pytest.raises(ValueError, match='normalize_obs'):
-    evaluation_suite.noise_stds(c, params, None)
+    evaluation_suite.noise_stds(spec, params, None)
 
 
 def test_environment_adds_per_dimension_noise_seeded_per_episode():
@@ -105,11 +109,11 @@ def test_training_noise_only_with_augmentation(smoke_config):
 def test_latent_filter_blends_the_models_prediction(smoke_config, smoke_params, mode):
   obs = np.linspace(-1, 1, 39).astype(np.float32)
   key = jax.random.key(0)
-  plain = make_act(smoke_config, mode)
+  plain = make_act(ActSettings.from_config(smoke_config), mode)
   c = with_overrides(smoke_config, {'plan.latent_filter': 0.5})
   assert uses_prev(PlanSettings.from_config(c), mode)
   assert not uses_prev(PlanSettings.from_config(smoke_config), 'actor')
-  filt = make_act(c, mode)
+  filt = make_act(ActSettings.from_config(c), mode)
   a0, carry, _ = filt(smoke_params, obs, key, 0, None)
   np.testing.assert_allclose(a0, plain(smoke_params, obs, key, 0, None)[0], atol=1e-6)
   _, z0, a_exec = carry  # (the mode's own carry, the latent acted on, the executed action)

@@ -9,8 +9,7 @@ import pytest
 from ld_mpc_jax import create_train_state, init_params, make_update
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.model import models
-from ld_mpc_jax.model.config_checks import validate_config
-from ld_mpc_jax.ops import legacy
+from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.plan.planner import make_plan
 from ld_mpc_jax.model.settings import ModelSettings
 
@@ -75,6 +74,8 @@ def test_configs_saved_before_the_field_keep_the_learned_encoder():
   config = door_open.get_config('smoke')
   config.version = 5
   del config.model['encoder_type']
-  assert legacy.migrate(config).model.encoder_type == 'mlp'
+  from ld_mpc_jax.learn import checkpointing
+  config = checkpointing.migrate_config(config.to_dict())  # As on load.
+  assert config.model.encoder_type == 'mlp'
   nets = models.build_networks(ModelSettings.from_config(config))
   assert isinstance(nets.encoder, models.Encoder)

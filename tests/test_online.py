@@ -18,10 +18,12 @@ import pytest
 
 from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.eval import evaluation_suite, run_files
+from ld_mpc_jax.eval.spec import GoalSource
 from ld_mpc_jax.model.search import CANDIDATE_KINDS
 from ld_mpc_jax.runs import online, online_seats
 from ld_mpc_jax.model.models import init_params
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
+from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.plan.planner import build_plan, make_plan
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -99,7 +101,7 @@ def test_any_task_by_flag_explores_only_while_acting(tmp_path, monkeypatch):
   assert evaluations and all(u[2:] == (0.0, 0.0) for u in evaluations)
   assert all(u[2:] == (0.2, 0.2) for u in used if u[0] == 'act')
   # The acting planner's candidates are the plain planner's plus noise, same key and params.
-  acting = online.acting_plan(config)
+  acting = OnlineSettings.from_config(config).acting_plan(PlanSettings.from_config(config))
   params = init_params(config, jax.random.key(0))
   z = jax.random.normal(jax.random.key(1), (config.model.latent_dim,))
   noisy = build_plan(ModelSettings.from_config(config), acting)(params, z, jax.random.key(2))
@@ -120,7 +122,8 @@ def test_any_task_by_flag_explores_only_while_acting(tmp_path, monkeypatch):
                      for i in range(buffer.num_episodes)])
   _, mt1 = envs.goals.mt1_goals('push-v3', config.data.seed)
   assert not envs.goals.matches(starts, mt1).any()  # None of the 50 goals of the MT1 seed.
-  vectors, mt1_seed = evaluation_suite.dataset_goals(config)  # No train split to evaluate.
+  vectors, mt1_seed = evaluation_suite.dataset_goals(  # No train split to evaluate.
+      GoalSource.from_config(config))
   assert vectors.shape == (0, 6) and mt1_seed is None
 
 
@@ -189,7 +192,7 @@ def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, mon
   o.act_pessimism, o.act_pessimism_end, o.act_disagreement = -1.0, 0.0, 2.0
   o.act_dynamics_draws = 2
   config.loss.w_novelty, o.act_novelty, o.act_novelty_end = 1.0, 3.0, 0.0  # The exploration value.
-  acting = online.acting_plan(config)  # Evaluation keeps the proposal's K - P candidates.
+  acting = OnlineSettings.from_config(config).acting_plan(PlanSettings.from_config(config))  # Evaluation keeps the proposal's K - P candidates.
   assert (acting.num_candidates, config.plan.num_candidates) == (2, 4)
   _record_policies(config, str(tmp_path / 'run'), monkeypatch)
   wave = _rows(tmp_path / 'run' / 'online.csv')[1]

@@ -23,7 +23,8 @@ def _config(seed, num_seeds):
 
 
 def _params(workdir, config):
-  state = checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir), config)
+  state = checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir),
+                                       checkpointing.abstract_state(config))
   return state.params
 
 

@@ -124,7 +124,7 @@ def test_j_gains_w_gamma_h_phi_of_the_last_latent(smoke_config):
 
 
 def test_the_weight_in_j_needs_the_head(smoke_config):
-  from ld_mpc_jax.model.config_checks import validate_config  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs.checks import validate_config  # pylint: disable=g-import-not-at-top
   with pytest.raises(ValueError, match='needs the progress head'):
     validate_config(with_overrides(smoke_config, {'plan.progress_weight': 1.0}))
   with pytest.raises(ValueError, match='must be >= 0'):

@@ -4,6 +4,7 @@ hand counts, and the predicted reward of a transition read from the window that 
 import numpy as np
 
 from ld_mpc_jax.eval import reward_calibration as rc
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 def test_auc_and_reliability_hand_counted():
@@ -28,11 +29,11 @@ def test_a_transitions_prediction_sees_only_its_own_window_start(smoke_config, s
   rng = np.random.default_rng(0)
   episode = dict(obs=rng.normal(size=(6, 39)).astype(np.float32),
                  action=rng.uniform(-1, 1, (6, 4)).astype(np.float32))
-  first = rc.predicted_rewards(smoke_config, smoke_params, episode)
+  first = rc.predicted_rewards(ModelSettings.from_config(smoke_config), smoke_params, episode)
   assert first.shape == (6,) and np.all(np.isfinite(first))
   changed = dict(obs=episode['obs'].copy(), action=episode['action'].copy())
   changed['obs'][4:] += 1.0
   changed['action'][4:] *= -1
-  second = rc.predicted_rewards(smoke_config, smoke_params, changed)
+  second = rc.predicted_rewards(ModelSettings.from_config(smoke_config), smoke_params, changed)
   np.testing.assert_allclose(first[:4], second[:4], rtol=1e-5, atol=1e-6)
   assert not np.allclose(first[4:], second[4:])

@@ -103,7 +103,7 @@ def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, mon
     run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=step))
     run_files.append_csv(os.path.join(workdir, run_files.LOSSES_CSV), dict(env_steps=step))
   monkeypatch.setattr(checkpointing, 'restore_intact',
-                      lambda manager, config, usable: (80, 'state', []))
+                      lambda manager, target, usable: (80, 'state', []))
   assert run.restore() == 'state'
   for name in (runs.EVAL_CSV, run_files.METRICS_CSV):
     assert [r['step'] for r in run_files.read_csv(os.path.join(workdir, name))] == ['40', '80']
@@ -113,7 +113,7 @@ def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, mon
   # No checkpoint (none saved yet, or all damaged and moved aside): the run starts over, and the
   # rows of the attempt before it go, so that they are not written twice.
   monkeypatch.setattr(checkpointing, 'restore_intact',
-                      lambda manager, config, usable: (None, None, []))
+                      lambda manager, target, usable: (None, None, []))
   run_files.append_csv(os.path.join(workdir, run_files.ONLINE_CSV), dict(env_steps=120))
   assert run.restore() is None
   assert run_files.read_csv(os.path.join(workdir, run_files.ONLINE_CSV)) == []

@@ -10,6 +10,7 @@ from ld_mpc_jax import encode, make_plan
 from ld_mpc_jax.model import search
 from ld_mpc_jax.model.search import CANDIDATE_KINDS
 from ld_mpc_jax.model.settings import PlanSettings
+from ld_mpc_jax.plan.modes import ActSettings
 
 TARGET = jnp.array([0.6, -0.4, 0.2, -0.8])  # The toy optimum: this action at every step.
 
@@ -138,7 +139,8 @@ def test_acting_policy_has_no_noise_unless_set(smoke_config, smoke_params):
   from ld_mpc_jax.plan.agent import BatchAgentPolicy
   from ld_mpc_jax.envs import goals
   obs = np.zeros((2, 39), np.float32)
-  policy = BatchAgentPolicy(smoke_config, smoke_params, 'plan', seed=0, chunk=0)
+  policy = BatchAgentPolicy(ActSettings.from_config(smoke_config), smoke_params, 'plan', seed=0,
+                            chunk=0)
   eps = [goals.Episode('x', i, 0, i, '', None) for i in range(2)]
   policy.start(eps)
   quiet = policy(obs, 0, np.ones(2, bool))
@@ -465,7 +467,7 @@ def test_batch_policy_carries_the_guard_between_decisions(smoke_config, smoke_pa
   from ld_mpc_jax.plan import agent
   c = safe_config(smoke_config, 0.0)
   c.plan.fallback_drop, c.plan.num_prior_candidates = 0.5, 1
-  act = agent.make_batch_act(c, 'plan')
+  act = agent.make_batch_act(ActSettings.from_config(c), 'plan')
   obs = jnp.asarray(np.random.default_rng(0).uniform(-1, 1, (3, 39)), jnp.float32)
   keys = agent.episode_keys(0, [1, 2, 3])
   active = jnp.ones(3, bool)

@@ -13,10 +13,10 @@ def test_every_variant_and_actor_variant_runs_with_its_own_settings(monkeypatch)
   config = overrides.with_overrides(door_open.get_config('smoke'), {'plan.num_prior_candidates': 1})
   monkeypatch.setattr(checkpointing, 'load_for_evaluation', lambda workdir: (config, 'P', 7))
   seen = []
-  def evaluate(cfg, params, workdir, step, modes, splits, seeds, episodes, run):
-    seen.append((modes[0], cfg.plan.safe_selection, cfg.eval.action_noise))
+  def evaluate(spec, params, workdir, step, modes, splits, seeds, episodes, run):
+    seen.append((modes[0], spec.act.plan.safe_selection, spec.eval.action_noise))
     return [dict(success=1, episode=i) for i in range(episodes)]
-  monkeypatch.setattr(multitask_eval, 'grid', lambda cfg, splits: (None, evaluate))
+  monkeypatch.setattr(multitask_eval, 'grid', lambda spec, splits: (None, evaluate))
   records = selection_runs.evaluate_run(
       'runs/x', [overrides.parse_variant('safe:plan.safe_selection=True')], ['actor'],
       episodes=2, seed=0, actor_variants=[overrides.parse_variant('noisy:eval.action_noise=0.05')])

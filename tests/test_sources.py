@@ -6,7 +6,7 @@ import pytest
 
 from ld_mpc_jax.configs import door_open, mt10
 from ld_mpc_jax import envs
-from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.data import sources
 from ld_mpc_jax.data.dataset import Dataset, DatasetError
 from tests.tdmpc2_chunks import fake_torch, write_mt80_chunk  # pylint: disable=unused-import
@@ -19,10 +19,10 @@ def test_data_sources_are_a_registry_with_one_line_errors():
   c.data.source = 'nosuch'
   with pytest.raises(ValueError, match=r"^config.data.source must be one of 'metaworld', "
                                        r"'tdmpc2', got 'nosuch'$"):
-    sources.check_source(c)
+    sources.check_source(sources.DataSpec.from_config(c))
   c.data.source = 'tdmpc2'
   with pytest.raises(ValueError, match='needs config.data.path'):
-    sources.check_source(c)
+    sources.check_source(sources.DataSpec.from_config(c))
 
 
 def test_tdmpc2_source_config_errors(fake_torch, tmp_path, smoke_config):
@@ -38,20 +38,20 @@ def test_tdmpc2_source_config_errors(fake_torch, tmp_path, smoke_config):
   write_mt80_chunk(tmp_path / 'chunk_1.pt', ['mw-door-open'], seed=1)
   c.data.path = str(tmp_path / 'chunk_*.pt')  # A glob pattern: both chunks.
   validate_config(c)
-  ds = sources.load_for_config(c)
+  ds = sources.load_dataset(sources.DataSpec.from_config(c))
   assert ds.num_episodes == 3 and (ds.obs_dim, ds.act_dim) == (39, 4)
   np.testing.assert_array_equal(ds.episode(1)['obs'], obs[2])
   c.task = 'drawer-open-v3'  # In TD-MPC2's list, not in these files.
   with pytest.raises(DatasetError, match=r"config.task='drawer-open-v3' \(TD-MPC2 "
                      r"'mw-drawer-open'\): No episodes"):
-    sources.load_for_config(c)
+    sources.load_dataset(sources.DataSpec.from_config(c))
   c.task, c.obs_dim = 'door-open-v3', 40
   with pytest.raises(DatasetError, match=r'sizes \(39, 4\), but config.obs_dim/action_dim are '
                      r'\(40, 4\)'):
-    sources.load_for_config(c)
+    sources.load_dataset(sources.DataSpec.from_config(c))
   c.obs_dim, c.data.path = 39, str(tmp_path / 'none_*.pt')
   with pytest.raises(DatasetError, match='No TD-MPC2 chunk files'):
-    sources.load_for_config(c)
+    sources.load_dataset(sources.DataSpec.from_config(c))
 
 
 def test_multitask_config_joins_every_tasks_scripted_data(monkeypatch):
@@ -71,7 +71,7 @@ def test_multitask_config_joins_every_tasks_scripted_data(monkeypatch):
   monkeypatch.setattr(sources.collection, 'get_or_collect', fake)
   c = mt10.get_config('smoke')
   c.tasks = tuple(names)
-  ds = sources.load_for_config(c, progress=False)
+  ds = sources.load_dataset(sources.DataSpec.from_config(c), progress=False)
   assert seen == names
   np.testing.assert_array_equal(ds.task_ids, [0, 1, 2])
   np.testing.assert_array_equal(ds.episode_lengths, [2, 3, 4])

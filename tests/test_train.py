@@ -11,6 +11,7 @@ import pytest
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import run_files
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.runs import loop as runs, train
 from ld_mpc_jax.ops import stats
 from ld_mpc_jax.data import replay
@@ -61,7 +62,7 @@ def test_smoke_run_end_to_end(tmp_path, data_dir):
   np.testing.assert_allclose(params['encoder']['obs_mean'], ds.observations.mean(0), rtol=1e-4,
                              atol=1e-5)
   assert 'critics' in params
-  result = runs.run_evaluation(config, params, 'actor', 1, seed=0)
+  result = runs.run_evaluation(EvalSpec.from_config(config), params, 'actor', 1, seed=0)
   assert result['num_episodes'] == 1
   # Both goal splits, held-out first, every policy on the same episodes, records on disk.
   assert list(report['evaluation']) == ['held_out', 'train']
@@ -220,7 +221,8 @@ def test_packed_run_evaluates_as_trained_and_holds_no_training_state(unevaluated
   for x, y in zip(jax.tree.leaves(ema), jax.tree.leaves(original)):
     np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
   assert np.any(np.asarray(jax.tree.leaves(ema)[0]))
-  state = checkpointing.restore_latest(checkpointing.checkpoint_manager(packed), config)
+  state = checkpointing.restore_latest(checkpointing.checkpoint_manager(packed),
+                                       checkpointing.abstract_state(config))
   assert not any(np.any(np.asarray(x)) for x in jax.tree.leaves(state.params))
   empty = tmp_path / 'empty'
   os.makedirs(empty / 'checkpoints')
@@ -234,7 +236,7 @@ def test_training_into_a_workdir_of_another_config_writes_nothing(tmp_path, data
   workdir = tmp_path / 'run'
   checkpointing.save_config(smoke(data_dir), str(workdir))
   before = (workdir / checkpointing.CONFIG_FILE).read_text()
-  monkeypatch.setattr(train.data, 'load_for_config', lambda c: 1 / 0)  # No work before the check.
+  monkeypatch.setattr(train.data, 'load_dataset', lambda spec: 1 / 0)  # No work before the check.
   with pytest.raises(checkpointing.WorkdirError, match=r'train.learning_rate \(.* -> 0.5\)'):
     train.train_and_evaluate(smoke(data_dir, learning_rate=0.5), str(workdir))
   assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]

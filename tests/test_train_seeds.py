@@ -24,7 +24,7 @@ def _config(seed, num_seeds):
 
 def _params(workdir, seed):
   return checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir),
-                                      _config(seed, 1)).params
+                                      checkpointing.abstract_state(_config(seed, 1))).params
 
 
 @pytest.fixture(scope='module')
@@ -109,7 +109,7 @@ def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(r
   config.train.num_seeds, config.online.init_from = 2, str(runs / 'both')
   source = online.check_init_from(config)
   config.data.update(source.data.to_dict())
-  job = online.OnlineJob(config, str(tmp_path / 'ft'), source, data.load_for_config(config))
+  job = online.OnlineJob(config, str(tmp_path / 'ft'), source, data.load_dataset(data.DataSpec.from_config(config)))
   job.bar.close()
   assert [seat.config.online.init_from for seat in job.seats] == [
       str(runs / 'both' / f'seed{s}') for s in (0, 1)]

@@ -113,6 +113,7 @@ def train_variant(base, name, dataset, seed, root, episodes) -> dict:
 def evaluate_on(root, source, dataset, seed, tag, overrides, mode, episodes, noise=0.0) -> dict:
   """Evaluates `mode` on `source`'s checkpoint with overrides; cached as <tag>.json beside it."""
   from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.runs.loop import run_evaluation
   workdir = os.path.join(root, dataset, source, f'seed{seed}')
   path = os.path.join(workdir, f'{tag}.json')
@@ -123,7 +124,8 @@ def evaluate_on(root, source, dataset, seed, tag, overrides, mode, episodes, noi
   # The episodes of the variants' own final evaluation (its first evaluation seed, not the
   # training seed), so that every policy of a training seed runs the same episodes.
   eval_seed = config.eval.seeds[0]
-  r = run_evaluation(config, params, mode, episodes, eval_seed, obs_noise_std=noise)
+  r = run_evaluation(EvalSpec.from_config(config), params, mode, episodes, eval_seed,
+                     obs_noise_std=noise)
   out = {k: v for k, v in r.items() if k != 'successes'}
   out['eval_seed'] = eval_seed
   out['num_params'] = _load(os.path.join(workdir, 'report.json'))['num_params']

@@ -96,15 +96,19 @@ def _run_demos(workdir):
   run with `online.demos`."""
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.eval import evaluation_suite  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.data import dataset, demos  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.eval.spec import GoalSource  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.data import dataset  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.online.settings import OnlineSettings  # pylint: disable=g-import-not-at-top
   with cli.one_line_errors():
     config = checkpointing.load_config(workdir)
     if 'online' not in config or not config.online.demos:
       raise ValueError(f'--run={workdir!r} is not an online run with demonstrations')
-  ds = dataset.Dataset.from_episodes(demos.get_demos(config), metadata=dict(
+  ds = dataset.Dataset.from_episodes(OnlineSettings.from_config(config).demonstrations(
+      config.task, config.seed, config.data.seed), metadata=dict(
       action_repeat=config.eval.action_repeat))
+  source = GoalSource.from_config(config)
   episodes = [ep for split in config.eval.splits for s in config.eval.seeds
-              for ep in evaluation_suite.episodes(config, split, s, config.eval.episodes)][
+              for ep in evaluation_suite.episodes(source, split, s, config.eval.episodes)][
                   :config.eval.episodes]
   return ds, episodes, config.task, config.seed
 

@@ -53,12 +53,14 @@ def main(argv):
   import jax
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval import evaluation, evaluation_suite
+  from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.plan.agent import BatchAgentPolicy, make_policy
   with cli.one_line_errors():
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
-  e = config.eval
+    spec = EvalSpec.from_config(config)
+  e = spec.eval
   chunk = e.plan_chunk if _CHUNK.value is None else _CHUNK.value
-  episodes = evaluation_suite.episodes(config, 'held_out', 0, _EPISODES.value)
+  episodes = evaluation_suite.episodes(spec.goals, 'held_out', 0, _EPISODES.value)
   kwargs = dict(action_repeat=e.action_repeat, max_episode_steps=e.max_episode_steps,
                 progress=False)
   load = os.getloadavg()[0]
@@ -66,13 +68,13 @@ def main(argv):
   for mode in _MODES.value:
     single_s, batch_s = [], []
     for _ in range(_REPEATS.value):
-      policy, reset = make_policy(config, params, mode, seed=0)
+      policy, reset = make_policy(spec.act, params, mode, seed=0)
       single, info1 = evaluation.run_episodes(evaluation.CallablePolicy(policy, reset), episodes,
-                                              config.task, batch_size=1, **kwargs)
+                                              spec.task, batch_size=1, **kwargs)
       single_s.append(info1['seconds'])
-      batch_policy = BatchAgentPolicy(config, params, mode, seed=0,
+      batch_policy = BatchAgentPolicy(spec.act, params, mode, seed=0,
                                       chunk=chunk if mode in ('plan', 'mppi') else None)
-      batched, info2 = evaluation.run_episodes(batch_policy, episodes, config.task,
+      batched, info2 = evaluation.run_episodes(batch_policy, episodes, spec.task,
                                                batch_size=_BATCH.value, **kwargs)
       batch_s.append(info2['seconds'])
     same = float(np.mean([a['success'] == b['success'] and a['length'] == b['length']

@@ -78,7 +78,8 @@ def _load_configs(online: bool) -> dict:
   """{spec: config} of --configs with the --config.field=value overrides, each validated; the
   first one online when `online`. ValueError naming the flag."""
   from ld_mpc_jax.configs.overrides import parse_items, with_overrides
-  from ld_mpc_jax.model.config_checks import online_enabled, validate_config
+  from ld_mpc_jax.configs import online_enabled
+  from ld_mpc_jax.runs.checks import validate_config
   configs = {}
   for spec in _CONFIGS.value:
     try:

@@ -28,14 +28,15 @@ def main(argv):
   config = _CONFIG.value
   try:  # Bad input: one line and exit code 2.
     tasks.check_tasks(config)
-    sources.check_source(config)
+    spec = sources.DataSpec.from_config(config)
+    sources.check_source(spec)
   except ValueError as err:
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
   rows = {}
-  for k, name in enumerate(tasks.task_names(config)):
+  for name in tasks.task_names(config):
     try:  # An unknown preset or a dataset that does not fit the config: one line too.
-      ds = sources.load_for_config(tasks.task_config(config, k))
+      ds = sources.load_dataset(spec.for_task(name))
     except ValueError as err:
       print(f'error: {err}', file=sys.stderr)
       sys.exit(2)

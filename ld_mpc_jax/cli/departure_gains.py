@@ -43,6 +43,7 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval import diagnostics
+  from ld_mpc_jax.eval.spec import EvalSpec
   if _SUMMARIZE.value:
     with cli.one_line_errors():
       with open(_SUMMARIZE.value) as f:
@@ -64,7 +65,8 @@ def main(argv):
     if _VARIANT.value:
       _, items = overrides.parse_variant(_VARIANT.value)
       config = overrides.with_overrides(config, items)
-  episodes = diagnostics.departure_gains(config, params, indices, _SEED.value,
+    spec = EvalSpec.from_config(config)
+  episodes = diagnostics.departure_gains(spec, params, indices, _SEED.value,
                                          _NUM_EPISODES.value, _DRAWS.value)
   summaries = [diagnostics.summarize_gains(e) for e in episodes]
   print(diagnostics.gains_markdown(summaries), end='')

@@ -35,6 +35,7 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.eval.diagnostics import (candidate_wins, held_out_windows, markdown,
                                       objective_correlation, success_by_k)
   with cli.one_line_errors():
@@ -45,11 +46,12 @@ def main(argv):
       if flag.value < 1:
         raise ValueError(f'--{flag.name} must be >= 1, got {flag.value}')
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
-  obs, actions, returns = held_out_windows(config, _DATA_EPISODES.value, _STRIDE.value)
-  report = dict(workdir=_WORKDIR.value, step=step, k=config.plan.num_candidates,
-                correlation=objective_correlation(config, params, obs, actions, returns),
-                candidate_wins=candidate_wins(config, params, obs[:, 0]),
-                success_by_k=success_by_k(config, params, ks, _EPISODES.value, _SEED.value))
+    spec = EvalSpec.from_config(config)
+  obs, actions, returns = held_out_windows(spec, _DATA_EPISODES.value, _STRIDE.value)
+  report = dict(workdir=_WORKDIR.value, step=step, k=spec.act.plan.num_candidates,
+                correlation=objective_correlation(spec.act, params, obs, actions, returns),
+                candidate_wins=candidate_wins(spec.act, params, obs[:, 0]),
+                success_by_k=success_by_k(spec, params, ks, _EPISODES.value, _SEED.value))
   md = markdown(report)
   with open(os.path.join(_WORKDIR.value, 'diagnose_objective.json'), 'w') as f:
     json.dump(report, f, indent=2)

@@ -39,6 +39,7 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval import diagnostics
+  from ld_mpc_jax.eval.spec import EvalSpec
   with cli.one_line_errors():
     indices = cli.int_list('--episodes', _EPISODES.value)
     if not indices or min(indices) < 0 or max(indices) >= _NUM_EPISODES.value:
@@ -50,9 +51,10 @@ def main(argv):
     runs = [('actor', 'actor', config)] + ([('plan', 'plan', config)] if _PLAN.value else [])
     for name, items in (overrides.parse_variant(v) for v in _VARIANTS.value):
       runs.append((f'plan[{name}]', 'plan', overrides.with_overrides(config, items)))
+    runs = [(policy, mode, EvalSpec.from_config(cfg)) for policy, mode, cfg in runs]
   rows = []
-  for policy, mode, cfg in runs:
-    rows.extend(diagnostics.trace_episodes(cfg, params, mode, indices, _SEED.value,
+  for policy, mode, spec in runs:
+    rows.extend(diagnostics.trace_episodes(spec, params, mode, indices, _SEED.value,
                                            _NUM_EPISODES.value, policy))
   print(diagnostics.trace_markdown(rows), end='')
   if _OUT.value:

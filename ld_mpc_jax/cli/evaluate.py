@@ -58,8 +58,9 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval import evaluation_suite, multitask_eval
+  from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.model import tasks
-  from ld_mpc_jax.model.config_checks import validate_config
+  from ld_mpc_jax.runs.checks import validate_config
   from ld_mpc_jax.eval.run_files import git_commit
   from ld_mpc_jax.runs.loop import run_evaluation
   from ld_mpc_jax.configs.overrides import parse_items, with_overrides
@@ -75,13 +76,14 @@ def main(argv):
     config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
     config = with_overrides(config, parse_items(OVERRIDES))
     validate_config(config)
-    splits, evaluate = multitask_eval.grid(config, _SPLITS.value)  # No train split for
+    spec = EvalSpec.from_config(config)
+    splits, evaluate = multitask_eval.grid(spec, _SPLITS.value)  # No train split for
     if splits != tuple(_SPLITS.value):  # TD-MPC2 data: its goals were random per episode.
       print(f'goal splits {list(splits)} only: the data were not collected on MT1 goals')
   episodes = _EPISODES.value or config.eval.episodes
   print(f'evaluating checkpoint step {step} of {_WORKDIR.value}: {", ".join(_MODES.value)}; '
         f'{episodes} per split {list(splits)} and seed {seeds}', file=sys.stderr, flush=True)
-  records = evaluate(config, params, None, step, _MODES.value, splits, seeds, episodes,
+  records = evaluate(spec, params, None, step, _MODES.value, splits, seeds, episodes,
                      run=config.seed)  # A multi-task agent: every task, records per task.
   summary = evaluation_suite.summarize(records)
   if tasks.is_multitask(config):
@@ -92,20 +94,11 @@ def main(argv):
          'git_commit': git_commit(), 'summary': summary, 'records': records}
   _write(path, out)  # The records are kept should the extras below fail.
   if _NOISE.value:  # Every policy of --modes at every eval.noise_stds, held-out goals.
-    from ld_mpc_jax.eval import noise_sweep
-    records = noise_sweep.run_sweep(config, params, _WORKDIR.value, step, _MODES.value, seeds,
-                                    episodes, config.eval.noise_stds, run=config.seed)
-    rows = noise_sweep.table(records)
-    out['noise_sweep'] = dict(dims=config.eval.obs_noise_dims, rows=rows, records=records)
-    stem = os.path.splitext(path)[0]
-    with open(stem + '_noise.md', 'w') as f:
-      f.write(noise_sweep.markdown(rows))
-    noise_sweep.plot(rows, stem + '_noise.png', f'{config.task}, noise on '
-                     f'{config.eval.obs_noise_dims} dimensions')
-    print(noise_sweep.markdown(rows) + f'wrote {stem}_noise.md and {stem}_noise.png')
+    out['noise_sweep'] = _noise_sweep(spec, params, step, seeds, episodes,
+                                      config.eval.noise_stds, path, run=config.seed)
   if _VIDEO.value:
     try:  # `video`: its own name; `path` is the JSON's.
-      video = run_evaluation(config, params, 'plan', 2, seeds[0], video_path=video)['video_path']
+      video = run_evaluation(spec, params, 'plan', 2, seeds[0], video_path=video)['video_path']
       out['video'] = video
       print(f'video: {video}')
     except Exception as err:  # pylint: disable=broad-except
@@ -113,6 +106,21 @@ def main(argv):
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
   _write(path, out)
   print(f'wrote {path} and {os.path.splitext(path)[0]}.md')
+
+
+def _noise_sweep(spec, params, step: int, seeds, episodes: int, stds, path: str, run) -> dict:
+  """Every policy of --modes at each observation-noise std of `stds` on held-out goals: the
+  output's entry, with its table and plot beside `path` (<out>_noise.md, <out>_noise.png)."""
+  from ld_mpc_jax.eval import noise_sweep  # pylint: disable=g-import-not-at-top
+  records = noise_sweep.run_sweep(spec, params, _WORKDIR.value, step, _MODES.value, seeds,
+                                  episodes, stds, run=run)
+  rows = noise_sweep.table(records)
+  stem, dims = os.path.splitext(path)[0], spec.eval.obs_noise_dims
+  with open(stem + '_noise.md', 'w') as f:
+    f.write(noise_sweep.markdown(rows))
+  noise_sweep.plot(rows, stem + '_noise.png', f'{spec.task}, noise on {dims} dimensions')
+  print(noise_sweep.markdown(rows) + f'wrote {stem}_noise.md and {stem}_noise.png')
+  return dict(dims=dims, rows=rows, records=records)
 
 
 def _write(path: str, out: dict) -> None:

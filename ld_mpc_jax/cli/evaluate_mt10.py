@@ -19,6 +19,7 @@ import os
 from absl import app, flags, logging
 
 from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.plan.modes import ActSettings
 
 _WORKDIR = flags.DEFINE_string('workdir', None, 'Training workdir of a multi-task run.')
 _MODES = flags.DEFINE_list('modes', ['plan', 'actor', 'proposal'], 'Policies to evaluate.')
@@ -45,7 +46,7 @@ class MT10Agent:
     import jax
     from ld_mpc_jax.plan import agent
     from ld_mpc_jax.model import tasks
-    self.act = agent.make_act(tasks.task_config(config, 0), mode)
+    self.act = agent.make_act(ActSettings.from_config(tasks.task_config(config, 0)), mode)
     self.params = [tasks.bind(params, k) for k in task_ids]
     self.task_ids, self.train_goals, self.repeat = task_ids, train_goals, config.eval.action_repeat
     self.key, self.episodes, self.bar = jax.random.key(seed), episodes, bar
@@ -94,6 +95,7 @@ def main(argv):
   from ld_mpc_jax.plan import agent
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval import evaluation_suite
+  from ld_mpc_jax.eval.spec import GoalSource
   from ld_mpc_jax.ops import stats
   from ld_mpc_jax.model import tasks
   try:  # Bad input: one line and exit code 2.
@@ -115,7 +117,8 @@ def main(argv):
   if missing:
     cli.fail(f'the run was not trained on MT10 tasks {missing}')
   task_ids = [tasks.task_names(config).index(n) for n in names]
-  train_goals = [evaluation_suite.dataset_goals(tasks.task_config(config, k))[0] for k in task_ids]
+  sources = [GoalSource.from_config(tasks.task_config(config, k)) for k in task_ids]
+  train_goals = [evaluation_suite.dataset_goals(source)[0] for source in sources]
   results = {}
   for mode in _MODES.value:
     with tqdm.tqdm(total=len(names) * _EPISODES.value, desc=f'MT10 {mode}') as bar:

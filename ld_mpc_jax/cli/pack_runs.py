@@ -28,7 +28,8 @@ def pack(workdir: str, out: str) -> str | None:
   name = os.path.basename(workdir)
   config = checkpointing.load_config(workdir)
   manager = checkpointing.checkpoint_manager(workdir)
-  step, state, _ = checkpointing.restore_intact(manager, config)  # Newest intact step.
+  step, state, _ = checkpointing.restore_intact(  # Newest intact step.
+      manager, checkpointing.abstract_state(config))
   if state is None:
     return None
   tmp = tempfile.mkdtemp()

@@ -33,7 +33,7 @@ _OUT = flags.DEFINE_string('out', None, 'JSON output (optional).')
 def main(argv):
   del argv
   from benchmarks import profiling
-  from ld_mpc_jax.model.config_checks import validate_config
+  from ld_mpc_jax.runs.checks import validate_config
   with cli.one_line_errors():
     validate_config(_CONFIG.value)
     if _CALLS.value < 1:

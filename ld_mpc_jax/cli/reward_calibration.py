@@ -28,12 +28,14 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-restore INFO lines out.
   from ld_mpc_jax.eval import reward_calibration as rc  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.eval.spec import EvalSpec  # pylint: disable=g-import-not-at-top
   predicted, success = [], []
   for workdir in _WORKDIR.value:
     with cli.one_line_errors():
       config, params, step = checkpointing.load_for_evaluation(workdir)
-    for episode in rc.record_episodes(config, params, _MODE.value, _EPISODES.value, _SEED.value):
-      predicted.append(rc.predicted_rewards(config, params, episode))
+      spec = EvalSpec.from_config(config)
+    for episode in rc.record_episodes(spec, params, _MODE.value, _EPISODES.value, _SEED.value):
+      predicted.append(rc.predicted_rewards(spec.act.model, params, episode))
       success.append(episode['success'])
     print(f'{workdir}: update step {step}, {_EPISODES.value} held-out episodes', flush=True)
   summary = rc.calibration(np.concatenate(predicted), np.concatenate(success))

@@ -71,7 +71,8 @@ def main(argv):
     jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
   from ld_mpc_jax.learn.checkpointing import WorkdirError
-  from ld_mpc_jax.model.config_checks import online_enabled, validate_config
+  from ld_mpc_jax.configs import online_enabled
+  from ld_mpc_jax.runs.checks import validate_config
   from ld_mpc_jax.data import DatasetError, sources
   from ld_mpc_jax.model.tasks import check_tasks
   from ld_mpc_jax.model.settings import ModelSettings
@@ -81,7 +82,7 @@ def main(argv):
     cli.check_workdir(_WORKDIR.value)
     validate_config(_CONFIG.value)
     check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
-    sources.check_source(_CONFIG.value)
+    sources.check_source(sources.DataSpec.from_config(_CONFIG.value))
     SeedGroups(t.num_seeds, devices)  # Enough devices for train.seed_devices (e.g. one GPU).
     if ModelSettings.from_config(_CONFIG.value).images:  # Frames are rendered: can they be?
       check_rendering()

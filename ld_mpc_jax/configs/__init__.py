@@ -5,6 +5,11 @@ import os
 CONFIG_DIR = os.path.dirname(os.path.abspath(__file__))
 
 
+def online_enabled(config) -> bool:
+  """Whether config asks for online training (`config.online.enabled`, ld_mpc_jax.runs.online)."""
+  return 'online' in config and bool(config.online.enabled)
+
+
 def schedule_end(config) -> int:
   """Simulator steps at which every annealed schedule of online training ends (the
   demonstrations' share, executed-action noise, `online.act_schedule='linear'`):

@@ -12,7 +12,8 @@ from ld_mpc_jax.data.dataset import save
 from ld_mpc_jax.data.multitask import make_buffer
 from ld_mpc_jax.data.multitask import TaskBalancedBuffer
 from ld_mpc_jax.data.replay import ReplayBuffer
-from ld_mpc_jax.data.sources import load_for_config
+from ld_mpc_jax.data.sources import DataSpec
+from ld_mpc_jax.data.sources import load_dataset
 from ld_mpc_jax.data.sources import SOURCES
 from ld_mpc_jax.data.tdmpc2 import load_tdmpc2
 from ld_mpc_jax.data.tdmpc2 import TASK_SETS
@@ -20,6 +21,6 @@ from ld_mpc_jax.data.tdmpc2 import TASK_SETS
 __all__ = [
     'collect', 'get_or_collect', 'PRESETS', 'summary', 'Dataset',
     'DatasetError', 'FORMAT_VERSION', 'load', 'save', 'ReplayBuffer',
-    'load_tdmpc2', 'TASK_SETS', 'load_for_config', 'SOURCES', 'make_buffer',
+    'load_tdmpc2', 'TASK_SETS', 'DataSpec', 'load_dataset', 'SOURCES', 'make_buffer',
     'TaskBalancedBuffer',
 ]

@@ -4,17 +4,15 @@ A few successful episodes, as MoDem (Hansen et al. 2022) and DEMO3 use five: Met
 scripted policy on training goals (MT1 seed `data.seed`, the goals online training uses), or the
 first successful episodes of a dataset file (`online.demo_path`). They stay in their own buffer
 and every batch draws a share of its windows from them, annealed linearly over the run
-(`demo_share`; MoDem: from 50% to 25%).
+(ld_mpc_jax.online.settings.OnlineSettings.demo_share; MoDem: from 50% to 25%).
 """
 
 import dataclasses
 import warnings
 from typing import Dict, List
 
-import ml_collections
 import numpy as np
 
-from ld_mpc_jax import configs
 from ld_mpc_jax import envs
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import dataset as dataset_lib
@@ -73,30 +71,6 @@ def load_demos(path: str, num: int) -> List[Episode]:
     raise dataset_lib.DatasetError(f'config.online.demo_path={path!r} holds {len(out)} successful episodes; '
                      f'config.online.demos asks for {num}')
   return out[:num]
-
-
-def get_demos(config: ml_collections.ConfigDict) -> List[Episode]:
-  """The demonstrations of an online run (none when `online.demos` = 0), with its reward."""
-  o = config.online
-  if not o.demos:
-    return []
-  if o.demo_path:
-    episodes = load_demos(o.demo_path, o.demos)
-  else:
-    episodes = collect_demos(config.task, o.demos, config.seed, config.data.seed,
-                             config.eval.action_repeat, o.episode_steps, o.demo_noise_std)
-  return with_reward(episodes, o.reward)
-
-
-def demo_share(config: ml_collections.ConfigDict, env_steps: int) -> float:
-  """Share of a batch's windows drawn from the demonstrations at `env_steps`: linear from
-  `online.demo_share_start` at 0 to `online.demo_share_end` at `online.schedule_steps` (0:
-  `online.env_steps`); 0 without demonstrations."""
-  o = config.online
-  if not o.demos:
-    return 0.0
-  frac = min(max(env_steps / configs.schedule_end(config), 0.0), 1.0)
-  return float(o.demo_share_start + frac * (o.demo_share_end - o.demo_share_start))
 
 
 def demo_rows(batch_size: int, share: float) -> int:

@@ -1,6 +1,6 @@
 """Data of a multi-task config: every task's scripted dataset, and task-balanced batches.
 
-Each task's dataset is the single-task one (`sources.load_for_config` of `tasks.task_config`:
+Each task's dataset is the single-task one (`sources.load_dataset` of `DataSpec.for_task`:
 the same presets, collected once and cached under the same file names). `concatenate` joins them
 into one Dataset whose `task_ids` give each episode's task index (the position in config.tasks);
 `TaskBalancedBuffer` draws the same number of windows from every task for each batch.
@@ -8,10 +8,8 @@ into one Dataset whose `task_ids` give each episode's task index (the position i
 
 from typing import Dict, List
 
-import ml_collections
 import numpy as np
 
-from ld_mpc_jax.envs import tasks
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import replay
 
@@ -72,9 +70,9 @@ class TaskBalancedBuffer:
       buffer.skip(batches, batch_size // self.num_tasks)
 
 
-def make_buffer(config: ml_collections.ConfigDict, dataset: dataset_lib.Dataset, seq_len: int,
-                seed: int = 0):
-  """The training sampler of `config`: task-balanced for a multi-task config, else uniform."""
-  if tasks.is_multitask(config):
-    return TaskBalancedBuffer(dataset, seq_len, tasks.num_tasks(config), seed=seed)
+def make_buffer(dataset: dataset_lib.Dataset, seq_len: int, num_tasks: int = 1, seed: int = 0):
+  """The training sampler: task-balanced over `num_tasks` tasks (a multi-task config), else
+  uniform."""
+  if num_tasks > 1:
+    return TaskBalancedBuffer(dataset, seq_len, num_tasks, seed=seed)
   return replay.ReplayBuffer(dataset, seq_len, seed=seed)

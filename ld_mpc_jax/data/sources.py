@@ -13,12 +13,11 @@ episode's task index (`load_multitask`).
 
 import dataclasses
 import functools
-from typing import Callable
+from typing import Callable, Tuple
 
 import ml_collections
 
 from ld_mpc_jax import envs
-from ld_mpc_jax.envs import tasks
 from ld_mpc_jax.data import collection
 from ld_mpc_jax.data import dataset as dataset_lib
 from ld_mpc_jax.data import multitask, pixels
@@ -29,44 +28,79 @@ TDMPC2_TASK_SET = 'mt80'  # The only TD-MPC2 task set with Meta-World tasks.
 
 
 @dataclasses.dataclass(frozen=True)
+class DataSpec:
+  """What training data a config names, built once (`from_config`): `config.data`, the task (or
+  the tasks of a multi-task config), the action repeat and the sizes it must have, and for a model
+  of images the frames to render (`frames` stacked RGB frames of `image_size`; 0: states)."""
+  source: str
+  path: str
+  preset: str
+  episodes: int
+  seed: int
+  dir: str
+  max_episode_steps: int
+  task: str
+  tasks: Tuple[str, ...]  # config.tasks of a multi-task config, else ().
+  action_repeat: int
+  obs_dim: int
+  action_dim: int
+  image_size: int
+  frames: int
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'DataSpec':
+    d, m = config.data, config.model
+    images = m.encoder_type == 'conv' or m.dynamics_type == 'conv_frames'  # ModelSettings.images
+    return cls(source=d.source, path=str(d.path), preset=d.preset, episodes=d.episodes,
+               seed=d.seed, dir=d.dir, max_episode_steps=d.max_episode_steps, task=config.task,
+               tasks=tuple(config.tasks) if 'tasks' in config and len(config.tasks) > 1 else (),
+               action_repeat=config.eval.action_repeat, obs_dim=config.obs_dim,
+               action_dim=config.action_dim, image_size=m.image_size,
+               frames=m.image_channels // 3 if images else 0)
+
+  def for_task(self, task: str) -> 'DataSpec':
+    """The single-task spec of one task of a multi-task spec."""
+    return dataclasses.replace(self, task=task, tasks=())
+
+
+@dataclasses.dataclass(frozen=True)
 class Source:
-  """A kind of training data: `check(config)` (no file access; one-line ValueError) and
-  `load(config, progress)` -> Dataset of config.task."""
-  check: Callable[[ml_collections.ConfigDict], None]
-  load: Callable[[ml_collections.ConfigDict, bool], dataset_lib.Dataset]
+  """A kind of training data: `check(spec)` (no file access; one-line ValueError) and
+  `load(spec, progress)` -> Dataset of spec.task."""
+  check: Callable[[DataSpec], None]
+  load: Callable[[DataSpec, bool], dataset_lib.Dataset]
 
 
 SOURCES = Registry('data source', 'config.data.source')
 
 
-def _check_scripted(config: ml_collections.ConfigDict) -> None:
-  collection.check_preset(config.data.preset, 'config.data.preset')
+def _check_scripted(spec: DataSpec) -> None:
+  collection.check_preset(spec.preset, 'config.data.preset')
 
 
-def _load_scripted(config: ml_collections.ConfigDict, progress: bool) -> dataset_lib.Dataset:
+def _load_scripted(spec: DataSpec, progress: bool) -> dataset_lib.Dataset:
   """The collected episodes; for a model of images, those episodes rendered (data.pixels)."""
-  d, a = config.data, config.eval.action_repeat
-  ds = collection.get_or_collect(config.task, d.preset, d.episodes, d.seed, d.dir,
-                                 action_repeat=a, max_episode_steps=d.max_episode_steps,
-                                 progress=progress)
-  m = config.model
-  if not (m.encoder_type == 'conv' or m.dynamics_type == 'conv_frames'):  # ModelSettings.images
+  ds = collection.get_or_collect(spec.task, spec.preset, spec.episodes, spec.seed, spec.dir,
+                                 action_repeat=spec.action_repeat,
+                                 max_episode_steps=spec.max_episode_steps, progress=progress)
+  if not spec.frames:
     return ds
-  path = collection.dataset_path(d.dir, config.task, d.preset, d.episodes, d.seed, a,
-                                 d.max_episode_steps)
-  return pixels.get_or_render(ds, path, m.image_size, m.image_channels // 3, progress=progress)
+  path = collection.dataset_path(spec.dir, spec.task, spec.preset, spec.episodes, spec.seed,
+                                 spec.action_repeat, spec.max_episode_steps)
+  return pixels.get_or_render(ds, path, spec.image_size, spec.frames, progress=progress)
 
 
-def _check_tdmpc2(config: ml_collections.ConfigDict) -> None:
-  if not config.data.path:
+def _check_tdmpc2(spec: DataSpec) -> None:
+  if not spec.path:
     raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
                      'pattern or directory)')
-  tdmpc2.tdmpc2_task_name(config.task)
+  tdmpc2.tdmpc2_task_name(spec.task)
 
 
 @functools.lru_cache(maxsize=2)
-def _load_tdmpc2_chunks(path: str, task: str) -> dataset_lib.Dataset:
-  """Cached: training and the evaluation's goal splits read the same (large) files once."""
+def load_tdmpc2_chunks(path: str, task: str) -> dataset_lib.Dataset:
+  """`task`'s episodes of TD-MPC2's chunk files at `path`; cached: training and the evaluation's
+  goal splits read the same (large) files once."""
   name = tdmpc2.tdmpc2_task_name(task)
   try:
     return tdmpc2.load_tdmpc2(path, TDMPC2_TASK_SET, [name])
@@ -75,9 +109,9 @@ def _load_tdmpc2_chunks(path: str, task: str) -> dataset_lib.Dataset:
         f'config.data.path={path!r} with config.task={task!r} (TD-MPC2 {name!r}): {err}') from err
 
 
-def _load_tdmpc2(config: ml_collections.ConfigDict, progress: bool) -> dataset_lib.Dataset:
+def _load_tdmpc2(spec: DataSpec, progress: bool) -> dataset_lib.Dataset:
   del progress  # Reading chunk files shows no bar.
-  return _load_tdmpc2_chunks(str(config.data.path), config.task)
+  return load_tdmpc2_chunks(spec.path, spec.task)
 
 
 SCRIPTED = envs.SUITE.name  # The suite's scripted episodes: the source of multi-task configs.
@@ -85,40 +119,39 @@ SOURCES.register(SCRIPTED, Source(_check_scripted, _load_scripted))
 SOURCES.register('tdmpc2', Source(_check_tdmpc2, _load_tdmpc2))
 
 
-def check_source(config: ml_collections.ConfigDict) -> None:
-  """Raises a one-line ValueError if config.data's source or path cannot work (no file access)."""
-  SOURCES.get(config.data.source).check(config)
+def check_source(spec: DataSpec) -> None:
+  """Raises a one-line ValueError if the spec's source or path cannot work (no file access)."""
+  SOURCES.get(spec.source).check(spec)
 
 
-def load_for_config(config: ml_collections.ConfigDict,
-                    progress: bool = True) -> dataset_lib.Dataset:
-  """The dataset `config` trains on, checked against config.obs_dim and config.action_dim.
+def load_dataset(spec: DataSpec, progress: bool = True) -> dataset_lib.Dataset:
+  """The dataset of `spec`, checked against its obs_dim and action_dim.
 
   Returns:
-    Dataset with observations [N, obs_dim] and actions [N, action_dim].
+    Dataset with observations [N, obs_dim] and actions [N, action_dim]; for a multi-task spec,
+    every task's dataset back to back, task_ids per episode (`load_multitask`).
 
   Raises:
     ValueError: bad source or path, or a task TD-MPC2 does not have.
     DatasetError (a ValueError): files missing or unreadable, no episodes of the task in them, or
       sizes other than config.obs_dim / action_dim.
   """
-  check_source(config)
-  if tasks.is_multitask(config):  # Every task's dataset, task_ids per episode.
-    return load_multitask(config, progress=progress)
-  ds = SOURCES.get(config.data.source).load(config, progress)
-  if ds.obs_dim != config.obs_dim or ds.act_dim != config.action_dim:
+  check_source(spec)
+  if spec.tasks:
+    return load_multitask(spec, progress=progress)
+  ds = SOURCES.get(spec.source).load(spec, progress)
+  if ds.obs_dim != spec.obs_dim or ds.act_dim != spec.action_dim:
     raise dataset_lib.DatasetError(
-        f'{config.data.source} data for {config.task} have observation/action sizes '
+        f'{spec.source} data for {spec.task} have observation/action sizes '
         f'({ds.obs_dim}, {ds.act_dim}), but config.obs_dim/action_dim are '
-        f'({config.obs_dim}, {config.action_dim})')
+        f'({spec.obs_dim}, {spec.action_dim})')
   return ds
 
 
-def load_multitask(config: ml_collections.ConfigDict, progress: bool = True) -> dataset_lib.Dataset:
+def load_multitask(spec: DataSpec, progress: bool = True) -> dataset_lib.Dataset:
   """All tasks' datasets, back to back; episode e of task k has task_ids[e] = k.
 
   Metadata: 'tasks' (the names, in index order) and 'per_task' (each task's own metadata).
   """
-  parts = [load_for_config(tasks.task_config(config, k), progress=progress)
-           for k in range(tasks.num_tasks(config))]
-  return multitask.concatenate(parts, list(tasks.task_names(config)))
+  parts = [load_dataset(spec.for_task(task), progress=progress) for task in spec.tasks]
+  return multitask.concatenate(parts, list(spec.tasks))

@@ -123,10 +123,9 @@ def make_episodes(task: str, split: str, eval_seed: int, num_episodes: int,
   return out
 
 
-def episodes_for(config, dataset_vectors: np.ndarray, data_mt1_seed: Optional[int],
+def episodes_for(task: str, dataset_vectors: np.ndarray, data_mt1_seed: Optional[int],
                  splits: Sequence[str], seeds: Sequence[int], num_episodes: int
                  ) -> List[Episode]:
-  """Episodes of every split and evaluation seed, in that order, for `config.task`."""
+  """Episodes of every split and evaluation seed, in that order, for `task`."""
   return [ep for split in splits for s in seeds
-          for ep in make_episodes(config.task, split, s, num_episodes, dataset_vectors,
-                                  data_mt1_seed)]
+          for ep in make_episodes(task, split, s, num_episodes, dataset_vectors, data_mt1_seed)]

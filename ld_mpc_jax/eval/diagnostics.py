@@ -18,30 +18,31 @@ import numpy as np
 from scipy import stats as sps
 
 from ld_mpc_jax import data
-from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.eval import evaluation, evaluation_suite
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.model import models, objective
-from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops import stats
 from ld_mpc_jax.plan import agent, planner
+from ld_mpc_jax.plan.modes import ActSettings
 from ld_mpc_jax.ops.numerics import discounted_return, two_hot_decode
 
 
 _HORIZON_MARGIN = 100  # Decisions of return a window needs after its start (1 / (1 - gamma)).
 
 
-def held_out_windows(config, data_episodes: int, stride: int):
+def held_out_windows(spec: EvalSpec, data_episodes: int, stride: int):
   """(obs [N, H+1, obs_dim], actions [N, H, A], returns [N]) from held-out dataset episodes."""
-  d, h = config.data, config.horizon
-  ds = data.get_or_collect(config.task, d.preset, data_episodes, d.seed + 1000, d.dir,
-                           action_repeat=config.eval.action_repeat)
+  d, m = spec.goals, spec.act.model
+  h = m.horizon
+  ds = data.get_or_collect(d.task, d.preset, data_episodes, d.seed + 1000, d.dir,
+                           action_repeat=d.action_repeat)
   obs, acts, rets = [], [], []
   for e in range(ds.num_episodes):
     ep = ds.episode(e)
     rewards = ep['reward']
     returns = np.zeros(len(rewards) + 1)
     for t in range(len(rewards) - 1, -1, -1):
-      returns[t] = rewards[t] + config.gamma * returns[t + 1]
+      returns[t] = rewards[t] + m.gamma * returns[t + 1]
     for t in range(0, max(len(rewards) - _HORIZON_MARGIN, 1), stride):
       if t + h <= len(rewards):
         obs.append(ep['obs'][t:t + h + 1])
@@ -50,9 +51,9 @@ def held_out_windows(config, data_episodes: int, stride: int):
   return np.stack(obs), np.stack(acts), np.asarray(rets)
 
 
-def objective_correlation(config, params, obs, actions, returns) -> dict:
+def objective_correlation(act: ActSettings, params, obs, actions, returns) -> dict:
   """Spearman of J (dynamics rollout and encoder latents) against Monte Carlo returns."""
-  m, p = ModelSettings.from_config(config), PlanSettings.from_config(config)
+  m, p = act.model, act.plan
   nets = models.build_networks(m)
   score = objective.make_score(m, nets, p.pessimism, p.progress_weight)
   rollout = planner.make_rollout(m, dataclasses.replace(p, num_prior_candidates=0), nets)
@@ -75,9 +76,9 @@ def objective_correlation(config, params, obs, actions, returns) -> dict:
               spearman_encoder=rho(j_encoder))
 
 
-def candidate_wins(config, params, obs) -> dict:
+def candidate_wins(act: ActSettings, params, obs) -> dict:
   """Fraction of plans won by each candidate kind, planning from each state obs [N, obs_dim]."""
-  plan = planner.make_plan(config)
+  plan = planner.build_plan(act.model, act.plan)
   z = models.encode(params, obs)
   kinds = [int(plan(params, z[i], jax.random.key(i)).kind) for i in range(len(obs))]
   names = planner.CANDIDATES.names()
@@ -96,14 +97,14 @@ def departures(records) -> dict:
               success_with_departures=solved(went), success_without_departures=solved(stayed))
 
 
-def success_by_k(config, params, ks, episodes: int, seed: int) -> list:
+def success_by_k(spec: EvalSpec, params, ks, episodes: int, seed: int) -> list:
   """Planner success on held-out goals per K, paired with the largest K."""
-  p = config.plan
+  p = spec.act.plan
   rows, outcomes = [], {}
   for k in ks:
     prior = round(p.num_prior_candidates * k / p.num_candidates) if k > 1 else 0
-    cfg = with_overrides(config, {'plan.num_candidates': k, 'plan.num_prior_candidates': prior})
-    r = evaluation_suite.evaluate_policy(cfg, params, 'plan', episodes, seed, 'held_out')
+    with_k = spec.with_plan(num_candidates=k, num_prior_candidates=prior)
+    r = evaluation_suite.evaluate_policy(with_k, params, 'plan', episodes, seed, 'held_out')
     outcomes[k] = [rec['success'] for rec in sorted(r['records'], key=lambda x: x['episode'])]
     rows.append(dict(k=k, prior=prior, successes=r['successes'], episodes=episodes,
                      success_rate=r['success_rate'], success_ci95=r['success_ci95'],
@@ -181,13 +182,13 @@ def summarize_trace(steps, last: int = 50) -> dict:
   return out
 
 
-def trace_episodes(config, params, mode: str, indices, seed: int, num_episodes: int,
+def trace_episodes(spec: EvalSpec, params, mode: str, indices, seed: int, num_episodes: int,
                    policy_name: str) -> list:
   """Rows of `summarize_trace` (with success, first_success, episode, policy) for episodes
   `indices` of the held-out list of evaluation seed `seed`, run by `mode` in lockstep."""
   log = []
   records = evaluation_suite.evaluate_policy(
-      config, params, mode, num_episodes, seed, batch_size=len(indices), only=indices,
+      spec, params, mode, num_episodes, seed, batch_size=len(indices), only=indices,
       env_factory=lambda **kw: _Recorder(log, **kw))['records']
   return [dict(policy=policy_name, episode=i, success=int(r['success']),
                first_success=r['first_success'], **summarize_trace(steps))
@@ -211,15 +212,14 @@ def trace_markdown(rows) -> str:
   return '\n'.join(lines) + '\n'
 
 
-def gain_parts(config, nets, draws: int = 8):
+def gain_parts(act: ActSettings, nets, draws: int = 8):
   """parts(params, z [D], sequence [H, A], key) -> (rewards [2], values [2]): for the executed
   sequence (0) and the actor prior acting along its own rollout (1), the discounted reward sum
   over the horizon, sum_i gamma^i r_i, and gamma^H times the value members' mean at z_H, each
   averaged over `draws` fresh dynamics rollouts. rewards + values is J at pessimism 0."""
-  m = ModelSettings.from_config(config)
+  m = act.model
   gamma, h = m.gamma, m.horizon
-  roll = planner.make_rollout(
-      m, dataclasses.replace(PlanSettings.from_config(config), num_prior_candidates=1), nets)
+  roll = planner.make_rollout(m, dataclasses.replace(act.plan, num_prior_candidates=1), nets)
   members = objective.get(m).make_members(m, nets)
 
   def one(params, z, sequence, key):
@@ -242,12 +242,11 @@ class _GainPolicy:
   agent.BatchAgentPolicy, so the decisions are the evaluation's), recording the gain parts of
   each decision that departs from the actor prior."""
 
-  def __init__(self, config, params, key_seed: int, draws: int):
-    settings = agent.ActSettings.from_config(config)
+  def __init__(self, settings: ActSettings, params, key_seed: int, draws: int):
     nets = models.build_networks(settings.model)
     self.params, self.key_seed = params, key_seed
     self.act, self.warm = agent.make_act(settings, 'plan'), agent.uses_prev(settings.plan, 'plan')
-    self.parts = jax.jit(gain_parts(config, nets, draws))
+    self.parts = jax.jit(gain_parts(settings, nets, draws))
     self.rows = []
 
   def start(self, episodes):
@@ -269,21 +268,21 @@ class _GainPolicy:
     return np.asarray(action)[None]
 
 
-def departure_gains(config, params, indices, seed: int, num_episodes: int,
+def departure_gains(spec: EvalSpec, params, indices, seed: int, num_episodes: int,
                     draws: int = 8) -> list:
   """For episodes `indices` of the held-out list of evaluation seed `seed`, run by the planner of
-  `config`: one dict per decision (t, departed, the environment's reward and info terms, and for
+  `spec`: one dict per decision (t, departed, the environment's reward and info terms, and for
   departures reward_gain, value_gain: the executed sequence's parts of J minus the actor
   prior's, `gain_parts`, and j_prior), grouped as [dict(episode, success, first_success,
   decisions=[...])]."""
-  e = config.eval
-  policy = _GainPolicy(config, params, seed if e.key_seed < 0 else e.key_seed, draws)
-  eps = evaluation_suite.episodes(config, 'held_out', seed, num_episodes)
+  e = spec.eval
+  policy = _GainPolicy(spec.act, params, seed if e.key_seed < 0 else e.key_seed, draws)
+  eps = evaluation_suite.episodes(spec.goals, 'held_out', seed, num_episodes)
   out = []
   for i in indices:
     log, policy.rows = [], []
     records, _ = evaluation.run_episodes(
-        policy, [eps[i]], config.task, batch_size=1, action_repeat=e.action_repeat,
+        policy, [eps[i]], spec.task, batch_size=1, action_repeat=e.action_repeat,
         max_episode_steps=e.max_episode_steps, env_factory=lambda **kw: _Recorder(log, **kw),
         progress=False)
     steps = log[-1]

@@ -15,22 +15,19 @@ import os
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import jax
-import ml_collections
 import numpy as np
 
-from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data, envs
 from ld_mpc_jax.eval import evaluation
 from ld_mpc_jax.ops import sharding, stats
 from ld_mpc_jax.plan.agent import BatchAgentPolicy
-from ld_mpc_jax.model.config_checks import online_enabled
 from ld_mpc_jax.model.models import informative_dims
 from ld_mpc_jax.eval.anchors import (  # noqa: F401 (re-exported: the suite's comparisons)
     against_anchor, against_anchor_by_task, anchor_markdown, behind_by_anchor_time,
     behind_markdown, by_task_markdown, departure_share)
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.envs.pixels import image_env_factory
-from ld_mpc_jax.model.settings import ModelSettings
+from ld_mpc_jax.eval.spec import EvalSpec, GoalSource, key_json
 
 POLICY_NAMES = {'plan': 'planner', 'actor': 'actor prior', 'proposal': 'proposal alone',
                 'mppi': 'MPPI (learned model)'}
@@ -44,7 +41,7 @@ def _dataset_goals(task, preset, episodes, seed, data_dir, action_repeat, max_ep
   return goals.dataset_goal_vectors(ds), ds.metadata.get('seed') if scripted else None
 
 
-def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Optional[int]]:
+def dataset_goals(source: GoalSource) -> Tuple[np.ndarray, Optional[int]]:
   """(goal vectors [E, 6] of the training data's episode starts, the data's MT1 seed).
 
   TD-MPC2 data (config.data.source 'tdmpc2') drew a random goal per episode, not MT1 goals: their
@@ -54,24 +51,23 @@ def dataset_goals(config: ml_collections.ConfigDict) -> Tuple[np.ndarray, Option
   `online.train_goals='random'` from a fresh goal each: no goal vectors to keep out of held_out
   (continuous draws) and no train split.
   """
-  d = config.data
-  if online_enabled(config) and not config.online.init_from:
-    if config.online.train_goals == 'random':
-      return np.zeros((0, envs.metaworld_env.GOAL_DIM)), None
-    return goals.mt1_goals(config.task, d.seed)[1], d.seed
-  if d.source == 'tdmpc2':
-    return goals.dataset_goal_vectors(data.load_for_config(config)), None
-  return _dataset_goals(config.task, d.preset, d.episodes, d.seed, d.dir,
-                        config.eval.action_repeat, d.max_episode_steps)
+  if source.online == 'random':
+    return np.zeros((0, envs.metaworld_env.GOAL_DIM)), None
+  if source.online:
+    return goals.mt1_goals(source.task, source.seed)[1], source.seed
+  if source.source == 'tdmpc2':
+    return goals.dataset_goal_vectors(source.load()), None
+  return _dataset_goals(source.task, source.preset, source.episodes, source.seed, source.dir,
+                        source.action_repeat, source.max_episode_steps)
 
 
-def available_splits(config: ml_collections.ConfigDict, splits: Sequence[str]) -> Tuple[str, ...]:
+def available_splits(source: GoalSource, splits: Sequence[str]) -> Tuple[str, ...]:
   """`splits` less 'train' when the data were not collected on MT1 goals (TD-MPC2's data).
 
   Raises:
     ValueError: nothing left (only the train split was asked for).
   """
-  if 'train' not in splits or dataset_goals(config)[1] is not None:
+  if 'train' not in splits or dataset_goals(source)[1] is not None:
     return tuple(splits)
   kept = tuple(s for s in splits if s != 'train')
   if not kept:
@@ -80,14 +76,14 @@ def available_splits(config: ml_collections.ConfigDict, splits: Sequence[str]) -
   return kept
 
 
-def episodes(config: ml_collections.ConfigDict, split: str, seed: int,
+def episodes(source: GoalSource, split: str, seed: int,
              num_episodes: int) -> List[goals.Episode]:
-  """The episodes of one goal split and evaluation seed for config's task and data."""
-  vectors, mt1_seed = dataset_goals(config)
-  return goals.make_episodes(config.task, split, seed, num_episodes, vectors, mt1_seed)
+  """The episodes of one goal split and evaluation seed for the source's task and data."""
+  vectors, mt1_seed = dataset_goals(source)
+  return goals.make_episodes(source.task, split, seed, num_episodes, vectors, mt1_seed)
 
 
-def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_episodes: int,
+def evaluate_policy(spec: EvalSpec, params, mode: str, num_episodes: int,
                     seed: int, split: str = 'held_out', obs_noise_std: Optional[float] = None,
                     video_path: Optional[str] = None, batch_size: Optional[int] = None,
                     progress: bool = False, only: Optional[Sequence[int]] = None,
@@ -102,24 +98,24 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   dimensions `config.eval.obs_noise_dims` says (`noise_stds`).
   Returns `evaluation.result`: summary, `records` (one per episode) and timing.
   """
-  e = config.eval
+  e = spec.eval
   batch = batch_size or (1 if video_path else e.batch_size)
   chunk = e.plan_chunk if mode in ('plan', 'mppi') else None
   # This process's devices: with several processes, each runs its own evaluation.
   mesh = sharding.make_mesh(jax.local_devices()) if e.data_parallel else None
   key_seed = seed if e.key_seed < 0 else e.key_seed  # The episodes keep `seed`.
-  policy = BatchAgentPolicy(config, params, mode, seed=key_seed, chunk=chunk, mesh=mesh)
+  policy = BatchAgentPolicy(spec.act, params, mode, seed=key_seed, chunk=chunk, mesh=mesh)
   policy.action_noise = float(e.action_noise)  # 0: exactly the policy's action.
-  m = ModelSettings.from_config(config)
+  m = spec.act.model
   if env_factory is None and m.images:  # The policy observes rendered frames.
     env_factory = image_env_factory(m.image_size, m.image_channels // 3)
-  eps = episodes(config, split, seed, num_episodes)
+  eps = episodes(spec.goals, split, seed, num_episodes)
   if only is not None:
     eps = [eps[i] for i in only]
   records, info = evaluation.run_episodes(
-      policy, eps, config.task, batch_size=batch, action_repeat=e.action_repeat,
+      policy, eps, spec.task, batch_size=batch, action_repeat=e.action_repeat,
       max_episode_steps=e.max_episode_steps,
-      obs_noise_std=noise_stds(config, params, obs_noise_std),
+      obs_noise_std=noise_stds(spec, params, obs_noise_std),
       env_factory=env_factory, video_path=video_path, video_episodes=len(eps),
       progress=progress, desc=f'{mode} {split} seed {seed}')
   for r in records:
@@ -127,15 +123,15 @@ def evaluate_policy(config: ml_collections.ConfigDict, params, mode: str, num_ep
   return evaluation.result(records, info)
 
 
-def noise_stds(config: ml_collections.ConfigDict, params, std: Optional[float]):
+def noise_stds(spec: EvalSpec, params, std: Optional[float]):
   """The observation noise of an evaluation: `std` (None: `config.eval.obs_noise`) on every
   dimension, or with `eval.obs_noise_dims = 'informative'` a per-dimension std [obs_dim], 0 on
   the dimensions constant in the training data (models.informative_dims)."""
-  std = float(config.eval.obs_noise if std is None else std)
-  if std > 0 and ModelSettings.from_config(config).images:
+  std = float(spec.eval.obs_noise if std is None else std)
+  if std > 0 and spec.act.model.images:
     raise ValueError('observation noise is noise on the state, and image observations are '
                      'rendered without it: no noise sweep for a model of images')
-  if config.eval.obs_noise_dims == 'all' or std == 0:
+  if spec.eval.obs_noise_dims == 'all' or std == 0:
     return std
   mask = informative_dims(params)
   if mask is None:
@@ -150,52 +146,38 @@ def noise_stds(config: ml_collections.ConfigDict, params, std: Optional[float]):
 CACHE_VERSION = 3
 
 
-def _json(value) -> str:
-  return json.dumps(value, sort_keys=True, default=str)
-
-
-def _without(section: dict, defaults: dict) -> dict:
-  """`section` less its fields whose values equal `defaults`' (compared as JSON)."""
-  return {k: v for k, v in section.items() if k not in defaults or _json(v) != _json(defaults[k])}
-
-
-def _cache_key(config, step: int, mode: str, split: str, seed: int, num_episodes: int,
+def _cache_key(spec: EvalSpec, step: int, mode: str, split: str, seed: int, num_episodes: int,
                obs_noise_std: float, version: int) -> str:
   """Digest of everything that changes one evaluation's episodes.
 
   From version 3, `plan` and `data` fields at their legacy defaults (checkpointing: the value a
   config saved before the field existed is read with) are left out: a new field at its no-change
-  default leaves every key, and so every cached cell, as it was.
+  default leaves every key, and so every cached cell, as it was (spec.CacheKey).
   """
-  plan, data_ = config.plan.to_dict(), config.data.to_dict()
-  if version >= 3:
-    neutral = checkpointing.legacy_defaults()
-    plan = _without(plan, neutral['plan'])
-    data_ = _without(data_, neutral['data'])
+  e = spec.eval
   relevant = dict(version=version, step=step, mode=mode, split=split, seed=seed,
-                  episodes=num_episodes, noise=obs_noise_std, task=config.task, plan=plan,
-                  mppi=config.mppi.to_dict(), data=data_,
-                  eval={k: config.eval[k] for k in ('action_repeat', 'max_episode_steps')})
-  if config.eval.key_seed >= 0:  # At its default (-1) it leaves every key as it was.
-    relevant['eval']['key_seed'] = config.eval.key_seed
-  if config.eval.action_noise > 0:  # Likewise at its default (0).
-    relevant['eval']['action_noise'] = float(config.eval.action_noise)
-  if obs_noise_std > 0 and config.eval.obs_noise_dims != 'all':  # Likewise.
-    relevant['eval']['obs_noise_dims'] = config.eval.obs_noise_dims
-  return hashlib.sha1(_json(relevant).encode()).hexdigest()[:10]
+                  episodes=num_episodes, noise=obs_noise_std, **spec.key.sections(version),
+                  eval=dict(action_repeat=e.action_repeat, max_episode_steps=e.max_episode_steps))
+  if e.key_seed >= 0:  # At its default (-1) it leaves every key as it was.
+    relevant['eval']['key_seed'] = e.key_seed
+  if e.action_noise > 0:  # Likewise at its default (0).
+    relevant['eval']['action_noise'] = float(e.action_noise)
+  if obs_noise_std > 0 and e.obs_noise_dims != 'all':  # Likewise.
+    relevant['eval']['obs_noise_dims'] = e.obs_noise_dims
+  return hashlib.sha1(key_json(relevant).encode()).hexdigest()[:10]
 
 
-def _cell_paths(workdir: str, config, step: int, mode: str, split: str, seed: int,
+def _cell_paths(workdir: str, spec: EvalSpec, step: int, mode: str, split: str, seed: int,
                 num_episodes: int, obs_noise_std: float) -> Tuple[str, str]:
   """(the cache file of one evaluation, the file version 2 named it or None): at version 3 an
   unchanged config still finds the cells cached by version 2 (the same episodes); a later
   version, raised for a change of the episodes, must not."""
   name = lambda v: os.path.join(workdir, 'evals', f'{mode}_{split}_seed{seed}_' + _cache_key(
-      config, step, mode, split, seed, num_episodes, obs_noise_std, v) + '.json')
+      spec, step, mode, split, seed, num_episodes, obs_noise_std, v) + '.json')
   return name(CACHE_VERSION), (name(2) if CACHE_VERSION == 3 else None)
 
 
-def evaluate_checkpoint(config: ml_collections.ConfigDict, params, workdir: Optional[str],
+def evaluate_checkpoint(spec: EvalSpec, params, workdir: Optional[str],
                         step: int, modes: Sequence[str], splits: Sequence[str],
                         seeds: Sequence[int], num_episodes: int, run: Any = None,
                         obs_noise_std: Optional[float] = None, log=print,
@@ -206,17 +188,17 @@ def evaluate_checkpoint(config: ml_collections.ConfigDict, params, workdir: Opti
   `obs_noise` (None: `config.eval.obs_noise`). Each cell is cached under <workdir>/evals/ and
   reused when its inputs are unchanged.
   """
-  obs_noise_std = float(config.eval.obs_noise if obs_noise_std is None else obs_noise_std)
+  obs_noise_std = float(spec.eval.obs_noise if obs_noise_std is None else obs_noise_std)
   records = []
   for split, seed, mode in itertools.product(splits, seeds, modes):
-    path, old = (_cell_paths(workdir, config, step, mode, split, seed, num_episodes,
+    path, old = (_cell_paths(workdir, spec, step, mode, split, seed, num_episodes,
                              obs_noise_std) if workdir else (None, None))
     found = next((p for p in (path, old) if p and os.path.exists(p)), None)
     if found:
       with open(found) as f:
         cell = json.load(f)
     else:
-      r = evaluate_policy(config, params, mode, num_episodes, seed, split, obs_noise_std,
+      r = evaluate_policy(spec, params, mode, num_episodes, seed, split, obs_noise_std,
                           progress=progress)
       cell = dict(summary={k: v for k, v in r.items() if k not in ('records', 'outcomes')},
                   records=r['records'])

@@ -1,39 +1,40 @@
 """Evaluating a multi-task agent: every task with the single-task evaluation, then per task.
 
-Task k is evaluated as a single-task agent: `tasks.task_config(config, k)` with
-`tasks.bind(params, k)` through `evaluation_suite` (batched episodes, held-out and train goals
-of that task's data, cached cells under <workdir>/evals/). Records gain a `task` field, so
-policies still pair on the same episodes. `per_task` tabulates success per task, split and
-policy with Wilson intervals, and the average over tasks; `markdown` and `plot` render it.
+Task k is evaluated as a single-task agent: its spec (`EvalSpec.tasks`: that of
+`tasks.task_config(config, k)`) with `tasks.bind(params, k)` through `evaluation_suite` (batched
+episodes, held-out and train goals of that task's data, cached cells under <workdir>/evals/).
+Records gain a `task` field, so policies still pair on the same episodes. `per_task` tabulates
+success per task, split and policy with Wilson intervals, and the average over tasks; `markdown`
+and `plot` render it.
 """
 
 import os
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
-import ml_collections
 import numpy as np
 
 from ld_mpc_jax.eval import evaluation_suite
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.ops import stats
 from ld_mpc_jax.model import tasks
 
 
-def evaluate_tasks(config: ml_collections.ConfigDict, params, workdir, step: int,
+def evaluate_tasks(spec: EvalSpec, params, workdir, step: int,
                    modes: Sequence[str], splits: Sequence[str], seeds: Sequence[int],
                    num_episodes: int, run: Any = None, obs_noise_std: float = 0.0,
                    log=print, only: Optional[Sequence[str]] = None) -> List[dict]:
   """`evaluation_suite.evaluate_checkpoint` for every task (or the tasks named in `only`);
   records carry `task` (its name)."""
-  names = tasks.task_names(config)
+  names = [name for name, _ in spec.tasks]
   unknown = [n for n in (only or ()) if n not in names]
   if unknown:
     raise ValueError(f'task {unknown[0]!r} is not one of this checkpoint\'s tasks {list(names)}')
   records = []
-  for k, name in enumerate(names):
+  for k, (name, task_spec) in enumerate(spec.tasks):
     if only and name not in only:
       continue
     recs = evaluation_suite.evaluate_checkpoint(
-        tasks.task_config(config, k), tasks.bind(params, k), workdir, step, modes, splits, seeds,
+        task_spec, tasks.bind(params, k), workdir, step, modes, splits, seeds,
         num_episodes, run=run, obs_noise_std=obs_noise_std,
         log=lambda line, name=name: log(f'{name}: {line}'))
     for r in recs:
@@ -42,27 +43,26 @@ def evaluate_tasks(config: ml_collections.ConfigDict, params, workdir, step: int
   return records
 
 
-def grid(config: ml_collections.ConfigDict, splits: Sequence[str]) -> Tuple[Tuple[str, ...],
-                                                                            Callable]:
-  """(the goal splits `config` can use, the grid evaluation for it).
+def grid(spec: EvalSpec, splits: Sequence[str]) -> Tuple[Tuple[str, ...], Callable]:
+  """(the goal splits `spec` can use, the grid evaluation for it).
 
-  The function is `evaluate_tasks` for a multi-task config (scripted data: both splits), else
+  The function is `evaluate_tasks` for a multi-task spec (scripted data: both splits), else
   `evaluation_suite.evaluate_checkpoint` (no train split for TD-MPC2's data).
   """
-  if tasks.is_multitask(config):
+  if spec.multitask:
     return tuple(splits), evaluate_tasks
-  return (evaluation_suite.available_splits(config, splits),
+  return (evaluation_suite.available_splits(spec.goals, splits),
           evaluation_suite.evaluate_checkpoint)
 
 
-def evaluate_pooled(config: ml_collections.ConfigDict, params, mode: str, num_episodes: int,
+def evaluate_pooled(spec: EvalSpec, params, mode: str, num_episodes: int,
                     seed: int, split: str = 'held_out',
                     obs_noise_std: float = 0.0) -> Dict[str, Any]:
   """One policy on `num_episodes` episodes of every task, pooled (periodic evaluations).
 
   Returns `stats.summarize` of all records plus the median decisions/s over tasks.
   """
-  records = evaluate_tasks(config, params, None, 0, (mode,), (split,), (seed,), num_episodes,
+  records = evaluate_tasks(spec, params, None, 0, (mode,), (split,), (seed,), num_episodes,
                            log=lambda line: None, obs_noise_std=obs_noise_std)
   out = stats.summarize(records)
   out['decisions_per_s'] = float(np.median([r['decisions_per_s'] for r in records]))

@@ -9,12 +9,13 @@ planner, and `of_clean` is a policy's success over its own success without noise
 from typing import Any, Dict, List, Optional, Sequence
 
 from ld_mpc_jax.eval import evaluation_suite
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.ops import stats
 
 POLICY_NAMES = evaluation_suite.POLICY_NAMES
 
 
-def run_sweep(config, params, workdir: Optional[str], step: int, modes: Sequence[str],
+def run_sweep(spec: EvalSpec, params, workdir: Optional[str], step: int, modes: Sequence[str],
               seeds: Sequence[int], num_episodes: int, stds: Sequence[float], run: Any = None,
               log=print, progress: bool = True) -> List[dict]:
   """The records of every (std, mode, evaluation seed) on held-out goals, each cell cached under
@@ -22,7 +23,7 @@ def run_sweep(config, params, workdir: Optional[str], step: int, modes: Sequence
   records = []
   for std in stds:
     for rec in evaluation_suite.evaluate_checkpoint(
-        config, params, workdir, step, modes, ('held_out',), seeds, num_episodes, run=run,
+        spec, params, workdir, step, modes, ('held_out',), seeds, num_episodes, run=run,
         obs_noise_std=float(std), log=log, progress=progress):
       rec['obs_noise'] = float(std)
       records.append(rec)

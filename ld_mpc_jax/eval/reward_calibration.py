@@ -14,10 +14,10 @@ from typing import Dict, List, Sequence
 
 import jax
 import jax.numpy as jnp
-import ml_collections
 import numpy as np
 
 from ld_mpc_jax.eval import evaluation, evaluation_suite
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.model import models
 from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.ops.numerics import two_hot_decode
@@ -26,11 +26,11 @@ from ld_mpc_jax.plan.agent import make_policy
 BINS = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9)
 
 
-def record_episodes(config: ml_collections.ConfigDict, params, mode: str, num_episodes: int,
+def record_episodes(spec: EvalSpec, params, mode: str, num_episodes: int,
                     seed: int) -> List[Dict[str, np.ndarray]]:
   """Held-out episodes of `mode`: each a dict of obs [L, obs_dim] (before each action), action
   [L, A] and success [L] (1 on the last transition of a solved episode)."""
-  policy, reset = make_policy(config, params, mode, seed=0)
+  policy, reset = make_policy(spec.act, params, mode, seed=0)
   episodes, current = [], {}
 
   def recording(obs):
@@ -45,11 +45,11 @@ def record_episodes(config: ml_collections.ConfigDict, params, mode: str, num_ep
     current.update(obs=[], action=[])
     reset(episode)
 
-  held_out = evaluation_suite.episodes(config, 'held_out', seed, num_episodes)
+  held_out = evaluation_suite.episodes(spec.goals, 'held_out', seed, num_episodes)
   records, _ = evaluation.run_episodes(evaluation.CallablePolicy(recording, start), held_out,
-                                       config.task, batch_size=1,
-                                       action_repeat=config.eval.action_repeat,
-                                       max_episode_steps=config.eval.max_episode_steps,
+                                       spec.task, batch_size=1,
+                                       action_repeat=spec.eval.action_repeat,
+                                       max_episode_steps=spec.eval.max_episode_steps,
                                        progress=False)
   episodes.append(dict(current))
   out = []
@@ -62,10 +62,10 @@ def record_episodes(config: ml_collections.ConfigDict, params, mode: str, num_ep
   return out
 
 
-def predicted_rewards(config: ml_collections.ConfigDict, params, episode) -> np.ndarray:
+def predicted_rewards(m: ModelSettings, params, episode) -> np.ndarray:
   """r_t for every transition of `episode` [L]: the objective's first position of the window
-  that starts at t (later positions zero-padded; causal, so they do not change it)."""
-  m = ModelSettings.from_config(config)
+  that starts at t (later positions zero-padded; causal, so they do not change it), of the
+  model of settings `m`."""
   nets = models.build_networks(m)
   h = m.horizon
   z = models.encode(params, episode['obs'])  # [L, D]

@@ -13,7 +13,8 @@ def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
   import functools
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval import multitask_eval
-  from ld_mpc_jax.model.config_checks import validate_config
+  from ld_mpc_jax.eval.spec import EvalSpec
+  from ld_mpc_jax.model.config_checks import check_config
   config, params, step = checkpointing.load_for_evaluation(workdir)  # --tasks checked in main.
   records = []
   runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items))
@@ -22,11 +23,12 @@ def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
   runs += [(f'actor[{name}]', 'actor', overrides.with_overrides(config, items))
            for name, items in actor_variants]
   for policy, mode, cfg in runs:
-    validate_config(cfg)
-    _, evaluate = multitask_eval.grid(cfg, ('held_out',))
+    check_config(cfg)
+    spec = EvalSpec.from_config(cfg)
+    _, evaluate = multitask_eval.grid(spec, ('held_out',))
     if only_tasks:
       evaluate = functools.partial(evaluate, only=tuple(only_tasks))
-    recs = evaluate(cfg, params, workdir, step, (mode,), ('held_out',), (seed,), episodes,
+    recs = evaluate(spec, params, workdir, step, (mode,), ('held_out',), (seed,), episodes,
                     run=workdir)
     for r in recs:  # The training seed lets compare_sweeps pair two configs' checkpoints.
       r.update(policy=policy, train_seed=int(config.seed))

@@ -181,8 +181,8 @@ def remove_partial(manager: ocp.CheckpointManager, step: int) -> None:
       shutil.rmtree(os.path.join(folder, name), ignore_errors=True)
 
 
-def _flat(config: ml_collections.ConfigDict) -> dict:
-  """{'section.field': value} of `config` as JSON (tuples and lists alike)."""
+def _flat(tree: dict) -> dict:
+  """{'section.field': value} of a config as nested dicts, as JSON (tuples and lists alike)."""
   out = {}
   def walk(node, prefix):
     for k, v in node.items():
@@ -190,7 +190,7 @@ def _flat(config: ml_collections.ConfigDict) -> dict:
         walk(v, f'{prefix}{k}.')
       else:
         out[prefix + k] = v
-  walk(json.loads(config.to_json_best_effort()), '')
+  walk(json.loads(json.dumps(tree, default=str)), '')
   return out
 
 
@@ -199,12 +199,11 @@ def _flat(config: ml_collections.ConfigDict) -> dict:
 PLACEMENT_FIELDS = ('train.seed_devices',)
 
 
-def config_changes(saved: ml_collections.ConfigDict,
-                   config: ml_collections.ConfigDict) -> List[str]:
-  """'field (old -> new)' for every field whose value differs, sorted by name, but the
-  `PLACEMENT_FIELDS`; a field only one side has shows as absent. `saved` is compared as loaded
-  (`migrate_config`)."""
-  old, new = _flat(saved), _flat(config)
+def config_changes(saved: dict, current: dict) -> List[str]:
+  """'field (old -> new)' for every field whose value differs between two configs as nested
+  dicts (ConfigDict.to_dict()), sorted by name, but the `PLACEMENT_FIELDS`; a field only one side
+  has shows as absent. `saved` is compared as loaded (`migrate_config`)."""
+  old, new = _flat(saved), _flat(current)
   for k in PLACEMENT_FIELDS:
     old.pop(k, None), new.pop(k, None)
   show = lambda flat, k: json.dumps(flat[k]) if k in flat else 'absent'
@@ -222,7 +221,7 @@ def check_workdir(config: ml_collections.ConfigDict, workdir: str,
   if not os.path.exists(os.path.join(workdir, CONFIG_FILE)):
     return
   saved = load_config(workdir)
-  changes = config_changes(saved, config)
+  changes = config_changes(saved.to_dict(), config.to_dict())
   if not changes:
     return
   if not continue_with_changes:
@@ -234,16 +233,14 @@ def check_workdir(config: ml_collections.ConfigDict, workdir: str,
   if has_checkpoint(workdir) and shapes(saved) != shapes(config):
     raise WorkdirError(f'{workdir}: even with --continue_with_changes, its checkpoints cannot '
                        f'continue under this config: the networks differ ({", ".join(changes)})')
-  _warn_moved_schedules(saved, config)
+  if 'online' in saved and 'online' in config:
+    _warn_moved_schedules(configs.schedule_end(saved), configs.schedule_end(config))
 
 
-def _warn_moved_schedules(saved: ml_collections.ConfigDict,
-                          config: ml_collections.ConfigDict) -> None:
+def _warn_moved_schedules(old: int, new: int) -> None:
   """Warns, in one line, when a continued online run's annealed schedules (they end at
-  `online.env_steps` unless `online.schedule_steps` is set) would end elsewhere than its own."""
-  if 'online' not in saved or 'online' not in config:
-    return
-  old, new = configs.schedule_end(saved), configs.schedule_end(config)
+  `online.env_steps` unless `online.schedule_steps` is set: configs.schedule_end) would end at
+  `new` simulator steps, elsewhere than its own (`old`)."""
   if old != new:
     _warn(f'the annealed schedules (demonstrations\' share, executed-action noise, '
           f'act_schedule=linear) of this run ended at {old} simulator steps and now end at {new}; '
@@ -253,7 +250,7 @@ def _warn_moved_schedules(saved: ml_collections.ConfigDict,
 def record_config(config: ml_collections.ConfigDict, workdir: str) -> str:
   """Saves config.json; a different earlier one is kept as config.<n>.json (n = 1, 2, ...)."""
   path = os.path.join(workdir, CONFIG_FILE)
-  if os.path.exists(path) and config_changes(load_config(workdir), config):
+  if os.path.exists(path) and config_changes(load_config(workdir).to_dict(), config.to_dict()):
     n = 1
     while os.path.exists(os.path.join(workdir, f'config.{n}.json')):
       n += 1
@@ -274,16 +271,16 @@ def load_config(workdir: str) -> ml_collections.ConfigDict:
   if not isinstance(raw, dict):
     raise WorkdirError(f'{path} is damaged (holds a {type(raw).__name__}, not a config); put '
                        'back a good copy, or move the workdir aside and start the run again')
-  return migrate_config(ml_collections.ConfigDict(raw))
+  return migrate_config(raw)
 
 
-def migrate_config(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """A saved config brought up to the current version, once, on load (legacy.migrate): fields
-  added since it was saved get the values that mean what its run did; renamed sections get
-  their new name (`objective` -> `critic`); a config of a newer version is refused on one line.
-  Sequence fields saved as JSON lists stay lists (a ConfigDict keeps a field's type on
-  assignment); the library reads them only as sequences."""
-  return legacy.migrate(config)
+def migrate_config(saved: dict) -> ml_collections.ConfigDict:
+  """The ConfigDict of a saved config (a loaded config.json as nested dicts, left as it is) brought
+  up to the current version, once, on load (legacy.migrate): fields added since it was saved get
+  the values that mean what its run did; renamed sections get their new name (`objective` ->
+  `critic`); a config of a newer version is refused on one line. Sequence fields saved as JSON
+  lists stay lists; the library reads them only as sequences."""
+  return ml_collections.ConfigDict(legacy.migrate(saved))
 
 
 def abstract_state(config: ml_collections.ConfigDict) -> TrainState:
@@ -325,10 +322,11 @@ def _quiet_abandoned_reads() -> None:
       lambda record: 'exception was never retrieved' not in record.getMessage())
 
 
-def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.ConfigDict,
+def restore_intact(manager: ocp.CheckpointManager, target: TrainState,
                    usable: Optional[Callable[[int], Optional[str]]] = None,
                    ) -> Tuple[Optional[int], Optional[TrainState], List[int]]:
-  """(step, state, skipped): the newest checkpoint that restores, newest first.
+  """(step, state, skipped): the newest checkpoint that restores into `target` (the state's
+  shapes, dtypes and placement: `abstract_state`), newest first.
 
   A step whose files fail to restore (damaged or truncated), or for which `usable(step)` gives
   a reason (e.g. an online run's missing buffer file), is skipped with one warning line naming
@@ -340,7 +338,7 @@ def restore_intact(manager: ocp.CheckpointManager, config: ml_collections.Config
     reason = usable(step) if usable is not None else None
     if reason is None:
       try:
-        state = manager.restore(step, args=ocp.args.StandardRestore(abstract_state(config)))
+        state = manager.restore(step, args=ocp.args.StandardRestore(target))
       except Exception as err:  # pylint: disable=broad-except (orbax/tensorstore: many kinds)
         reason = _one_line(err)
         _quiet_abandoned_reads()
@@ -376,24 +374,25 @@ def set_aside(workdir: str, manager: ocp.CheckpointManager, steps: List[int]) ->
     manager.reload()
 
 
-def restore_latest(manager: ocp.CheckpointManager,
-                   config: ml_collections.ConfigDict) -> Optional[TrainState]:
-  """The newest intact checkpoint (`restore_intact`), or None if there is none."""
-  return restore_intact(manager, config)[1]
+def restore_latest(manager: ocp.CheckpointManager, target: TrainState) -> Optional[TrainState]:
+  """The newest intact checkpoint restored into `target` (`restore_intact`), or None if there is
+  none."""
+  return restore_intact(manager, target)[1]
 
 
 def load_for_evaluation(workdir: str):
   """(config, ema_params, step) from a training workdir's config and newest intact checkpoint
   (a newer damaged one is skipped with a warning line, and left as it is)."""
   config = load_config(workdir)
-  from ld_mpc_jax.model.config_checks import validate_config  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.model.config_checks import check_config  # pylint: disable=g-import-not-at-top
   try:  # A hand-edited config is its own fault, not the checkpoints'.
-    validate_config(config)
+    check_config(config)
   except ValueError as err:
     raise WorkdirError(f'{os.path.join(workdir, CONFIG_FILE)} is not a valid config ({err}); '
                        'undo the edit (the checkpoints were not read)') from None
   folder = os.path.join(workdir, 'checkpoints')  # Not made by a manager when it is missing:
-  state = restore_latest(checkpoint_manager(workdir), config) if os.path.isdir(folder) else None
+  state = (restore_latest(checkpoint_manager(workdir), abstract_state(config))
+           if os.path.isdir(folder) else None)
   if state is None:
     raise FileNotFoundError(f'no checkpoint under {folder}')
   return config, state.ema_params, int(state.step)

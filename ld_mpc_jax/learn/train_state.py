@@ -12,7 +12,7 @@ import optax
 
 from ld_mpc_jax.ops import build_cache, sharding
 from ld_mpc_jax.model import tasks
-from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.model.config_checks import check_config
 from ld_mpc_jax.learn.losses import make_loss_fn
 from ld_mpc_jax.model.models import build_networks, init_params, set_obs_normalization
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings
@@ -40,6 +40,16 @@ class OptimSettings:
   def from_config(cls, config: ml_collections.ConfigDict) -> 'OptimSettings':
     t = config.train
     return cls(t.learning_rate, t.warmup_steps, t.grad_clip, t.ema_decay)
+
+  def check(self, losses: LossSettings) -> None:
+    """One-line ValueErrors for an update's settings: the EMA's decay, how the loss weights and
+    noises a batch (`losses.check_batch`, checked between them as ever) and the optimiser's."""
+    if not 0.0 <= self.ema_decay < 1.0:
+      raise ValueError(f'config.train.ema_decay must be in [0, 1), got {self.ema_decay}')
+    losses.check_batch()
+    if self.learning_rate <= 0 or self.grad_clip <= 0 or self.warmup_steps < 0:
+      raise ValueError('config.train.learning_rate and grad_clip must be > 0 and warmup_steps '
+                       f'>= 0, got {self.learning_rate}, {self.grad_clip}, {self.warmup_steps}')
 
 
 def make_optimizer(t: OptimSettings) -> optax.GradientTransformation:
@@ -92,9 +102,10 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   axis, state, key and metrics replicated. Pass the state through `sharding.replicate` and the
   batch through `sharding.shard_batch`. Otherwise it is a plain single-device jit.
   """
-  validate_config(config)
+  check_config(config)
   settings = (ModelSettings.from_config(config), LossSettings.from_config(config),
               OptimSettings.from_config(config))
+  settings[2].check(settings[1])  # The update's own settings (check_config leaves them).
   if mesh is None and not config.train.data_parallel:
     return _jitted_update(*settings)
   mesh = sharding.make_mesh() if mesh is None else mesh

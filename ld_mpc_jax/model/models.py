@@ -22,7 +22,7 @@ import numpy as np
 from ld_mpc_jax.model import actors, dynamics, novelty, objective, progress, proposals, tasks
 from ld_mpc_jax.ops import build_cache
 from ld_mpc_jax.model.actors import Actor
-from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.model.config_checks import check_config
 from ld_mpc_jax.model.critics import Critics, build_critics
 from ld_mpc_jax.model.dynamics import LatentDynamics, MLPDynamics, TrajectoryDynamics  # noqa: F401
 from ld_mpc_jax.nets import MLP, Transformer, position_embedding
@@ -199,7 +199,7 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   One compiled program: initialising operation by operation compiles hundreds of small ones
   (about 16 s against 4 s on a 2-core CPU at smoke size).
   """
-  validate_config(config)
+  check_config(config)
   return _jitted_init(ModelSettings.from_config(config))(key)
 
 

@@ -20,7 +20,7 @@ it, while here a door coordinate that moved in a few transitions counts as much 
 While acting, `bonus` adds w x N to each candidate's J, N = sum_{i<H} gamma^i r_nov(z_i, a_i) +
 gamma^H V_nov(z_H) divided by its mean over the candidates (so w is in units of the average
 candidate's novelty, whatever the scale of r_nov as the ensemble learns); w is
-`online.act_novelty`, annealed like the other intrinsic weights (ld_mpc_jax.model.exploration).
+`online.act_novelty`, annealed like the other intrinsic weights (ld_mpc_jax.online.schedule).
 Evaluation never adds it.
 """
 

@@ -63,7 +63,7 @@ def latent_disagreement(latents: jnp.ndarray, gamma: float) -> jnp.ndarray:
 @flax.struct.dataclass
 class Intrinsic:
   """The acting planner's intrinsic term of J, traced scalars (annealing never recompiles;
-  ld_mpc_jax.model.exploration schedules them; evaluation never passes one):
+  ld_mpc_jax.online.schedule schedules them; evaluation never passes one):
 
     J_act = J - pessimism x std_m(J_m) + disagreement x D + novelty x N,
 

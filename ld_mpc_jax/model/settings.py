@@ -116,6 +116,26 @@ class ModelSettings(_Hashable):
     """Whether the agent is task-conditioned (two or more tasks; ld_mpc_jax.model.tasks)."""
     return self.num_tasks > 1
 
+  def check_sizes(self) -> None:
+    """One-line ValueErrors for the transformer's width and heads, the value bins and the
+    dropout rate."""
+    if self.width % self.num_heads or self.width % 2:
+      raise ValueError(f'config.model.width ({self.width}) must be even (Fourier embeddings) and '
+                       f'divisible by config.model.num_heads ({self.num_heads})')
+    if self.num_bins < 2 or not self.vmin < self.vmax:
+      raise ValueError(f'config.model.num_bins must be >= 2 and vmin < vmax, got '
+                       f'{self.num_bins}, [{self.vmin}, {self.vmax}]')
+    if not 0.0 <= self.dropout < 1.0:
+      raise ValueError(f'config.model.dropout must be in [0, 1), got {self.dropout}')
+
+  def check_targets(self) -> None:
+    """One-line ValueErrors for the discount and the diffusion's prediction target."""
+    if not 0.0 < self.gamma <= 1.0:
+      raise ValueError(f'config.gamma must be in (0, 1], got {self.gamma}')
+    if self.prediction not in ('x0', 'eps'):
+      raise ValueError(f"config.diffusion.prediction must be 'x0' or 'eps', got "
+                       f'{self.prediction!r}')
+
   def check(self, latent_filter: float) -> None:
     """One-line ValueErrors for `model.novelty_target` and `model.encoder_type`: 'mlp'; 'conv'
     (flat images of `model.image_size` >= 39, its VALID convolutions' least, and
@@ -165,7 +185,7 @@ class ModelSettings(_Hashable):
 class PlanSettings(_Hashable):
   """`config.plan`: how `plan` draws, rolls out, scores and selects candidates (configs/base.py
   gives each field's default and reason). The acting planner's are a `dataclasses.replace` of
-  these (ld_mpc_jax.model.exploration.acting_plan)."""
+  these (ld_mpc_jax.online.settings.OnlineSettings.acting_plan)."""
   num_candidates: int
   action_steps: int
   dynamics_steps: int
@@ -257,3 +277,17 @@ class LossSettings:
     return cls(**{f: config.loss[f] for f in _LOSS_FIELDS},
                **{f: config.critic[f] for f in _CRITIC_LOSS_FIELDS},
                obs_noise_aug=config.train.obs_noise_aug)
+
+  def check_weights(self) -> None:
+    """One-line ValueError for the progress reward's weight (ld_mpc_jax.model.progress)."""
+    if self.w_progress < 0:
+      raise ValueError(f'config.loss.w_progress must be >= 0, got {self.w_progress}')
+
+  def check_batch(self) -> None:
+    """One-line ValueErrors for how the loss weights and noises a batch: the reward loss's
+    balance of zeros and positives, the observation-noise augmentation."""
+    if not 0.0 <= self.reward_balance <= 1.0:
+      raise ValueError(f'config.loss.reward_balance must be in [0, 1], got '
+                       f'{self.reward_balance!r}')
+    if not 0.0 <= self.obs_noise_aug < float('inf'):
+      raise ValueError(f'config.train.obs_noise_aug must be a std >= 0, got {self.obs_noise_aug!r}')

@@ -2,8 +2,10 @@
 
 Library code reads config fields directly (defaults live in ld_mpc_jax/configs/base.py); a
 saved config is brought up to date once, on load (checkpointing.migrate_config -> `migrate`):
-each step of STEPS above the version it was saved with runs in order. Version 0 is every config
-saved before the field existed (until 2026-11-29): `to_v1` renames its old sections and fills
+each step of STEPS above the version it was saved with runs in order. A migration works on
+what was saved, the loaded config.json as nested plain dicts ({section: {field: value}}); the
+ConfigDict is built from its result, once, by checkpointing.migrate_config. Version 0 is every
+config saved before the field existed (until 2026-11-29): `to_v1` renames its old sections and fills
 the fields it lacks with the values that mean what its run did (the tables below, frozen: they
 never change, or old runs would change with them). A change that must read older configs
 differently raises CONFIG_VERSION and adds its step; a new field whose default changes nothing
@@ -12,7 +14,7 @@ This module is the one place old names are understood; elsewhere they are errors
 one (`renamed_hint`).
 """
 
-import ml_collections
+import copy
 
 # Old section name -> new: `objective` held the critic settings; J itself lives in
 # ld_mpc_jax/model/objective.py, so the word names J alone.
@@ -54,37 +56,38 @@ FIELDS = {
 CONFIG_VERSION = 7
 
 
-def _online_fields(config: ml_collections.ConfigDict) -> dict:
-  """Online runs saved before acting had its own settings: acting as evaluation did."""
-  p = config.plan
-  return dict(act_pessimism=p.pessimism, exec_noise_start=0.0, exec_noise_end=0.0,
+def _online_fields(saved: dict) -> dict:
+  """Online runs saved before acting had its own settings: acting as evaluation did (the
+  `saved` config's plan section, filled)."""
+  p = saved['plan']
+  return dict(act_pessimism=p['pessimism'], exec_noise_start=0.0, exec_noise_end=0.0,
               exec_noise_corr=0.0, updates_per_call=1, reward='dense', act_mode='plan',
-              act_safe_selection=p.safe_selection, train_goals='mt1',
-              act_num_gaussian=p.num_gaussian, act_iterations=p.iterations, demos=0,
+              act_safe_selection=p['safe_selection'], train_goals='mt1',
+              act_num_gaussian=p['num_gaussian'], act_iterations=p['iterations'], demos=0,
               demo_path='', demo_noise_std=0.1, demo_share_start=0.5, demo_share_end=0.25,
               demo_pretrain_updates=0, demo_seed_actor=False, act_schedule='constant',
               act_pessimism_end=0.0, act_disagreement=0.0, act_disagreement_end=0.0,
               act_dynamics_draws=0, act_proposal=True)
 
 
-def to_v1(config: ml_collections.ConfigDict) -> None:
+def to_v1(saved: dict) -> None:
   """Version 0 -> 1 (in place): old section names renamed, then every field above filled."""
-  rename_sections(config)  # Before the fills, which use the new names.
-  fill_model_fields(config)
+  rename_sections(saved)  # Before the fills, which use the new names.
+  fill_model_fields(saved)
   for section, fields in FIELDS.items():
-    fill(config, section, fields)
-  if 'online' in config:
-    fill(config, 'online', _online_fields(config))
+    fill(saved, section, fields)
+  if 'online' in saved:
+    fill(saved, 'online', _online_fields(saved))
 
 
 # Fields added in version 2, with the values that change nothing (the learned progress reward).
 V2_FIELDS = {'loss': dict(w_progress=0.0), 'plan': dict(progress_weight=0.0)}
 
 
-def to_v2(config: ml_collections.ConfigDict) -> None:
+def to_v2(saved: dict) -> None:
   """Version 1 -> 2 (in place): the learned progress reward's fields, off."""
   for section, fields in V2_FIELDS.items():
-    fill(config, section, fields)
+    fill(saved, section, fields)
 
 
 # Fields added in version 3, with the values that change nothing (the exploration value).
@@ -92,22 +95,22 @@ V3_FIELDS = {'loss': dict(w_novelty=0.0), 'model': dict(novelty_members=5)}
 V3_ONLINE_FIELDS = dict(act_novelty=0.0, act_novelty_end=0.0)
 
 
-def to_v3(config: ml_collections.ConfigDict) -> None:
+def to_v3(saved: dict) -> None:
   """Version 2 -> 3 (in place): the learned exploration value's fields, off."""
   for section, fields in V3_FIELDS.items():
-    fill(config, section, fields)
-  if 'online' in config:
-    fill(config, 'online', V3_ONLINE_FIELDS)
+    fill(saved, section, fields)
+  if 'online' in saved:
+    fill(saved, 'online', V3_ONLINE_FIELDS)
 
 
 # Field added in version 4, with the value that changes nothing: the schedules end at env_steps.
 V4_ONLINE_FIELDS = dict(schedule_steps=0)
 
 
-def to_v4(config: ml_collections.ConfigDict) -> None:
+def to_v4(saved: dict) -> None:
   """Version 3 -> 4 (in place): `online.schedule_steps`, 0 (the schedules end at env_steps)."""
-  if 'online' in config:
-    fill(config, 'online', V4_ONLINE_FIELDS)
+  if 'online' in saved:
+    fill(saved, 'online', V4_ONLINE_FIELDS)
 
 
 # Field added in version 5, with the value that changes nothing: the novelty members predict the
@@ -115,20 +118,20 @@ def to_v4(config: ml_collections.ConfigDict) -> None:
 V5_FIELDS = {'model': dict(novelty_target='latent')}
 
 
-def to_v5(config: ml_collections.ConfigDict) -> None:
+def to_v5(saved: dict) -> None:
   """Version 4 -> 5 (in place): `model.novelty_target`, 'latent'."""
   for section, fields in V5_FIELDS.items():
-    fill(config, section, fields)
+    fill(saved, section, fields)
 
 
 # Field added in version 6, with the value that changes nothing: the learned MLP encoder.
 V6_FIELDS = {'model': dict(encoder_type='mlp')}
 
 
-def to_v6(config: ml_collections.ConfigDict) -> None:
+def to_v6(saved: dict) -> None:
   """Version 5 -> 6 (in place): `model.encoder_type`, 'mlp'."""
   for section, fields in V6_FIELDS.items():
-    fill(config, section, fields)
+    fill(saved, section, fields)
 
 
 # Fields added in version 7, read only by the pixel kinds: the image shape of flat image
@@ -136,27 +139,30 @@ def to_v6(config: ml_collections.ConfigDict) -> None:
 V7_FIELDS = {'model': dict(image_size=64, image_channels=3)}
 
 
-def to_v7(config: ml_collections.ConfigDict) -> None:
+def to_v7(saved: dict) -> None:
   """Version 6 -> 7 (in place): `model.image_size` 64 and `model.image_channels` 3."""
   for section, fields in V7_FIELDS.items():
-    fill(config, section, fields)
+    fill(saved, section, fields)
 
 
 # version -> the step that brings a config of version - 1 to it.
 STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7}
 
 
-def migrate(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """`config` (as saved) brought to CONFIG_VERSION in place and returned; one-line ValueError
-  for a config saved by a newer version of this code."""
-  version = int(config.version) if 'version' in config else 0
+def migrate(saved: dict) -> dict:
+  """A copy of `saved` (a loaded config.json: nested plain dicts, left as it is) brought to
+  CONFIG_VERSION; one-line ValueError for a config saved by a newer version of this code."""
+  if not isinstance(saved, dict):
+    raise TypeError(f'migrate takes a saved config as a dict, not a {type(saved).__name__}')
+  version = int(saved['version']) if 'version' in saved else 0
   if version > CONFIG_VERSION:
     raise ValueError(f'this config has version {version}, newer than this code reads '
                      f'({CONFIG_VERSION}): update ld_mpc_jax to load it')
+  out = copy.deepcopy(saved)
   for step in range(version + 1, CONFIG_VERSION + 1):
-    STEPS[step](config)
-  config.version = CONFIG_VERSION
-  return config
+    STEPS[step](out)
+  out['version'] = CONFIG_VERSION
+  return out
 
 
 def neutral_values() -> dict:
@@ -165,14 +171,13 @@ def neutral_values() -> dict:
   return {'plan': dict(FIELDS['plan'], **V2_FIELDS['plan']), 'data': dict(FIELDS['data'])}
 
 
-def rename_sections(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
+def rename_sections(saved: dict) -> dict:
   """Moves each old section of RENAMED_SECTIONS to its new name, where the new one is absent
-  (in place), and returns config."""
+  (in place), and returns `saved`."""
   for old, new in RENAMED_SECTIONS.items():
-    if old in config and new not in config:
-      config[new] = config[old]
-      del config[old]
-  return config
+    if old in saved and new not in saved:
+      saved[new] = saved.pop(old)
+  return saved
 
 
 def renamed_hint(dotted: str) -> str:
@@ -184,17 +189,16 @@ def renamed_hint(dotted: str) -> str:
   return f' (config.{section} is now config.{new})' if new else ''
 
 
-def fill(config: ml_collections.ConfigDict, section: str, fields: dict) -> None:
-  """Adds to config[section] the `fields` it lacks (in place)."""
+def fill(saved: dict, section: str, fields: dict) -> None:
+  """Adds to saved[section] the `fields` it lacks (in place)."""
   for name, value in fields.items():
-    if name not in config[section]:
-      config[section][name] = value
+    saved[section].setdefault(name, value)
 
 
-def fill_model_fields(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  """Adds the fields above that `config` (its sections renamed) lacks (in place), returns it."""
-  if 'critic' not in config:
-    config.critic = ml_collections.ConfigDict(LEGACY_CRITIC)
+def fill_model_fields(saved: dict) -> dict:
+  """Adds the fields above that `saved` (its sections renamed) lacks (in place), returns it."""
+  if 'critic' not in saved:
+    saved['critic'] = dict(LEGACY_CRITIC)
   for section, fields in MODEL_FIELDS.items():
-    fill(config, section, fields)
-  return config
+    fill(saved, section, fields)
+  return saved

@@ -11,24 +11,18 @@ call for N environments), so the two give the same episodes. With a device mesh
 environment keeps its keys, so the actions are those of a single device.
 """
 
-from typing import Callable, Optional, Sequence, Tuple, Union
+from typing import Callable, Optional, Sequence, Tuple
 
 import jax
 import jax.numpy as jnp
 from jax.sharding import Mesh, PartitionSpec
-import ml_collections
 import numpy as np
 
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.plan.modes import (  # noqa: F401 (the modes' names, re-exported)
     MODES, NO_PLAN_INFO, POLICY_MODES, ActSettings, PolicyMode, make_act_fn, uses_prev)
 
-# What the functions below are built from: a config (checked, then its ActSettings) or the
-# ActSettings themselves (the acting planner's: exploration.acting_plan).
-Settings = Union[ml_collections.ConfigDict, ActSettings]
-
-
-def make_act(settings: Settings, mode: str = 'plan') -> Callable:
+def make_act(settings: ActSettings, mode: str = 'plan') -> Callable:
   """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0, intrinsic=None) ->
   (action [A], carry, info [6] float32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
   (objective.Intrinsic; acting only) are traced: annealing them never recompiles.
@@ -39,7 +33,7 @@ def make_act(settings: Settings, mode: str = 'plan') -> Callable:
   next `prev`: the sequence [H, A], or for the planner with `plan.fallback_drop` > 0 the pair
   (sequence, planner.Guard).
   """
-  act = make_act_fn(ActSettings.of(settings), mode)
+  act = make_act_fn(settings, mode)
   jitted = jax.jit(lambda params, obs, key, t, prev, noise, intrinsic: act(
       params, obs, jax.random.fold_in(key, t), prev, noise, intrinsic))
   return lambda params, obs, key, t, prev, noise=0.0, intrinsic=None: jitted(
@@ -66,7 +60,7 @@ def episode_keys(seed: int, reset_seeds: Sequence[int]) -> jax.Array:
   return jax.vmap(jax.random.fold_in, in_axes=(None, 0))(jax.random.key(seed), seeds)
 
 
-def make_batch_act(settings: Settings, mode: str = 'plan', chunk: Optional[int] = None,
+def make_batch_act(settings: ActSettings, mode: str = 'plan', chunk: Optional[int] = None,
                    mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted act(params, obs [N, obs_dim], keys [N], t [], prev, active [N], noise [],
   intrinsic=None).
@@ -79,7 +73,7 @@ def make_batch_act(settings: Settings, mode: str = 'plan', chunk: Optional[int] 
   (`jax.shard_map`; N is padded with inactive rows to a multiple of the device count) and each
   device maps over its share as above; `params` should be replicated (sharding.replicate).
   """
-  act = make_act_fn(ActSettings.of(settings), mode)
+  act = make_act_fn(settings, mode)
 
   def one(params, t, knobs, has_prev, inputs):  # knobs: (noise, intrinsic), acting's.
     obs, key, prev, active = inputs
@@ -139,14 +133,13 @@ class BatchAgentPolicy:
   one environment at a time on each device.
   """
 
-  def __init__(self, settings: Settings, params, mode: str = 'plan', seed: int = 0,
+  def __init__(self, settings: ActSettings, params, mode: str = 'plan', seed: int = 0,
                chunk: Optional[int] = None, mesh: Optional[Mesh] = None,
                action_noise: float = 0.0, intrinsic=None):
     self.seed, self.mesh = seed, mesh
     self.set_params(params)
     if mesh is not None:
       chunk = 1 if chunk == 0 else chunk
-    settings = ActSettings.of(settings)
     self.warm = uses_prev(settings.plan, mode)
     self.per_env = chunk == 0  # One jitted call per environment (the single-env act).
     self.action_dim = settings.model.action_dim
@@ -217,7 +210,7 @@ class BatchAgentPolicy:
     return actions
 
 
-def make_policy(settings: Settings, params, mode: str = 'plan', seed: int = 0
+def make_policy(settings: ActSettings, params, mode: str = 'plan', seed: int = 0
                 ) -> Tuple[Callable[[np.ndarray], np.ndarray], Callable[..., None]]:
   """(policy, reset) for one episode at a time: policy(obs [obs_dim]) -> action [A].
 
@@ -225,7 +218,6 @@ def make_policy(settings: Settings, params, mode: str = 'plan', seed: int = 0
   key schedule from `episode.reset_seed` (module docstring; `reset()` without an episode keeps
   counting decisions under the last key). `policy.warmup(obs)` compiles it.
   """
-  settings = ActSettings.of(settings)
   act = make_act(settings, mode)
   warm = uses_prev(settings.plan, mode)
   state = {'t': 0, 'prev': None, 'key': jax.random.key(seed)}

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import ml_collections
 
 from ld_mpc_jax.model import dynamics
-from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.model.config_checks import check_config
 from ld_mpc_jax.model.models import build_networks
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.numerics import rms_normalize
@@ -26,7 +26,7 @@ from ld_mpc_jax.plan.planner import build_plan, make_propose
 @dataclasses.dataclass(frozen=True)
 class ActSettings:
   """What a policy mode is built from: the model's settings, the planner's (the acting
-  planner's are a dataclasses.replace of the evaluation's: exploration.acting_plan) and MPPI's.
+  planner's are a dataclasses.replace of the evaluation's: OnlineSettings.acting_plan) and MPPI's.
   Frozen and hashable: equal settings share one jitted act (ld_mpc_jax.plan.agent)."""
   model: ModelSettings
   plan: PlanSettings
@@ -35,14 +35,9 @@ class ActSettings:
   @classmethod
   def from_config(cls, config: ml_collections.ConfigDict) -> 'ActSettings':
     """The settings of a config, after its checks (one-line ValueErrors)."""
-    validate_config(config)
+    check_config(config)
     return cls(ModelSettings.from_config(config), PlanSettings.from_config(config),
                tuple(sorted(config.mppi.items())))
-
-  @classmethod
-  def of(cls, settings) -> 'ActSettings':
-    """`settings` as they are, or those of a config (the agent's functions take either)."""
-    return settings if isinstance(settings, cls) else cls.from_config(settings)
 
 
 # What a decision reports beside its action: float32 [6] = (kind of the winning candidate, an

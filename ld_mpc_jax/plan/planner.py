@@ -26,7 +26,7 @@ import ml_collections
 
 from ld_mpc_jax.ops import build_cache, diffusion
 from ld_mpc_jax.model import dynamics, novelty, proposals
-from ld_mpc_jax.model.config_checks import validate_config
+from ld_mpc_jax.model.config_checks import check_config
 from ld_mpc_jax.model.models import Networks, build_networks
 from ld_mpc_jax.model.objective import (Intrinsic, ScoreFn, as_members, make_member_scores,
                                        make_score, make_score_draws)
@@ -265,7 +265,7 @@ def make_plan(config: ml_collections.ConfigDict,
               score_fn: Optional[ScoreFn] = None) -> Callable:
   """Builds the jit-compiled planner of a config: `build_plan` of its model's and planner's
   settings (ld_mpc_jax.model.settings), after the config's checks."""
-  validate_config(config)
+  check_config(config)
   return build_plan(ModelSettings.from_config(config), PlanSettings.from_config(config),
                     score_fn)
 

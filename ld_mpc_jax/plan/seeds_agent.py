@@ -9,18 +9,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from ld_mpc_jax.ops.seed_groups import SeedGroups
-from ld_mpc_jax.plan.agent import (NO_PLAN_INFO, ActSettings, Settings, episode_keys, float32,
+from ld_mpc_jax.plan.agent import (NO_PLAN_INFO, ActSettings, episode_keys, float32,
                                    float32_tree, make_act_fn, uses_prev)
 
 _SEEDS_ACTS = {}  # One jitted function per setting, compiled once per process.
 
 
-def make_seeds_act(settings: Settings, mode: str = 'plan') -> Callable:
+def make_seeds_act(settings: ActSettings, mode: str = 'plan') -> Callable:
   """Returns jitted act(params [S, ...], obs [S, obs_dim], keys [S], t [], prev, noise [],
   intrinsic=None) -> (actions [S, A], carries, infos [S, 6]): `make_act` vmapped over a leading
   seed axis of the parameters (S agents of `train.num_seeds`, each on its own environment and
   key); the noise and the intrinsic term are the same for every agent."""
-  act = make_act_fn(ActSettings.of(settings), mode)
+  act = make_act_fn(settings, mode)
   one = lambda params, obs, key, t, prev, noise, intrinsic: act(
       params, obs, jax.random.fold_in(key, t), prev, noise, intrinsic)
   jitted = jax.jit(jax.vmap(one, in_axes=(0, 0, 0, None, 0, None, None)))
@@ -36,13 +36,12 @@ class SeedsAgentPolicy:
   `agent.BatchAgentPolicy` with its own seed, so an agent acts as it would alone (to float
   tolerance: the vmapped plan may round differently)."""
 
-  def __init__(self, settings: Settings, params, mode: str, seeds: Sequence[int],
+  def __init__(self, settings: ActSettings, params, mode: str, seeds: Sequence[int],
                groups: Optional[SeedGroups] = None, action_noise: float = 0.0, intrinsic=None):
     """params: the agents' parameters stacked [S, ...], or one stack per group of `groups`."""
     self.seeds = list(seeds)
     self.groups = groups or SeedGroups(len(self.seeds))
     self.set_params(params)
-    settings = ActSettings.of(settings)
     self.warm = uses_prev(settings.plan, mode)
     self.action_dim = settings.model.action_dim
     key = (settings, mode)

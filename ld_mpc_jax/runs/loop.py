@@ -26,6 +26,7 @@ from ld_mpc_jax import data
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.runs.progress import INTERRUPTED, SAVING, Eta, stage
 from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
+from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.model import tasks
 
 PROGRESS_FILE = 'progress.json'
@@ -54,7 +55,7 @@ def check_config_for_data(config: ml_collections.ConfigDict, dataset: data.Datas
   if config.horizon + 1 > longest:
     raise ValueError(f'config.horizon ({config.horizon}) is too large for the longest episode '
                      f'({longest} transitions): training windows need H + 1 transitions')
-  windows = data.make_buffer(config, dataset, window_length(config)).num_windows
+  windows = data.make_buffer(dataset, window_length(config), tasks.num_tasks(config)).num_windows
   if config.train.batch_size > windows:
     raise ValueError(f'config.train.batch_size ({config.train.batch_size}) is larger than the '
                      f'dataset ({windows} windows of length {window_length(config)})')
@@ -63,19 +64,20 @@ def check_config_for_data(config: ml_collections.ConfigDict, dataset: data.Datas
                      f'match the dataset ({dataset.obs_dim}, {dataset.act_dim})')
 
 
-def run_evaluation(config, params, mode: str, num_episodes: int, seed: int,
+def run_evaluation(spec: EvalSpec, params, mode: str, num_episodes: int, seed: int,
                    obs_noise_std: float = 0.0, video_path: str | None = None,
                    split: str = 'held_out') -> Dict[str, Any]:
-  """One policy mode ('plan', 'actor', 'proposal', 'mppi') on one goal split (batched).
+  """One policy mode ('plan', 'actor', 'proposal', 'mppi') on one goal split (batched), of the
+  evaluation spec of a config (EvalSpec.from_config).
 
   A multi-task agent: `num_episodes` of every task, pooled (no video).
   """
-  if tasks.is_multitask(config):
+  if spec.multitask:
     if video_path:
       raise ValueError('no video of a multi-task agent: evaluate one task of it instead')
-    return multitask_eval.evaluate_pooled(config, params, mode, num_episodes, seed, split,
+    return multitask_eval.evaluate_pooled(spec, params, mode, num_episodes, seed, split,
                                           obs_noise_std)
-  return evaluation_suite.evaluate_policy(config, params, mode, num_episodes, seed, split,
+  return evaluation_suite.evaluate_policy(spec, params, mode, num_episodes, seed, split,
                                           obs_noise_std=obs_noise_std, video_path=video_path)
 
 
@@ -127,7 +129,8 @@ class Run:
     Newer steps that fail to restore, or that `usable(step)` gives a reason against, are skipped
     with a warning and moved to damaged_checkpoints/ (`checkpointing.restore_intact`).
     """
-    self.step, state, skipped = checkpointing.restore_intact(self.manager, self.config, usable)
+    self.step, state, skipped = checkpointing.restore_intact(
+        self.manager, checkpointing.abstract_state(self.config), usable)
     checkpointing.set_aside(self.workdir, self.manager, skipped)
     if state is not None:
       # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which
@@ -190,8 +193,8 @@ class Run:
       return None
     stage(f'evaluating at step {step}: the planner on {c.eval.periodic_episodes} held-out '
           'episodes')
-    result = run_evaluation(c, params, 'plan', c.eval.periodic_episodes, c.eval.seeds[0],
-                            split='held_out')
+    result = run_evaluation(EvalSpec.from_config(c), params, 'plan', c.eval.periodic_episodes,
+                            c.eval.seeds[0], split='held_out')
     self.log_eval(step, result)
     return result
 
@@ -212,14 +215,15 @@ class Run:
                              'decisions_per_s'))
       return final, {}, {}, []
     modes = ('plan',) + tuple(m for m in c.eval.baselines if m != 'plan')
-    splits, evaluate = multitask_eval.grid(c, c.eval.splits)
+    spec = EvalSpec.from_config(c)
+    splits, evaluate = multitask_eval.grid(spec, c.eval.splits)
     stage(f'final evaluation at step {step} ({self.workdir}): {", ".join(modes)} on '
           f'{c.eval.episodes} episode{"s" * (c.eval.episodes != 1)} per goal split '
           f'({", ".join(splits)}) and evaluation seed (seeds {", ".join(map(str, c.eval.seeds))})')
     if splits != tuple(c.eval.splits):
       tqdm.tqdm.write(f'goal splits {list(splits)} only: the data were not collected on MT1 '
                       'goals, so there is no train split')
-    records = evaluate(c, params, self.workdir, step, modes, splits, c.eval.seeds,
+    records = evaluate(spec, params, self.workdir, step, modes, splits, c.eval.seeds,
                        c.eval.episodes, run=c.seed, log=tqdm.tqdm.write)
     summary = evaluation_suite.summarize(records)
     if run_files.primary():

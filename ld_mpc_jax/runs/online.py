@@ -8,9 +8,9 @@ scripted data do, and start from the goals of MT1 seed `config.data.seed` (or, w
 waves of the first `online.seed_steps` environment steps act with uniform random actions; after
 them the agent acts with its planner and EMA parameters (one jitted plan per environment, or
 `online.plan_chunk` environments per vmap, `agent.BatchAgentPolicy`), with the exploration noise
-`online.action_noise_std` / `online.prior_noise_std` on its candidates (`acting_plan`), which
-evaluation never uses. Updates interleave with acting: once learning has started, after every
-decision updates run until floor(`online.update_ratio` x environment steps) have been made, so
+`online.action_noise_std` / `online.prior_noise_std` on its candidates
+(`OnlineSettings.acting_plan`), which evaluation never uses. Updates interleave with acting: once
+learning has started, after every decision updates run until floor(`online.update_ratio` x environment steps) have been made, so
 from scratch the seed steps' share comes at once (TD-MPC2 pretrains on its seed data likewise).
 With `online.demos` = N (ld_mpc_jax.data.demos), N successful scripted episodes on training
 goals (or a dataset file's) sit in their own buffer; every batch draws an annealed share of its
@@ -45,14 +45,16 @@ from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data, envs
 from ld_mpc_jax.runs import loop as runs, online_report
 from ld_mpc_jax.runs.progress import progress_bar
-from ld_mpc_jax.model.config_checks import validate_config
-from ld_mpc_jax.model.exploration import ActingSchedule, acting_plan
+from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
+from ld_mpc_jax.model.settings import PlanSettings
+from ld_mpc_jax.online.schedule import ActingSchedule
+from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.plan.agent import ActSettings
 
-from ld_mpc_jax.data.demos import demo_share, sparse_dataset
+from ld_mpc_jax.data.demos import sparse_dataset
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
 from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy, WaveSchedule
 
@@ -122,7 +124,8 @@ class OnlineJob:
     states = self._restore()
     if states is None and source is not None:
       states = [checkpointing.restore_latest(checkpointing.checkpoint_manager(
-          runs.seed_source(seat.config.online.init_from, seat.config.seed)), seat.config)
+          runs.seed_source(seat.config.online.init_from, seat.config.seed)),
+          checkpointing.abstract_state(seat.config))
                 for seat in self.seats]
     elif states is None:  # From scratch; observation statistics come with the seed data.
       states = [create_train_state(seat.config, jax.random.key(seat.config.seed))
@@ -134,14 +137,17 @@ class OnlineJob:
     # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
     # pretrained on them, plus the executed-action noise), learn from the start.
     self.learn_start = 0 if source is not None or o.demos else o.seed_steps
-    self.acting_schedule = ActingSchedule.from_config(config, self.learn_start)  # Annealed.
+    self.online = OnlineSettings.from_config(config)
+    self.acting_schedule = ActingSchedule.of(self.online, self.learn_start)  # Annealed.
     self.per_call = o.updates_per_call
     self.update = {n: make_seeds_update(config, n, self.per_call) for n in set(self.groups.sizes)}
     self.keys = self.groups.split(jnp.stack([seat.update_key for seat in self.seats]))
     # Each seed's update key at an update count: one jitted call, not one per seed.
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
-    # The acting policy's settings: the evaluation's, with the acting planner's (acting_plan).
-    self.acting = dataclasses.replace(ActSettings.from_config(config), plan=acting_plan(config))
+    # The acting policy's settings: the evaluation's, with the acting planner's.
+    self.acting = dataclasses.replace(
+        ActSettings.from_config(config),
+        plan=self.online.acting_plan(PlanSettings.from_config(config)))
     self.metrics, self.last = [], None  # `last`: (mode, seconds, WaveRecords) of the last wave.
     self.runs = SeatRuns(self.seats)
     self.bar = progress_bar(o.env_steps, self.counters['env_steps'], 'online', unit='env step')
@@ -224,7 +230,7 @@ class OnlineJob:
     if self.config.online.demos and c['pretrain_updates'] < o.demo_pretrain_updates:
       self._updates(o.demo_pretrain_updates, 'pretrain_updates', share=1.0)
     steps = c['env_steps'] + ahead
-    self._updates(int(o.update_ratio * steps), 'updates', share=demo_share(self.config, steps))
+    self._updates(int(o.update_ratio * steps), 'updates', share=self.online.demo_share(steps))
 
   def _updates(self, target: int, counter: str, share: float) -> None:
     """Updates until counters[counter] reaches `target`, `online.updates_per_call` per jitted
@@ -346,7 +352,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
   for seat_config, seat_workdir in runs.seed_configs(config, workdir):  # As they will be saved.
     checkpointing.check_workdir(seat_config, seat_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
-  offline = data.load_for_config(config) if source is not None else None
+  offline = data.load_dataset(data.DataSpec.from_config(config)) if source is not None else None
   if offline is not None:
     runs.check_config_for_data(config, offline)
     if config.online.reward == 'sparse':  # Its data with the reward the run records.

@@ -17,9 +17,9 @@ from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.plan.agent import BatchAgentPolicy
 from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
-from ld_mpc_jax.data.demos import get_demos
 from ld_mpc_jax.data.online_buffer import Buffer
-from ld_mpc_jax.model.exploration import ar1_noise
+from ld_mpc_jax.online.schedule import ar1_noise
+from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.model.search import CANDIDATES
@@ -53,7 +53,9 @@ class Seat:
   def __init__(self, config, workdir: str, offline: Optional[data.Dataset], index: int):
     o, self.config, self.index = config.online, config, index
     self.run = runs.Run(config, workdir)
-    self.buffer = Buffer(runs.window_length(config), offline, config.seed, get_demos(config),
+    demos = OnlineSettings.from_config(config).demonstrations(config.task, config.seed,
+                                                              config.data.seed)
+    self.buffer = Buffer(runs.window_length(config), offline, config.seed, demos,
                          progress=config.loss.w_progress > 0)
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,

@@ -22,7 +22,8 @@ from ld_mpc_jax.runs.lock import workdir_lock
 from ld_mpc_jax.runs.progress import progress_bar, stage
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.model import tasks
-from ld_mpc_jax.model.config_checks import online_enabled, validate_config
+from ld_mpc_jax.configs import online_enabled
+from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.model.models import count_params
 from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
@@ -71,7 +72,7 @@ def finished_report(config: ml_collections.ConfigDict, workdir: str) -> Optional
   if not os.path.exists(path) or not os.path.exists(
       os.path.join(workdir, checkpointing.CONFIG_FILE)):
     return None
-  if checkpointing.config_changes(checkpointing.load_config(workdir), config):
+  if checkpointing.config_changes(checkpointing.load_config(workdir).to_dict(), config.to_dict()):
     return None  # Another config (refused later) or one continued with changes.
   try:
     with open(path) as f:
@@ -95,7 +96,8 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   for seed_config, seed_workdir in runs.seed_configs(config, workdir):  # Each seed's, as saved.
     checkpointing.check_workdir(seed_config, seed_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
-  dataset = data.load_for_config(config)  # config.data.source: scripted or TD-MPC2 chunks.
+  # config.data.source: scripted or TD-MPC2 chunks.
+  dataset = data.load_dataset(data.DataSpec.from_config(config))
   stage(f'data: {dataset.num_episodes:,} episodes, {dataset.num_transitions:,} transitions '
              f'({config.data.source}, {config.task})')
   runs.check_config_for_data(config, dataset)
@@ -158,8 +160,9 @@ class OfflineJob:
     # checkpoint, so it trains on the windows an uninterrupted run trains on (and ends on its
     # parameters, bit for bit: benchmarks/fault_injection.py). Every process of a
     # multi-process run draws its own windows (process 0 draws what a single-process run draws).
-    self.buffer = data.make_buffer(config, dataset, runs.window_length(config), seed=(
-        config.seed * 1_000_003 + 999_983 * jax.process_index()))
+    seed = config.seed * 1_000_003 + 999_983 * jax.process_index()
+    self.buffer = data.make_buffer(dataset, runs.window_length(config), tasks.num_tasks(config),
+                                   seed=seed)
     self.buffer.skip(self.progress, self.batch_size)
     self.key = jax.random.key(config.seed + 1)
     self.timer = _Timer(self.progress)

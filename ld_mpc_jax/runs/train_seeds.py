@@ -25,6 +25,7 @@ from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
 from ld_mpc_jax.runs.progress import progress_bar
+from ld_mpc_jax.model import tasks
 
 
 class _SeedRuns:
@@ -58,7 +59,7 @@ class OfflineSeedsJob:
     self.update = {n: make_seeds_update(self.configs[0], n) for n in set(self.groups.sizes)}
     self.batch_size = t.batch_size
     # Each seed's sampler as its run alone seeds it (`train.OfflineJob`), continued on resume.
-    self.buffers = [data.make_buffer(c, dataset, runs.window_length(c), seed=(
+    self.buffers = [data.make_buffer(dataset, runs.window_length(c), tasks.num_tasks(c), seed=(
         c.seed * 1_000_003 + 999_983 * jax.process_index())) for c in self.configs]
     for buffer in self.buffers:
       buffer.skip(self.progress, self.batch_size)

@@ -10,6 +10,7 @@ import pytest
 
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.eval import evaluation_suite
+from ld_mpc_jax.eval.spec import GoalSource
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -28,7 +29,7 @@ def test_bc_baseline_runs_the_planners_held_out_episodes(tmp_path):
   config = door_open.get_config('smoke')
   config.data.preset, config.data.episodes, config.data.seed = 'medium', 2, 0
   config.data.dir = data_dir
-  planner_episodes = evaluation_suite.episodes(config, 'held_out', 0, 3)
+  planner_episodes = evaluation_suite.episodes(GoalSource.from_config(config), 'held_out', 0, 3)
   assert report['split'] == 'held_out'
   assert [(r['goal_id'], r['reset_seed']) for r in report['outcomes']] == [
       (e.goal_id, e.reset_seed) for e in planner_episodes]

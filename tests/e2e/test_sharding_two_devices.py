@@ -90,6 +90,7 @@ from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.plan import agent
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.model.models import init_params
+from ld_mpc_jax.plan.modes import ActSettings
 
 c = door_open.get_config('smoke')
 c.plan.warm_start_steps = 2  # The second decision starts from the first one's plan.
@@ -100,7 +101,7 @@ active = np.array([True, True, False])
 mesh = sharding.make_mesh()
 out = {}
 for name, m in (('one', None), ('two', mesh)):
-  act = agent.make_batch_act(c, 'plan', chunk=1, mesh=m)
+  act = agent.make_batch_act(ActSettings.from_config(c), 'plan', chunk=1, mesh=m)
   p = params if m is None else sharding.replicate(params, m)
   a0, seq, _ = act(p, obs, keys, 0, None, active)
   a1, _, _ = act(p, obs, keys, 1, seq, active)
@@ -108,7 +109,7 @@ for name, m in (('one', None), ('two', mesh)):
   out[name] = [np.asarray(a0).tolist(), np.asarray(a1).tolist(), np.asarray(cold).tolist()]
   out[name + '_devices'] = len(seq.sharding.device_set)
 # The evaluation's policy object on the mesh (chunk 0: one environment at a time per device).
-policy = agent.BatchAgentPolicy(c, params, 'plan', chunk=0, mesh=mesh)
+policy = agent.BatchAgentPolicy(ActSettings.from_config(c), params, 'plan', chunk=0, mesh=mesh)
 policy.keys = keys
 out['policy'] = policy(obs, 0, active).tolist()
 print(json.dumps(out))

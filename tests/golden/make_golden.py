@@ -20,6 +20,7 @@ import orbax.checkpoint as ocp
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.plan import agent
 from ld_mpc_jax.learn import checkpointing, train_state
+from ld_mpc_jax.plan.modes import ActSettings
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SMOKE_DIR = os.path.join(HERE, 'door_open_smoke')
@@ -38,7 +39,7 @@ def decisions(config, params) -> dict:
   out = {}
   obs = observations(config)
   for mode in MODES:
-    act = agent.make_act(config, mode)
+    act = agent.make_act(ActSettings.from_config(config), mode)
     rows = [act(params, obs[i], jax.random.key(7), i, None) for i in range(NUM_OBS)]
     for j, field in enumerate(('action', 'sequence', 'info')):
       out[f'{mode}_{field}'] = np.stack([np.asarray(r[j]) for r in rows])

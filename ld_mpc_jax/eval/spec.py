@@ -1,0 +1,167 @@
+"""What an evaluation reads of a config: `EvalSpec`, built once where an evaluation starts.
+
+  spec = EvalSpec.from_config(config)   # the config's checks first (ActSettings.from_config)
+  evaluation_suite.evaluate_checkpoint(spec, params, workdir, step, ...)
+
+Its parts: the training goals the goal splits are drawn against (`GoalSource`), `config.eval`'s
+settings (`EvalSettings`), the policies' settings (plan.modes.ActSettings) and the config's part
+of an evaluation's cache key (`CacheKey`: the JSON of the sections evaluation_suite's keys hash,
+as the config holds them, so that a key is byte for byte the one the config gave). A multi-task
+config's spec also holds each task's own (`tasks`: the spec of `tasks.task_config`). All are
+frozen; the ConfigDict stays the command line's surface and the saved `config.json`.
+"""
+
+import dataclasses
+import functools
+import json
+from typing import Any, Callable, Dict, Optional, Tuple
+
+import ml_collections
+
+from ld_mpc_jax import data
+from ld_mpc_jax.configs import online_enabled
+from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.model import search, tasks
+from ld_mpc_jax.plan.modes import ActSettings
+
+
+def key_json(value) -> str:
+  """The cache key's JSON of a value (sorted keys; what JSON cannot hold, as its str)."""
+  return json.dumps(value, sort_keys=True, default=str)
+
+
+def without(section: dict, defaults: dict) -> dict:
+  """`section` less its fields whose values equal `defaults`' (compared as JSON)."""
+  return {k: v for k, v in section.items()
+          if k not in defaults or key_json(v) != key_json(defaults[k])}
+
+
+@dataclasses.dataclass(frozen=True)
+class GoalSource:
+  """The training data's goals, which the goal splits are drawn against
+  (evaluation_suite.dataset_goals): `config.task` and `config.data`, with the action repeat the
+  data were collected at (`config.eval.action_repeat`)."""
+  task: str
+  source: str  # config.data.source: the suite's scripted episodes or 'tdmpc2'.
+  preset: str
+  episodes: int
+  seed: int
+  dir: str
+  action_repeat: int
+  max_episode_steps: int
+  path: str  # config.data.path (TD-MPC2's chunk files).
+  # Online training from scratch (config.online without init_from), by `online.train_goals`:
+  # 'random' (a fresh goal per episode) or 'mt1' (the goals of MT1 seed `seed`); '' for a
+  # dataset's goals.
+  online: str = ''
+  # TD-MPC2's data only: () -> the dataset (data.load_dataset of the config's DataSpec: the chunk files
+  # training read, cached by the data layer). Not compared: `path` and `task` name the data.
+  load: Optional[Callable[[], Any]] = dataclasses.field(
+      default=None, compare=False, hash=False, repr=False)
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'GoalSource':
+    d = config.data
+    online = ''
+    if online_enabled(config) and not config.online.init_from:
+      online = 'random' if config.online.train_goals == 'random' else 'mt1'
+    load = None
+    if not online and d.source == 'tdmpc2':
+      load = functools.partial(data.load_dataset, data.DataSpec.from_config(config))
+    return cls(task=config.task, source=d.source, preset=d.preset, episodes=d.episodes,
+               seed=d.seed, dir=d.dir, action_repeat=config.eval.action_repeat,
+               max_episode_steps=d.max_episode_steps, path=str(d.get('path', '')),
+               online=online, load=load)
+
+
+_EVAL_FIELDS = ('batch_size', 'plan_chunk', 'data_parallel', 'key_seed', 'action_noise',
+                'action_repeat', 'max_episode_steps', 'obs_noise', 'obs_noise_dims')
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalSettings:
+  """`config.eval`'s settings of one evaluation (configs/base.py gives each its default and
+  reason), as the config holds them: the cache key hashes some of them."""
+  batch_size: int
+  plan_chunk: int
+  data_parallel: bool
+  key_seed: int
+  action_noise: float
+  action_repeat: int
+  max_episode_steps: int
+  obs_noise: float
+  obs_noise_dims: str
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'EvalSettings':
+    return cls(**{f: config.eval[f] for f in _EVAL_FIELDS})
+
+
+@dataclasses.dataclass(frozen=True)
+class CacheKey:
+  """The config's part of an evaluation's cache key (evaluation_suite._cache_key): its task and
+  the JSON of `config.plan`, `config.mppi` and `config.data` as the config holds them, with the
+  legacy defaults (checkpointing.legacy_defaults) that keys from version 3 leave out."""
+  task: str
+  plan: str
+  mppi: str
+  data: str
+  neutral: str  # {'plan': {...}, 'data': {...}}
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'CacheKey':
+    neutral = checkpointing.legacy_defaults()
+    return cls(task=config.task, plan=key_json(config.plan.to_dict()),
+               mppi=key_json(config.mppi.to_dict()), data=key_json(config.data.to_dict()),
+               neutral=key_json({k: neutral[k] for k in ('plan', 'data')}))
+
+  def sections(self, version: int) -> Dict[str, Any]:
+    """dict(task, plan, mppi, data) of a key of `version`: from 3 on, the plan and data fields
+    at their legacy defaults left out."""
+    plan, data_ = json.loads(self.plan), json.loads(self.data)
+    if version >= 3:
+      neutral = json.loads(self.neutral)
+      plan, data_ = without(plan, neutral['plan']), without(data_, neutral['data'])
+    return dict(task=self.task, plan=plan, mppi=json.loads(self.mppi), data=data_)
+
+  def with_plan(self, **changes) -> 'CacheKey':
+    """The key of the config with these `config.plan` fields changed."""
+    plan = dict(json.loads(self.plan), **changes)
+    return dataclasses.replace(self, plan=key_json(plan))
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalSpec:
+  """Everything an evaluation of a config reads (module docstring). Frozen and hashable."""
+  goals: GoalSource
+  eval: EvalSettings
+  act: ActSettings
+  key: CacheKey
+  tasks: Tuple[Tuple[str, 'EvalSpec'], ...] = ()  # A multi-task config's (name, spec) per task.
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'EvalSpec':
+    """The spec of a config, after its checks (one-line ValueErrors)."""
+    per_task = ()
+    if tasks.is_multitask(config):
+      per_task = tuple((name, cls.from_config(tasks.task_config(config, k)))
+                       for k, name in enumerate(tasks.task_names(config)))
+    return cls(GoalSource.from_config(config), EvalSettings.from_config(config),
+               ActSettings.from_config(config), CacheKey.from_config(config), per_task)
+
+  @property
+  def task(self) -> str:
+    return self.goals.task
+
+  @property
+  def multitask(self) -> bool:
+    """Whether the agent is task-conditioned (`tasks` holds each task's spec)."""
+    return bool(self.tasks)
+
+  def with_plan(self, **changes) -> 'EvalSpec':
+    """This spec with these planner settings (`config.plan` fields) changed, checked as the
+    config's (search.validate_plan); the cache key follows."""
+    plan = dataclasses.replace(self.act.plan, **changes)
+    search.validate_plan(plan, self.act.model)
+    return dataclasses.replace(self, act=dataclasses.replace(self.act, plan=plan),
+                               key=self.key.with_plan(**changes))

@@ -1,0 +1,1 @@
+"""Online training's settings, acting schedules and checks (`config.online`)."""
