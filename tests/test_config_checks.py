@@ -51,7 +51,7 @@ def test_online_batch_is_not_checked_without_seed_updates():
   config.online.env_steps, config.online.update_ratio = 120, 0.0  # No update at all.
   OnlineSettings.from_config(config).check_budget()
   config.online.update_ratio, config.online.init_from = 0.1, '/runs/offline'  # Its dataset:
-  OnlineSettings.from_config(config).check_budget()  # checked at start (runs.check_config_for_data).
+  OnlineSettings.from_config(config).check_budget()  # checked at start (runs.check_data_fits).
 
 
 @pytest.mark.parametrize('overrides, match', [

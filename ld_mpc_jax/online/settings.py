@@ -217,7 +217,7 @@ class OnlineSettings(_Hashable):
     that start before `seed_steps` environment steps; each episode of D decisions holds
     D - horizon windows of horizon + 2 observations (`runs.window_length`, `data.ReplayBuffer`).
     No check when no update is ever made, nor with `init_from`, whose offline dataset
-    `runs.check_config_for_data` checks.
+    `runs.check_data_fits` checks.
     """
     if self.init_from or not self.update_ratio or self.demos:  # Demos: sampled with replacement.
       return

@@ -27,7 +27,7 @@ from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.runs.progress import INTERRUPTED, SAVING, Eta, stage
 from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
 from ld_mpc_jax.eval.spec import EvalSpec
-from ld_mpc_jax.model import tasks
+from ld_mpc_jax.model.settings import ModelSettings
 
 PROGRESS_FILE = 'progress.json'
 EVAL_CSV = 'eval.csv'
@@ -44,23 +44,25 @@ def _uncommitted(x):
   return jnp.asarray(np.asarray(x))
 
 
-def window_length(config: ml_collections.ConfigDict) -> int:
+def window_length(horizon: int) -> int:
   """Observations per training window: T = H + 1, plus one for the value bootstrap."""
-  return config.horizon + 2
+  return horizon + 2
 
 
-def check_config_for_data(config: ml_collections.ConfigDict, dataset: data.Dataset) -> None:
-  """Errors that need the data: windows of H + 1 observations, batch vs. dataset size."""
+def check_data_fits(dataset: data.Dataset, model: ModelSettings, batch_size: int) -> None:
+  """Errors that need the data: windows of H + 1 observations, the batch (config.train's)
+  against the dataset's windows, the sizes."""
   longest = int(dataset.episode_lengths.max())
-  if config.horizon + 1 > longest:
-    raise ValueError(f'config.horizon ({config.horizon}) is too large for the longest episode '
+  if model.horizon + 1 > longest:
+    raise ValueError(f'config.horizon ({model.horizon}) is too large for the longest episode '
                      f'({longest} transitions): training windows need H + 1 transitions')
-  windows = data.make_buffer(dataset, window_length(config), tasks.num_tasks(config)).num_windows
-  if config.train.batch_size > windows:
-    raise ValueError(f'config.train.batch_size ({config.train.batch_size}) is larger than the '
-                     f'dataset ({windows} windows of length {window_length(config)})')
-  if dataset.obs_dim != config.obs_dim or dataset.act_dim != config.action_dim:
-    raise ValueError(f'config.obs_dim/action_dim ({config.obs_dim}, {config.action_dim}) do not '
+  length = window_length(model.horizon)
+  windows = data.make_buffer(dataset, length, model.num_tasks).num_windows
+  if batch_size > windows:
+    raise ValueError(f'config.train.batch_size ({batch_size}) is larger than the '
+                     f'dataset ({windows} windows of length {length})')
+  if dataset.obs_dim != model.obs_dim or dataset.act_dim != model.action_dim:
+    raise ValueError(f'config.obs_dim/action_dim ({model.obs_dim}, {model.action_dim}) do not '
                      f'match the dataset ({dataset.obs_dim}, {dataset.act_dim})')
 
 
@@ -121,6 +123,12 @@ class Run:
     self.manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
     self.writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
                    else run_files.NoWriter())
+
+  def provenance(self) -> Dict[str, Any]:
+    """The report's closing fields: the config, package versions and the commit."""
+    return {'config': json.loads(self.config.to_json_best_effort()),
+            'versions': run_files.versions(), 'git_commit': self.commit,
+            'command': run_files.command_line()}
 
   def restore(self, usable=None):
     """The newest intact checkpoint's TrainState (its step: `self.step`), or None; the logs lose
@@ -376,9 +384,4 @@ def evaluation_md_lines(report: Dict[str, Any], lead: str, trained_on: str) -> L
   return lines + ['', f"git commit {report['git_commit']}{command}."]
 
 
-def provenance(config: ml_collections.ConfigDict, commit: Optional[str]) -> Dict[str, Any]:
-  """The report's closing fields: the config, package versions and the commit."""
-  return {'config': json.loads(config.to_json_best_effort()),
-          'versions': run_files.versions(), 'git_commit': commit,
-          'command': run_files.command_line()}
 

@@ -48,7 +48,7 @@ from ld_mpc_jax.runs.progress import progress_bar
 from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
-from ld_mpc_jax.model.settings import PlanSettings
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.online.schedule import ActingSchedule
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.ops.seed_groups import SeedGroups
@@ -354,7 +354,7 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
   os.makedirs(workdir, exist_ok=True)
   offline = data.load_dataset(data.DataSpec.from_config(config)) if source is not None else None
   if offline is not None:
-    runs.check_config_for_data(config, offline)
+    runs.check_data_fits(offline, ModelSettings.from_config(config), config.train.batch_size)
     if config.online.reward == 'sparse':  # Its data with the reward the run records.
       offline = sparse_dataset(offline)
   if not config.online.update_ratio:  # Once, before any work.

@@ -35,7 +35,7 @@ def report(job, seat, final, summary) -> Dict[str, Any]:
       'buffer': {'online_episodes': len(buffer.episodes),
                  'offline_episodes': (buffer.offline.num_episodes
                                       if buffer.offline is not None else 0)},
-      **runs.provenance(config, seat.run.commit),
+      **seat.run.provenance(),
   }
 
 

@@ -55,7 +55,7 @@ class Seat:
     self.run = runs.Run(config, workdir)
     demos = OnlineSettings.from_config(config).demonstrations(config.task, config.seed,
                                                               config.data.seed)
-    self.buffer = Buffer(runs.window_length(config), offline, config.seed, demos,
+    self.buffer = Buffer(runs.window_length(config.horizon), offline, config.seed, demos,
                          progress=config.loss.w_progress > 0)
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,

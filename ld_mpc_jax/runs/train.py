@@ -26,6 +26,7 @@ from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.model.models import count_params
 from ld_mpc_jax.learn.train_state import create_train_state, make_update
+from ld_mpc_jax.model.settings import ModelSettings
 
 
 
@@ -100,7 +101,7 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   dataset = data.load_dataset(data.DataSpec.from_config(config))
   stage(f'data: {dataset.num_episodes:,} episodes, {dataset.num_transitions:,} transitions '
              f'({config.data.source}, {config.task})')
-  runs.check_config_for_data(config, dataset)
+  runs.check_data_fits(dataset, ModelSettings.from_config(config), config.train.batch_size)
   if config.train.num_seeds > 1:  # N seeds in one process, vmapped (ld_mpc_jax.runs.train_seeds).
     from ld_mpc_jax.runs import train_seeds  # pylint: disable=g-import-not-at-top
     return train_seeds.train_seeds(config, workdir, dataset, _report, _summary_md)
@@ -118,7 +119,7 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   state = job.state
   final, baselines, summary, records = run.final_evaluation(
       sharding.unreplicate(state.ema_params), int(state.step))
-  report = _report(config, dataset, job, final, baselines, summary, run.commit, records)
+  report = _report(run, dataset, job, final, baselines, summary, records)
   return run.write_report(report, _summary_md(report), records)
 
 
@@ -161,7 +162,7 @@ class OfflineJob:
     # parameters, bit for bit: benchmarks/fault_injection.py). Every process of a
     # multi-process run draws its own windows (process 0 draws what a single-process run draws).
     seed = config.seed * 1_000_003 + 999_983 * jax.process_index()
-    self.buffer = data.make_buffer(dataset, runs.window_length(config), tasks.num_tasks(config),
+    self.buffer = data.make_buffer(dataset, runs.window_length(config.horizon), tasks.num_tasks(config),
                                    seed=seed)
     self.buffer.skip(self.progress, self.batch_size)
     self.key = jax.random.key(config.seed + 1)
@@ -195,7 +196,8 @@ class OfflineJob:
     return sharding.unreplicate(self.state.ema_params)
 
 
-def _report(config, dataset, job, final, baselines, summary, commit, records):
+def _report(run: runs.Run, dataset, job, final, baselines, summary, records):
+  config = run.config
   names = tasks.task_names(config)
   return {
       'task': config.task, 'tasks': list(names),
@@ -213,7 +215,7 @@ def _report(config, dataset, job, final, baselines, summary, commit, records):
       'dataset': {'source': config.data.source, 'preset': config.data.preset,
                   'path': config.data.path, 'episodes': dataset.num_episodes,
                   'transitions': dataset.num_transitions},
-      **runs.provenance(config, commit),
+      **run.provenance(),
   }
 
 

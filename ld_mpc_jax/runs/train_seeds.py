@@ -59,7 +59,7 @@ class OfflineSeedsJob:
     self.update = {n: make_seeds_update(self.configs[0], n) for n in set(self.groups.sizes)}
     self.batch_size = t.batch_size
     # Each seed's sampler as its run alone seeds it (`train.OfflineJob`), continued on resume.
-    self.buffers = [data.make_buffer(dataset, runs.window_length(c), tasks.num_tasks(c), seed=(
+    self.buffers = [data.make_buffer(dataset, runs.window_length(c.horizon), tasks.num_tasks(c), seed=(
         c.seed * 1_000_003 + 999_983 * jax.process_index())) for c in self.configs]
     for buffer in self.buffers:
       buffer.skip(self.progress, self.batch_size)
@@ -143,8 +143,7 @@ def train_seeds(config: ml_collections.ConfigDict, workdir: str, dataset: data.D
     run.manager.wait_until_finished()
     params = job.eval_params()[i]
     final, baselines, summary, recs = run.final_evaluation(params, job.progress)
-    report = report_fn(job.configs[i], dataset, job.seed_view(i), final, baselines, summary,
-                       run.commit, recs)
+    report = report_fn(run, dataset, job.seed_view(i), final, baselines, summary, recs)
     reports.append(run.write_report(report, summary_fn(report), recs))
     records.append(recs)
   seeds = [c.seed for c in job.configs]
