@@ -36,7 +36,8 @@ PARTS = ('environments', 'plan', 'update', 'buffer sampling', 'host, other')
 def _timed(totals: Dict[str, float], counts: Dict[str, int]):
   """Wraps the online loop's methods so that each part's seconds add into `totals`."""
   from ld_mpc_jax.data.online_buffer import Buffer  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.runs import online, online_seats  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.online import seats as online_seats  # pylint: disable=g-import-not-at-top
 
   def block_states(job, _):
     jax.block_until_ready(job.states)

@@ -29,7 +29,8 @@ def _wave_rates(workdir: str, skip: int) -> List[float]:
 def _run(c: ml_collections.ConfigDict, overlap: bool, skip: int):
   """(wall seconds, acting waves' rates) of one online run; without `overlap` every update
   waits for the steps that call for it."""
-  from ld_mpc_jax.runs import online, online_seats  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.online import seats as online_seats  # pylint: disable=g-import-not-at-top
   upcoming = online_seats.SeatWave.upcoming
   try:
     if not overlap:

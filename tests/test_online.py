@@ -20,7 +20,8 @@ from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.eval import evaluation_suite, run_files
 from ld_mpc_jax.eval.spec import GoalSource
 from ld_mpc_jax.model.search import CANDIDATE_KINDS
-from ld_mpc_jax.runs import online, online_seats
+from ld_mpc_jax.runs import online
+from ld_mpc_jax.online import seats as online_seats
 from ld_mpc_jax.model.models import init_params
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.online.settings import OnlineSettings

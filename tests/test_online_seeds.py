@@ -77,7 +77,7 @@ def test_updates_dispatched_before_the_environments_step_are_the_updates_made_af
     runs, tmp_path, monkeypatch):
   """The environment loop off the critical path changes nothing: seed 1 trained with every
   update waiting for the steps that call for it (the order before) ends on the same bits."""
-  from ld_mpc_jax.runs import online_seats  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.online import seats as online_seats  # pylint: disable=g-import-not-at-top
   made = []
   monkeypatch.setattr(online_seats.SeatWave, 'upcoming', lambda self: made.append(0) or 0)
   online.train_online(_config(1, 1), str(tmp_path / 'waiting'))

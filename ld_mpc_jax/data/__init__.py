@@ -12,6 +12,7 @@ from ld_mpc_jax.data.dataset import save
 from ld_mpc_jax.data.multitask import make_buffer
 from ld_mpc_jax.data.multitask import TaskBalancedBuffer
 from ld_mpc_jax.data.replay import ReplayBuffer
+from ld_mpc_jax.data.replay import window_length
 from ld_mpc_jax.data.sources import DataSpec
 from ld_mpc_jax.data.sources import load_dataset
 from ld_mpc_jax.data.sources import SOURCES
@@ -22,5 +23,5 @@ __all__ = [
     'collect', 'get_or_collect', 'PRESETS', 'summary', 'Dataset',
     'DatasetError', 'FORMAT_VERSION', 'load', 'save', 'ReplayBuffer',
     'load_tdmpc2', 'TASK_SETS', 'DataSpec', 'load_dataset', 'SOURCES', 'make_buffer',
-    'TaskBalancedBuffer',
+    'TaskBalancedBuffer', 'window_length',
 ]

@@ -7,6 +7,11 @@ import numpy as np
 from ld_mpc_jax.data import dataset as dataset_lib
 
 
+
+def window_length(horizon: int) -> int:
+  """Observations per training window: T = H + 1, plus one for the value bootstrap."""
+  return horizon + 2
+
 class ReplayBuffer:
   """Uniform sampler of length-T windows over a Dataset.
 

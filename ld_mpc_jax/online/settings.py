@@ -215,7 +215,7 @@ class OnlineSettings(_Hashable):
     From scratch, the first update samples the seed episodes alone: the random-action waves of
     `num_envs` full-length episodes (`episode_steps` environment steps, `decisions` decisions)
     that start before `seed_steps` environment steps; each episode of D decisions holds
-    D - horizon windows of horizon + 2 observations (`runs.window_length`, `data.ReplayBuffer`).
+    D - horizon windows of horizon + 2 observations (`data.window_length`, `data.ReplayBuffer`).
     No check when no update is ever made, nor with `init_from`, whose offline dataset
     `runs.check_data_fits` checks.
     """

@@ -44,11 +44,6 @@ def _uncommitted(x):
   return jnp.asarray(np.asarray(x))
 
 
-def window_length(horizon: int) -> int:
-  """Observations per training window: T = H + 1, plus one for the value bootstrap."""
-  return horizon + 2
-
-
 def check_data_fits(dataset: data.Dataset, model: ModelSettings, batch_size: int) -> None:
   """Errors that need the data: windows of H + 1 observations, the batch (config.train's)
   against the dataset's windows, the sizes."""
@@ -56,7 +51,7 @@ def check_data_fits(dataset: data.Dataset, model: ModelSettings, batch_size: int
   if model.horizon + 1 > longest:
     raise ValueError(f'config.horizon ({model.horizon}) is too large for the longest episode '
                      f'({longest} transitions): training windows need H + 1 transitions')
-  length = window_length(model.horizon)
+  length = data.window_length(model.horizon)
   windows = data.make_buffer(dataset, length, model.num_tasks).num_windows
   if batch_size > windows:
     raise ValueError(f'config.train.batch_size ({batch_size}) is larger than the '

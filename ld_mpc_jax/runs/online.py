@@ -56,7 +56,7 @@ from ld_mpc_jax.plan.agent import ActSettings
 
 from ld_mpc_jax.data.demos import sparse_dataset
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
-from ld_mpc_jax.runs.online_seats import Seat, SeatRuns, SeatWave, WavePolicy, WaveSchedule
+from ld_mpc_jax.online.seats import Seat, SeatRuns, SeatWave, WavePolicy, WaveSchedule
 
 
 
@@ -117,7 +117,7 @@ class OnlineJob:
 
   def __init__(self, config, workdir: str, source, offline: Optional[data.Dataset]):
     self.config, self.source, o = config, source, config.online
-    self.seats = [Seat(c, w, offline, i)
+    self.seats = [Seat(c, runs.Run(c, w), offline, i)
                   for i, (c, w) in enumerate(runs.seed_configs(config, workdir))]
     self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
                          pretrain_updates=0)

@@ -162,8 +162,8 @@ class OfflineJob:
     # parameters, bit for bit: benchmarks/fault_injection.py). Every process of a
     # multi-process run draws its own windows (process 0 draws what a single-process run draws).
     seed = config.seed * 1_000_003 + 999_983 * jax.process_index()
-    self.buffer = data.make_buffer(dataset, runs.window_length(config.horizon), tasks.num_tasks(config),
-                                   seed=seed)
+    self.buffer = data.make_buffer(dataset, data.window_length(config.horizon),
+                                   tasks.num_tasks(config), seed=seed)
     self.buffer.skip(self.progress, self.batch_size)
     self.key = jax.random.key(config.seed + 1)
     self.timer = _Timer(self.progress)

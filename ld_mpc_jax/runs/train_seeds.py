@@ -59,8 +59,9 @@ class OfflineSeedsJob:
     self.update = {n: make_seeds_update(self.configs[0], n) for n in set(self.groups.sizes)}
     self.batch_size = t.batch_size
     # Each seed's sampler as its run alone seeds it (`train.OfflineJob`), continued on resume.
-    self.buffers = [data.make_buffer(dataset, runs.window_length(c.horizon), tasks.num_tasks(c), seed=(
-        c.seed * 1_000_003 + 999_983 * jax.process_index())) for c in self.configs]
+    self.buffers = [data.make_buffer(dataset, data.window_length(c.horizon), tasks.num_tasks(c),
+                                     seed=c.seed * 1_000_003 + 999_983 * jax.process_index())
+                    for c in self.configs]
     for buffer in self.buffers:
       buffer.skip(self.progress, self.batch_size)
     self.keys = self.groups.split(

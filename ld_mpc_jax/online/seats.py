@@ -13,11 +13,11 @@ import numpy as np
 
 from ld_mpc_jax import data, envs
 from ld_mpc_jax.eval import run_files
-from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.plan.agent import BatchAgentPolicy
 from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
 from ld_mpc_jax.data.online_buffer import Buffer
+from ld_mpc_jax.data.replay import window_length
 from ld_mpc_jax.online.schedule import ar1_noise
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
@@ -50,12 +50,13 @@ class Seat:
   """One training seed of an online run: its config, run directory, buffer, environments and
   what its last wave did; the parameters live in the job's stacked TrainState."""
 
-  def __init__(self, config, workdir: str, offline: Optional[data.Dataset], index: int):
+  def __init__(self, config, run, offline: Optional[data.Dataset], index: int):
+    """`run`: the seed's run directory (runs.loop.Run of `config`)."""
     o, self.config, self.index = config.online, config, index
-    self.run = runs.Run(config, workdir)
+    self.run = run
     demos = OnlineSettings.from_config(config).demonstrations(config.task, config.seed,
                                                               config.data.seed)
-    self.buffer = Buffer(runs.window_length(config.horizon), offline, config.seed, demos,
+    self.buffer = Buffer(window_length(config.horizon), offline, config.seed, demos,
                          progress=config.loss.w_progress > 0)
     self.envs = [envs.make_env(config.task, seed=config.data.seed,
                                action_repeat=config.eval.action_repeat,
