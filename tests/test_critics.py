@@ -139,7 +139,8 @@ def test_legacy_config_keeps_the_behaviour_objective(smoke_config):
   out = planner.make_plan(old)(params, models.encode(params, np.ones(39)), jax.random.key(1))
   assert out.scores.shape == (old.plan.num_candidates,)
   explicit = with_overrides(old, {})
-  explicit.critic = ml_collections.ConfigDict(legacy.LEGACY_CRITIC)
+  explicit.critic = ml_collections.ConfigDict(dict(legacy.LEGACY_CRITIC,
+                                                   **legacy.V8_FIELDS['critic']))
   assert not models.uses_critics(ModelSettings.from_config(explicit))
 
 

@@ -66,6 +66,10 @@ def get_config() -> ml_collections.ConfigDict:
   # TD-MPC2 render 84 and 64 pixels square.
   m.image_size = 64
   m.image_channels = 3
+  # How the MLP encoder and the 'mlp' dynamics put a latent on its manifold: 'rms' (unit
+  # root-mean-square, what diffusion over z assumes) or 'simnorm' (TD-MPC2's LayerNorm + SimNorm,
+  # softmax over groups of 8: the TD-MPC2 control, door_open_online.py:tdmpc2_cpu).
+  m.latent_norm = 'rms'
   m.num_bins = 101  # Two-hot bins over symlog values on [vmin, vmax], as TD-MPC2.
   m.vmin = -10.0
   m.vmax = 10.0
@@ -208,11 +212,15 @@ def get_config() -> ml_collections.ConfigDict:
   # (n-step returns, as the behaviour value's); 'one_step': r_t + gamma V_ema(z_{t+1}) (IQL).
   # In 4,000 steps one-step TD leaves V far from converged, and the planner exploited it
   # (door-open medium, seed 0: success 0.50 against 1.00 with 'window'; docs/results.md, lab/log.md).
-  o.td_target = 'window'
+  o.td_target = 'window'  # | 'one_step' | 'policy' | 'tdmpc2' (ld_mpc_jax.model.critics)
   o.num_values = 5  # Value ensemble for the pessimism penalty (TD-MPC2 also keeps 5 heads).
   o.num_q = 2  # Clipped double Q for V's target (IQL, TD3).
   o.hidden = (256, 256)  # MLP widths of each V and Q head (TD-MPC2's Q MLP).
   o.value_scale = 100.0  # Values are regressed in these units (returns reach hundreds).
+  # The V and Q members' heads: 'scalar', regressed by squared error (the expectile needs it);
+  # 'two_hot', logits over model.num_bins symlog bins, cross-entropy (TD-MPC2's Q; needs
+  # td_target 'policy' or 'tdmpc2').
+  o.heads = 'scalar'
   # Actor prior: advantage-weighted regression (IQL eq. 7), plain behaviour cloning ('bc'), or
   # 'maxq' (online): a stochastic policy maximising Q with an entropy bonus (TD-MPC2).
   o.actor = 'awr'

@@ -5,6 +5,7 @@
   python -m experiments.train --config=door_open_online.py:finetune --workdir=runs/online_ft \
       --config.online.init_from=runs/obj/door_open_medium_window/seed0  # offline-to-online
   python -m experiments.train --config=door_open_online.py:smoke --workdir=/tmp/online  # tests
+  python -m experiments.train --config=door_open_online.py:tdmpc2_cpu --workdir=runs/tdmpc2  # control
 
 The networks, planner and losses are door_open.py's (the same preset sizes); `online` says how
 the agent gathers its own data. A killed run resumes from its last checkpoint with the same
@@ -13,7 +14,7 @@ command.
 
 import ml_collections
 
-from ld_mpc_jax.configs import door_open
+from ld_mpc_jax.configs import door_open, overrides
 
 
 def online_settings() -> ml_collections.ConfigDict:
@@ -170,7 +171,74 @@ def _cpu(c: ml_collections.ConfigDict) -> None:
   c.eval.splits = ('held_out',)  # The headline split; train goals at the end cost 10 minutes.
 
 
-PRESETS = ('', 'reference', 'cpu', 'finetune', 'smoke')
+# `:tdmpc2_cpu`, the TD-MPC2 control (issue 100; Hansen et al. 2024, github
+# nicklashansen/tdmpc2), built from this library's kinds at `:cpu`'s budget: its width (64),
+# batch (128), learning rate, updates per step (0.5 = one per decision), environments (4),
+# episodes (200 steps), seed steps (1,600), simulator steps (100k) and gamma (0.95; TD-MPC2's
+# heuristic), and as many model rollouts per acting decision as `:cpu`'s (152).
+#
+# TD-MPC2's recipe here: MLP latent dynamics (`model.dynamics_type='mlp'`) with its
+# LayerNorm + SimNorm (groups of 8) on the encoder's and the dynamics' output
+# (`model.latent_norm`); horizon 3; two-hot Q heads (101 symlog bins, cross-entropy;
+# `critic.heads`); 5 Q members with its TD target r + gamma min of two random target members at
+# (z', a' ~ pi(z')), z' the online encoder's latent (`critic.td_target='tdmpc2'`); its max-Q
+# policy with entropy 1e-4 and its tanh log-std map (`critic.actor='maxq'`); its loss weights
+# (consistency 20, reward 0.1, Q 0.1) and no teacher-forced dynamics loss (only its latent
+# rollout's consistency); its gradient clip 20 and EMA 0.99 (tau 0.01); MPPI with policy
+# trajectories (8 of the actor prior, 48 Gaussian samples around the shifted previous plan,
+# std 2, 3 rounds of 32 around 8 elites, temperature 0.5, std at least 0.05) while acting and
+# evaluating, no optimism, white noise of TD-MPC2's min_std on the executed action. No
+# diffusion proposal candidates at all (`plan.num_candidates` = the actor prior's 8,
+# `online.act_proposal=False`), and the proposal network is not trained (`loss.w_act=0`).
+#
+# Deviations from TD-MPC2, each a limit of this library's kinds or of `:cpu`'s budget:
+# - Budget: width 64, latent 64 (8 SimNorm groups), Q and policy MLPs (64, 64), batch 128
+#   (TD-MPC2 5M: 512, 512, 256); MPPI 56 first-round samples + 3 x 32, 8 elites (TD-MPC2: 512
+#   x 6, 24 policy trajectories, 64 elites).
+# - The reward comes from this project's sequence objective (a causal transformer over
+#   (z_0, a_0, ..., z_H), two-hot, 101 bins; 1 block at width 64), not an MLP of (z, a); it
+#   learns on the encoder's latents and the model's rollout (detached), not on the rollout only.
+# - The planner's terminal value is a V ensemble (5 two-hot heads) distilled onto the mean of
+#   two random target Q members at (z, a ~ pi(z)) (loss weight 0.1), not Q(z_H, pi(z_H))
+#   itself; and the Q members learn on the encoder's latents, not the dynamics rollout's.
+# - Values are in units of critic.value_scale = 100 (two-hot over symlog of those units), and
+#   the max-Q policy loss averages all 5 Q members at that fixed scale: TD-MPC2 averages two
+#   random members and divides Q by a running 5-95 percentile scale.
+# - No rho^t = 0.5^t weighting of the losses over the horizon (uniform); no encoder learning-
+#   rate scale 0.3; no dropout (0.01) in the Q MLPs; the learning rate is warmed up over 100
+#   updates; the policy shares the one Adam optimiser.
+# - Policy trajectories: the policy's mode plus N(0, 0.2^2) noise (the first the mode alone),
+#   while acting and evaluating, standing in for draws of its stochastic policy; the executed
+#   sequence is the argmax of J over all candidates (TD-MPC2 draws an elite from the softmax
+#   of its scores), with white noise 0.05 on the executed action (TD-MPC2: the last round's
+#   std, at least 0.05).
+# - Seed steps 1,600 simulator steps (2 waves of 4 episodes; TD-MPC2: 1,000 decisions = 2,000
+#   steps), then 800 updates at once, as `:cpu`.
+TDMPC2_CPU = {
+    'horizon': 3,  # TD-MPC2's planning and training horizon.
+    'model.dynamics_type': 'mlp', 'model.latent_norm': 'simnorm',
+    'critic.num_q': 5, 'critic.num_values': 5, 'critic.heads': 'two_hot',
+    'critic.td_target': 'tdmpc2', 'critic.actor': 'maxq', 'critic.log_std_map': 'tanh',
+    'critic.entropy_coef': 1e-4,
+    # TD-MPC2's coefficients: consistency 20, reward 0.1, value 0.1; no teacher-forced dynamics
+    # loss and no proposal (weight 0: left out of the loss).
+    'loss.w_dyn': 0.0, 'loss.w_act': 0.0, 'loss.w_val': 0.0, 'loss.w_consistency': 20.0,
+    'loss.w_rew': 0.1, 'loss.w_q': 0.1, 'loss.w_v': 0.1, 'loss.w_actor': 1.0,
+    'train.grad_clip': 20.0,
+    # MPPI with policy trajectories, acting and evaluating alike: the 8 policy trajectories are
+    # the only first-round candidates besides the 48 Gaussian ones.
+    'plan.num_candidates': 8, 'plan.num_prior_candidates': 8, 'plan.prior_noise_std': 0.2,
+    'plan.num_gaussian': 48, 'plan.iterations': 3, 'plan.num_refine': 32, 'plan.num_elites': 8,
+    'plan.gaussian_std': 2.0, 'plan.temperature': 0.5, 'plan.min_std': 0.05,
+    'plan.pessimism': 0.0, 'plan.selection': 'argmax',
+    'online.act_num_gaussian': 48, 'online.act_iterations': 3, 'online.act_proposal': False,
+    'online.act_pessimism': 0.0, 'online.action_noise_std': 0.0,
+    'online.exec_noise_start': 0.05, 'online.exec_noise_end': 0.05, 'online.exec_noise_corr': 0.0,
+    'eval.baselines': ('actor',),
+}
+
+
+PRESETS = ('', 'reference', 'cpu', 'finetune', 'smoke', 'tdmpc2_cpu')
 # Presets that were removed or renamed, and what to use; their results stay in docs/results.md,
 # and the last commit that has them is e421b33 (big_vision's "last known good commit").
 REMOVED = {
@@ -186,7 +254,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     raise ValueError(f'preset {preset!r} {REMOVED[preset]}')
   if preset not in (None,) + PRESETS:
     raise ValueError(f"unknown preset {preset!r}: use one of {', '.join(map(repr, PRESETS))}")
-  size = {'cpu': 'cpu', 'finetune': 'cpu', 'smoke': 'smoke'}.get(preset)
+  size = {'cpu': 'cpu', 'tdmpc2_cpu': 'cpu', 'finetune': 'cpu', 'smoke': 'smoke'}.get(preset)
   c = door_open.get_config(size)
   c.online = o = online_settings()
   # Observation statistics of random-action seed episodes do not cover the states the agent
@@ -194,6 +262,9 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   c.model.normalize_obs = False
   if preset == 'cpu':
     _cpu(c)
+  elif preset == 'tdmpc2_cpu':  # :cpu's budget, TD-MPC2's recipe (TDMPC2_CPU, above).
+    _cpu(c)
+    c = overrides.with_overrides(c, TDMPC2_CPU)
   elif preset == 'finetune':
     c.model.normalize_obs = True  # The offline checkpoint's networks (its data's statistics).
     o.act_pessimism = c.plan.pessimism  # As measured (docs/results.md): acting as it evaluates.

@@ -9,6 +9,7 @@ like every other position.
       + w_consistency L_cons + w_q L_q + w_v L_v,
 
   L_dyn    the dynamics kind's loss (ld_mpc_jax.model.dynamics; z_{i+1} = sg(enc(o_{i+1})));
+           like L_act, left out (not computed) where its weight is 0;
   L_act    the proposal kind's loss (ld_mpc_jax.model.proposals);
   L_rew    two-hot cross-entropy of r_i, i < H, read at the a_i tokens (`reward_loss`);
   L_val    the value kind's loss on the objective's value head ('behaviour', ld_mpc_jax.model.objective;
@@ -138,6 +139,17 @@ def make_objective_terms(m: ModelSettings, losses: LossSettings, nets: Networks)
   return terms
 
 
+def _make_critic_loss(m: ModelSettings, losses: LossSettings, nets: Networks):
+  """The critics' loss (make_critic_loss) given the actor prior's mode and its draws, or None
+  for a model without critics."""
+  if nets.critics is None:
+    return None
+  policy = lambda params, z: nets.actor.apply({'params': params['actor']}, z)
+  sample = lambda params, z, k: nets.actor.apply({'params': params['actor']}, z, k,
+                                                 method=nets.actor.sample)[0]
+  return make_critic_loss(m, losses, nets.critics, policy, sample)
+
+
 def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Callable:
   """Returns loss_fn(params, target_params, batch, key) -> (loss [], metrics {name: []}).
 
@@ -146,9 +158,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
   """
   h, sg, aug = m.horizon, jax.lax.stop_gradient, losses.obs_noise_aug
   proposal, dyn, actor = proposals.get(m), dynamics.get(m), actors.get(m)
-  policy = lambda params, z: nets.actor.apply({'params': params['actor']}, z)
-  critic_loss = (make_critic_loss(m, losses, nets.critics, policy)
-                 if nets.critics is not None else None)
+  critic_loss = _make_critic_loss(m, losses, nets)
   model_rollout = make_model_rollout(m, losses, nets) if losses.latent_rollout else None
   objective_terms = make_objective_terms(m, losses, nets)
 
@@ -166,8 +176,11 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
       z, z_clean = encode(params, obs + aug * noise), sg(z_clean)
       terms['noise_inv'] = consistency_loss(z, z_clean)
     z_ema = sg(encode(target_params, obs))
-    terms |= {'dyn': dyn.loss(m, nets.dynamics, params, z, action, k_dyn, drop(0)),
-              'act': proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1))}
+    # A term of weight 0 is left out, not computed (the TD-MPC2 control trains neither).
+    if losses.w_dyn:
+      terms['dyn'] = dyn.loss(m, nets.dynamics, params, z, action, k_dyn, drop(0))
+    if losses.w_act:
+      terms['act'] = proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1))
     z_sets = (z,)
     if model_rollout is not None:  # The objective also learns on the latents it scores.
       z_roll = model_rollout(params, z[:, 0], action[:, :h], k_roll)
@@ -180,7 +193,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
     if critic_loss is not None:
       z_model = z_sets[1] if len(z_sets) > 1 else None
       critic, weights, critic_metrics = critic_loss(params, target_params, z, z_ema, z_model,
-                                                    action, reward)
+                                                    action, reward, jax.random.fold_in(key, 103))
       terms.update(critic)
       metrics.update(critic_metrics)
     terms['actor'] = actor.loss(losses, nets, params, z, action, weights, k_pi)

@@ -14,7 +14,7 @@ from typing import Optional, Tuple
 import ml_collections
 
 from ld_mpc_jax.model import actors, dynamics, objective, proposals, search
-from ld_mpc_jax.model.critics import TD_TARGETS
+from ld_mpc_jax.model.critics import CRITIC_HEADS, TD_TARGETS
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
 from ld_mpc_jax.ops import legacy
 
@@ -79,6 +79,7 @@ def check_sections(config: ml_collections.ConfigDict
   plan, losses = PlanSettings.from_config(config), LossSettings.from_config(config)
   model.check_sizes()
   model.check(plan.latent_filter)
+  model.check_latent_norm(plan.latent_filter)
   model.check_targets()
   losses.check_weights()
   _validate_eval_and_data(config, model)
@@ -167,6 +168,7 @@ def check_critic(model: ModelSettings, losses: LossSettings, plan: PlanSettings)
     raise ValueError(f'config.critic.actor {model.actor!r} needs the Q ensemble: '
                      f'config.critic.value={actor.value!r}')
   actors.check_log_std_map(model.log_std_map)
+  _check_tdmpc2_critics(model, losses, actor.stochastic)
   if not 0.0 < losses.expectile < 1.0:
     raise ValueError(f'config.critic.expectile must be in (0, 1), got {losses.expectile}')
   for name, v in (('num_values', model.num_values), ('num_q', model.num_q),
@@ -179,6 +181,21 @@ def check_critic(model: ModelSettings, losses: LossSettings, plan: PlanSettings)
   if losses.latent_rollout and not dynamics.DYNAMICS.get(model.dynamics_type).one_step:
     raise ValueError('config.critic.latent_rollout needs one-step dynamics; set it False '
                      f'with dynamics_type {model.dynamics_type}')
+
+
+def _check_tdmpc2_critics(model: ModelSettings, losses: LossSettings, stochastic: bool) -> None:
+  """`critic.heads` and `critic.td_target='tdmpc2'`: two-hot heads regress the policy's values
+  ('policy' or 'tdmpc2', not the expectile); 'tdmpc2' samples the stochastic actor ('maxq') and
+  takes pairs of Q members."""
+  if model.critic_heads not in CRITIC_HEADS:
+    raise ValueError(f'config.critic.heads must be one of {CRITIC_HEADS}, got '
+                     f'{model.critic_heads!r}')
+  if model.critic_heads == 'two_hot' and losses.td_target not in ('policy', 'tdmpc2'):
+    raise ValueError("config.critic.heads='two_hot' needs config.critic.td_target 'policy' or "
+                     f"'tdmpc2' (cross-entropy targets, no expectile), got {losses.td_target!r}")
+  if losses.td_target == 'tdmpc2' and (not stochastic or model.num_q < 2):
+    raise ValueError("config.critic.td_target='tdmpc2' samples the policy and takes the min of "
+                     "two Q members: set config.critic.actor='maxq' and critic.num_q >= 2")
 
 
 def check_tasks(model: ModelSettings, batch_size: int, source: Optional[str]) -> None:

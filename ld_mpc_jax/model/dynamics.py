@@ -19,7 +19,8 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 from ld_mpc_jax.ops import diffusion
-from ld_mpc_jax.nets import MLP, TimeEmbedding, Transformer, position_embedding
+from ld_mpc_jax.nets import (MLP, TimeEmbedding, Transformer, normalize_latent,
+                             position_embedding)
 from ld_mpc_jax.ops.numerics import rms_normalize
 from ld_mpc_jax.model.pixels import FrameDynamics
 from ld_mpc_jax.model.proposals import transitions
@@ -93,15 +94,18 @@ class TrajectoryDynamics(LatentDynamics):
 
 
 class MLPDynamics(nn.Module):
-  """Deterministic transition z_{i+1} = normalise(MLP([z_i, a_i])), on the encoder's sphere."""
+  """Deterministic transition z_{i+1} = normalise(MLP([z_i, a_i])), on the encoder's manifold:
+  its sphere (`latent_norm='rms'`) or TD-MPC2's simplices (LayerNorm + SimNorm, 'simnorm')."""
   hidden: int
   latent_dim: int
+  latent_norm: str = 'rms'
 
   @nn.compact
   def __call__(self, z: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
     """z [..., D], a [..., A] -> [..., D]."""
     x = jnp.concatenate([z, a], axis=-1)
-    return rms_normalize(MLP((self.hidden, self.hidden, self.latent_dim), name='mlp')(x))
+    h = MLP((self.hidden, self.hidden, self.latent_dim), name='mlp')(x)
+    return normalize_latent(h, self.latent_norm)
 
 
 def _maybe_normalize(m: ModelSettings) -> Callable:
@@ -198,7 +202,7 @@ class DeterministicMLP:
   conditioning = (('mlp', 'dense_0'),)
 
   def build(self, m: ModelSettings):
-    return MLPDynamics(m.width, m.latent_dim)
+    return MLPDynamics(m.width, m.latent_dim, m.latent_norm)
 
   def init_args(self, m: ModelSettings):
     return jnp.zeros((1, m.latent_dim)), jnp.zeros((1, m.action_dim))

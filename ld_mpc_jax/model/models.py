@@ -25,8 +25,7 @@ from ld_mpc_jax.model.actors import Actor
 from ld_mpc_jax.model.config_checks import check_config
 from ld_mpc_jax.model.critics import Critics, build_critics
 from ld_mpc_jax.model.dynamics import LatentDynamics, MLPDynamics, TrajectoryDynamics  # noqa: F401
-from ld_mpc_jax.nets import MLP, Transformer, position_embedding
-from ld_mpc_jax.ops.numerics import rms_normalize
+from ld_mpc_jax.nets import MLP, Transformer, normalize_latent, position_embedding
 from ld_mpc_jax.model.proposals import ActionProposal, MLPProposal  # noqa: F401
 from ld_mpc_jax.model.pixels import ConvEncoder
 from ld_mpc_jax.model.settings import ModelSettings
@@ -39,17 +38,20 @@ class Encoder(nn.Module):
   and standard deviation, held as the parameters `obs_mean` and `obs_std` (set once from the
   data by `set_obs_normalization`, never trained: gradients are stopped), so they travel with
   the checkpoint. The output is RMS-normalised: diffusion over z assumes unit-scale data, and a
-  fixed norm keeps the jointly trained latent from collapsing to zero.
+  fixed norm keeps the jointly trained latent from collapsing to zero. `latent_norm='simnorm'`
+  (`model.latent_norm`): TD-MPC2's LayerNorm + SimNorm instead (nets.normalize_latent).
   """
   hidden: int
   latent_dim: int
   normalize_obs: bool = False
+  latent_norm: str = 'rms'
 
   @nn.compact
   def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
     if self.normalize_obs:
       obs = _standardise(self, obs)
-    return rms_normalize(MLP((self.hidden, self.latent_dim), name='mlp')(obs))
+    return normalize_latent(MLP((self.hidden, self.latent_dim), name='mlp')(obs),
+                            self.latent_norm)
 
 
 def _standardise(module: nn.Module, obs: jnp.ndarray) -> jnp.ndarray:
@@ -82,7 +84,7 @@ def build_encoder(m: ModelSettings) -> nn.Module:
     return IdentityEncoder(m.normalize_obs)
   if m.encoder_type == 'conv':
     return ConvEncoder(m.image_size, m.image_channels, m.latent_dim)
-  return Encoder(m.encoder_hidden, m.latent_dim, m.normalize_obs)
+  return Encoder(m.encoder_hidden, m.latent_dim, m.normalize_obs, m.latent_norm)
 
 
 # Smallest per-feature standard deviation used for normalisation: features that are constant in
@@ -285,4 +287,6 @@ def _apply_conv_encoder(enc: dict, obs: jnp.ndarray, size: int) -> jnp.ndarray:
 def _apply_encoder(enc_params: dict, obs: jnp.ndarray) -> jnp.ndarray:
   hidden = enc_params['mlp']['dense_0']['kernel'].shape[1]
   latent = enc_params['mlp']['dense_1']['kernel'].shape[1]
-  return Encoder(hidden, latent, 'obs_mean' in enc_params).apply({'params': enc_params}, obs)
+  norm = 'simnorm' if 'latent_norm' in enc_params else 'rms'  # Its LayerNorm's parameters.
+  return Encoder(hidden, latent, 'obs_mean' in enc_params, norm).apply({'params': enc_params},
+                                                                      obs)

@@ -24,7 +24,7 @@ _MODEL_FIELDS = (
     'proposal_blocks', 'dynamics_blocks', 'objective_blocks', 'actor_hidden', 'novelty_members',
     'novelty_target', 'proposal_type', 'dynamics_type', 'normalize_obs', 'obs_mask_constant',
     'task_dim', 'normalize_dynamics', 'encoder_type', 'num_bins', 'vmin', 'vmax', 'image_size',
-    'image_channels')
+    'image_channels', 'latent_norm')
 
 
 def _frozen(value: Any) -> Any:
@@ -76,6 +76,7 @@ class ModelSettings(_Hashable):
   vmax: float
   image_size: int
   image_channels: int
+  latent_norm: str
   # config.diffusion
   prediction: str
   clip_actions: float
@@ -83,6 +84,7 @@ class ModelSettings(_Hashable):
   value: str
   actor: str
   log_std_map: str
+  critic_heads: str
   critic_hidden: Tuple[int, ...]
   num_values: int
   num_q: int
@@ -99,7 +101,7 @@ class ModelSettings(_Hashable):
         obs_dim=config.obs_dim, action_dim=config.action_dim, horizon=config.horizon,
         gamma=config.gamma, num_tasks=max(len(tasks), 1), **{f: m[f] for f in _MODEL_FIELDS},
         prediction=config.diffusion.prediction, clip_actions=config.diffusion.clip_actions,
-        value=o.value, actor=o.actor, log_std_map=o.log_std_map,
+        value=o.value, actor=o.actor, log_std_map=o.log_std_map, critic_heads=o.heads,
         critic_hidden=o.hidden, num_values=o.num_values, num_q=o.num_q,
         value_scale=o.value_scale, progress=config.loss.w_progress > 0,
         novelty=config.loss.w_novelty > 0)
@@ -127,6 +129,23 @@ class ModelSettings(_Hashable):
                        f'{self.num_bins}, [{self.vmin}, {self.vmax}]')
     if not 0.0 <= self.dropout < 1.0:
       raise ValueError(f'config.model.dropout must be in [0, 1), got {self.dropout}')
+
+  def check_latent_norm(self, latent_filter: float) -> None:
+    """One-line ValueErrors for `model.latent_norm`: 'rms' or 'simnorm' (TD-MPC2's, for the MLP
+    encoder and the 'mlp' dynamics, or diffusion dynamics that do not RMS-normalise their
+    samples), the latent in whole groups of 8, no filter (it RMS-normalises the latent)."""
+    if self.latent_norm not in ('rms', 'simnorm'):
+      raise ValueError(f"config.model.latent_norm must be 'rms' or 'simnorm', got "
+                       f'{self.latent_norm!r}')
+    if self.latent_norm == 'rms':
+      return
+    if self.encoder_type != 'mlp' or self.latent_dim % 8:
+      raise ValueError('config.model.latent_norm=simnorm needs the mlp encoder and a latent_dim '
+                       f'in groups of 8, got {self.encoder_type!r} and {self.latent_dim}')
+    if (self.dynamics_type != 'mlp' and self.normalize_dynamics) or latent_filter > 0:
+      raise ValueError('config.model.latent_norm=simnorm: the dynamics samples and '
+                       'plan.latent_filter would be RMS-normalised, off the simplices: use '
+                       "dynamics_type='mlp' (or normalize_dynamics=False) and latent_filter=0")
 
   def check_targets(self) -> None:
     """One-line ValueErrors for the discount and the diffusion's prediction target."""

@@ -5,6 +5,8 @@ from typing import Callable, Sequence
 import flax.linen as nn
 import jax.numpy as jnp
 
+from ld_mpc_jax.ops.numerics import rms_normalize, simnorm
+
 
 def mish(x: jnp.ndarray) -> jnp.ndarray:
   """x tanh(softplus(x)), the function of jax.nn.mish, with one exp instead of exp, log1p and
@@ -37,3 +39,19 @@ class MLP(nn.Module):
         x = nn.LayerNorm(name=f'norm_{i}')(x)
         x = self.activation(x)
     return x
+
+
+# How a latent is put on its manifold (`config.model.latent_norm`): 'rms' scales it to unit
+# root-mean-square (no parameters); 'simnorm' is TD-MPC2's last layer, LayerNorm then SimNorm
+# (softmax over groups of 8), whose LayerNorm parameters are named 'latent_norm'.
+LATENT_NORMS = ('rms', 'simnorm')
+
+
+def normalize_latent(x: jnp.ndarray, kind: str) -> jnp.ndarray:
+  """x [..., D] on the latent manifold of `kind` (LATENT_NORMS); call it inside a compact
+  method: 'simnorm' adds the enclosing module's LayerNorm 'latent_norm'."""
+  if kind == 'simnorm':
+    return simnorm(nn.LayerNorm(name='latent_norm')(x))
+  if kind != 'rms':
+    raise ValueError(f'config.model.latent_norm must be one of {LATENT_NORMS}, got {kind!r}')
+  return rms_normalize(x)

@@ -53,7 +53,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 7
+CONFIG_VERSION = 8
 
 
 def _online_fields(saved: dict) -> dict:
@@ -145,8 +145,20 @@ def to_v7(saved: dict) -> None:
     fill(saved, section, fields)
 
 
+# Fields added in version 8, with the values that change nothing (the TD-MPC2 control's
+# options): RMS-normalised latents, scalar V and Q heads.
+V8_FIELDS = {'model': dict(latent_norm='rms'), 'critic': dict(heads='scalar')}
+
+
+def to_v8(saved: dict) -> None:
+  """Version 7 -> 8 (in place): `model.latent_norm` 'rms' and `critic.heads` 'scalar'."""
+  for section, fields in V8_FIELDS.items():
+    if section in saved:
+      fill(saved, section, fields)
+
+
 # version -> the step that brings a config of version - 1 to it.
-STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7}
+STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7, 8: to_v8}
 
 
 def migrate(saved: dict) -> dict:

@@ -1,5 +1,5 @@
 """Pure array math shared by the losses, the planner and MPPI: symlog, two-hot regression,
-discounted returns, RMS normalisation. No flax, no config."""
+discounted returns, RMS and simplicial normalisation. No flax, no config."""
 
 import jax
 import jax.numpy as jnp
@@ -71,3 +71,14 @@ def rms_normalize(x: jnp.ndarray, eps: float = 1e-6) -> jnp.ndarray:
   """Scales each vector [..., D] to unit root-mean-square: the latent then matches N(0, I)'s
   scale."""
   return x * jax.lax.rsqrt(jnp.mean(x ** 2, axis=-1, keepdims=True) + eps)
+
+
+# TD-MPC2's SimNorm group size (its `simnorm_dim`).
+SIMNORM_GROUP = 8
+
+
+def simnorm(x: jnp.ndarray, group: int = SIMNORM_GROUP) -> jnp.ndarray:
+  """Simplicial normalisation (TD-MPC2, Hansen et al. 2024): the last axis [..., D] split into
+  D / group consecutive groups, each a softmax, so every group lies on a simplex."""
+  g = x.reshape(x.shape[:-1] + (x.shape[-1] // group, group))
+  return jax.nn.softmax(g, axis=-1).reshape(x.shape)
