@@ -1,4 +1,4 @@
-"""ld_mpc_jax.eval.diagnostics: held-out windows and their returns, departures from the actor prior,
+"""ld_mpc_jax.analysis.diagnostics: held-out windows and their returns, departures from the actor prior,
 success per K paired with the largest K, and the report's table."""
 
 import dataclasses
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from ld_mpc_jax.eval import diagnostics, evaluation_suite
+from ld_mpc_jax.analysis import diagnostics
+from ld_mpc_jax.eval import evaluation_suite
 from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
@@ -122,7 +123,7 @@ def test_candidate_kinds_counted_over_start_states(monkeypatch, smoke_config):
 
 
 def test_summarize_trace_reads_last_and_largest_terms():
-  from ld_mpc_jax.eval.diagnostics import summarize_trace, trace_markdown
+  from ld_mpc_jax.analysis.diagnostics import summarize_trace, trace_markdown
   steps = [dict(reward=r, in_place_reward=p, success=0.0) for r, p in
            [(1.0, 0.1), (4.0, 0.8), (2.0, 0.3)]]
   s = summarize_trace(steps, last=2)
@@ -159,7 +160,7 @@ def test_gain_parts_add_up_to_the_objective(smoke_config, smoke_params):
 
 
 def test_summarize_gains_from_hand_built_decisions():
-  from ld_mpc_jax.eval.diagnostics import gains_markdown, summarize_gains
+  from ld_mpc_jax.analysis.diagnostics import gains_markdown, summarize_gains
   dec = [dict(t=0, departed=False),
          dict(t=1, departed=True, reward_gain=1.0, value_gain=3.0, j_prior=100.0),
          dict(t=2, departed=True, reward_gain=2.0, value_gain=-1.0, j_prior=-50.0),

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from ld_mpc_jax.configs.overrides import with_overrides
-from ld_mpc_jax.eval import evaluation_suite, noise_sweep
+from ld_mpc_jax.analysis import noise_sweep
+from ld_mpc_jax.eval import evaluation_suite
 from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.learn import losses
 from ld_mpc_jax.model import models

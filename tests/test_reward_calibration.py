@@ -1,9 +1,9 @@
-"""The reward head's calibration (ld_mpc_jax.eval.reward_calibration): AUC and the table against
+"""The reward head's calibration (ld_mpc_jax.analysis.reward_calibration): AUC and the table against
 hand counts, and the predicted reward of a transition read from the window that starts at it."""
 
 import numpy as np
 
-from ld_mpc_jax.eval import reward_calibration as rc
+from ld_mpc_jax.analysis import reward_calibration as rc
 from ld_mpc_jax.model.settings import ModelSettings
 
 

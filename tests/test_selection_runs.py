@@ -1,8 +1,8 @@
-"""ld_mpc_jax.eval.selection_runs (compare_selection's evaluation): which policies and settings one
+"""ld_mpc_jax.analysis.selection_runs (compare_selection's evaluation): which policies and settings one
 checkpoint is evaluated with (evaluations stubbed; the tables: test_evaluation_suite.py)."""
 
 from ld_mpc_jax.configs import overrides
-from ld_mpc_jax.eval import selection_runs
+from ld_mpc_jax.analysis import selection_runs
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import multitask_eval

@@ -30,7 +30,7 @@ from absl import app, flags, logging
 
 from ld_mpc_jax.cli import errors as cli
 from ld_mpc_jax.configs import overrides
-from ld_mpc_jax.eval.selection_runs import evaluate_run
+from ld_mpc_jax.analysis.selection_runs import evaluate_run
 
 _WORKDIR = flags.DEFINE_multi_string('workdir', None, 'A training run directory, one per seed: repeat '
                                      'the flag, or separate them with commas.')

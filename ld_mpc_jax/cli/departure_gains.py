@@ -42,7 +42,7 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax.learn import checkpointing
-  from ld_mpc_jax.eval import diagnostics
+  from ld_mpc_jax.analysis import diagnostics
   from ld_mpc_jax.eval.spec import EvalSpec
   if _SUMMARIZE.value:
     with cli.one_line_errors():

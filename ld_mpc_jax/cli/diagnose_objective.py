@@ -36,7 +36,7 @@ def main(argv):
   logging.set_verbosity(logging.WARNING)
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.eval.spec import EvalSpec
-  from ld_mpc_jax.eval.diagnostics import (candidate_wins, held_out_windows, markdown,
+  from ld_mpc_jax.analysis.diagnostics import (candidate_wins, held_out_windows, markdown,
                                       objective_correlation, success_by_k)
   with cli.one_line_errors():
     ks = sorted({int(k) for k in _KS.value})

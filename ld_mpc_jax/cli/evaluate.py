@@ -111,7 +111,7 @@ def main(argv):
 def _noise_sweep(spec, params, step: int, seeds, episodes: int, stds, path: str, run) -> dict:
   """Every policy of --modes at each observation-noise std of `stds` on held-out goals: the
   output's entry, with its table and plot beside `path` (<out>_noise.md, <out>_noise.png)."""
-  from ld_mpc_jax.eval import noise_sweep  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.analysis import noise_sweep  # pylint: disable=g-import-not-at-top
   records = noise_sweep.run_sweep(spec, params, _WORKDIR.value, step, _MODES.value, seeds,
                                   episodes, stds, run=run)
   rows = noise_sweep.table(records)

@@ -279,7 +279,7 @@ def run(paths: list, plot_path: str | None = None) -> None:
   noisy = [{**r, 'run': name} for name, part, tag in parts if not part.endswith(('.csv', '.csv.gz'))
            for r in _tag(_noise_records(read_json(part)), tag)]
   if noisy:
-    from ld_mpc_jax.eval import noise_sweep  # pylint: disable=g-import-not-at-top
+    from ld_mpc_jax.analysis import noise_sweep  # pylint: disable=g-import-not-at-top
     rows = noise_sweep.table(noisy)
     print('\nObservation-noise sweep, pooled (held-out goals):\n\n' + noise_sweep.markdown(rows),
           end='')

@@ -1,4 +1,4 @@
-"""The reward head's calibration on held-out successes (ld_mpc_jax.eval.reward_calibration).
+"""The reward head's calibration on held-out successes (ld_mpc_jax.analysis.reward_calibration).
 
   python -m experiments.diagnose reward --workdir=runs/sparse/seed0 --episodes=50 --out=cal.json
 
@@ -26,7 +26,7 @@ flags.mark_flags_as_required(['workdir'])
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-restore INFO lines out.
-  from ld_mpc_jax.eval import reward_calibration as rc  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.analysis import reward_calibration as rc  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.eval.spec import EvalSpec  # pylint: disable=g-import-not-at-top
   predicted, success = [], []
