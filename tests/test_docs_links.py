@@ -165,10 +165,10 @@ def resolves(name: str) -> bool:
 
 
 def test_the_name_checker_tells_real_names_from_gone_ones():
-  text = ('`ldmpc.make_plan(config)`, ld_mpc_jax.model.search.CANDIDATES.names(), '
+  text = ('`ldmpc.make_plan(config)`, ld_mpc_jax.plan.search.CANDIDATES.names(), '
           'ldmpc.search.CANDIDATES\nfrom ld_mpc_jax import checkpointing, encode\n')
   names = python_names(text)
-  assert names == {'ld_mpc_jax.make_plan', 'ld_mpc_jax.model.search.CANDIDATES.names',
+  assert names == {'ld_mpc_jax.make_plan', 'ld_mpc_jax.plan.search.CANDIDATES.names',
                    'ld_mpc_jax.search.CANDIDATES', 'ld_mpc_jax.checkpointing', 'ld_mpc_jax.encode'}
   assert sorted(n for n in names if not resolves(n)) == [
       'ld_mpc_jax.checkpointing', 'ld_mpc_jax.search.CANDIDATES']

@@ -19,7 +19,7 @@ import pytest
 from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.eval import evaluation_suite, run_files
 from ld_mpc_jax.eval.spec import GoalSource
-from ld_mpc_jax.model.search import CANDIDATE_KINDS
+from ld_mpc_jax.plan.search import CANDIDATE_KINDS
 from ld_mpc_jax.runs import online
 from ld_mpc_jax.online import seats as online_seats
 from ld_mpc_jax.model.models import init_params

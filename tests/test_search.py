@@ -1,4 +1,4 @@
-"""ld_mpc_jax.model.search inside plan(): refinement, safe selection, softmax selection, acting noise."""
+"""ld_mpc_jax.plan.search inside plan(): refinement, safe selection, softmax selection, acting noise."""
 
 import jax
 import jax.numpy as jnp
@@ -7,8 +7,8 @@ import ml_collections
 import pytest
 
 from ld_mpc_jax import encode, make_plan
-from ld_mpc_jax.model import search
-from ld_mpc_jax.model.search import CANDIDATE_KINDS
+from ld_mpc_jax.plan import search
+from ld_mpc_jax.plan.search import CANDIDATE_KINDS
 from ld_mpc_jax.model.settings import PlanSettings
 from ld_mpc_jax.plan.modes import ActSettings
 

@@ -104,11 +104,11 @@ def get_config() -> ml_collections.ConfigDict:
   # (uncertainty penalties as in MOPO and PBRL), against the optimiser's curse of an argmax.
   p.pessimism = 1.0
   p.dynamics_draws = 1  # J averaged over this many dynamics rollouts per candidate.
-  # Search (ld_mpc_jax.model.search). A broad Gaussian candidate set beside the proposal and the actor
+  # Search (ld_mpc_jax.plan.search). A broad Gaussian candidate set beside the proposal and the actor
   # prior, centred on the previous plan (or 0): TD-MPC2's first MPPI samples, std its max_std.
   p.num_gaussian = 0
   p.gaussian_std = 2.0
-  # The first round's candidate kinds, in order (ld_mpc_jax.model.search.CANDIDATES; a kind registered
+  # The first round's candidate kinds, in order (ld_mpc_jax.plan.search.CANDIDATES; a kind registered
   # from your own code joins here by name). The P actor-prior candidates follow them.
   p.first_round = ('proposal', 'gaussian')
   # Refinement rounds around the elites (0 = selection only): TD-MPC2's MPPI update, 6 rounds
@@ -122,7 +122,7 @@ def get_config() -> ml_collections.ConfigDict:
   p.selection = 'argmax'
   # Safe selection: keep the actor prior's own sequence unless the winner beats it by more than
   # safe_margin x the std over value members (and dynamics draws) of their score difference
-  # (SPIBB-style safe improvement; ld_mpc_jax.model.search.select). Needs num_prior_candidates >= 1.
+  # (SPIBB-style safe improvement; ld_mpc_jax.plan.search.select). Needs num_prior_candidates >= 1.
   # Off by default: measured offline on door-open `weak`, push `medium` and reach `medium`
   # and on MT10 (docs/results.md). Margin 8 gives push `medium`'s gain back; margin 1 x E[max]
   # stays below the actor prior on MT10 peg-insert-side; margin 2 x E[max]
@@ -145,7 +145,7 @@ def get_config() -> ml_collections.ConfigDict:
   p.safe_selection = False
   p.safe_margin = 2.0  # The recommended setting's (with 'expected_max' below).
   # 'expected_max': the margin is multiplied by E[max of n standard normals] for the n
-  # candidates scored per call (1.03 at n = 4, 2.34 at n = 64; ld_mpc_jax.model.search.expected_max),
+  # candidates scored per call (1.03 at n = 4, 2.34 at n = 64; ld_mpc_jax.plan.search.expected_max),
   # so that the winner's selection optimism, which grows about as sqrt(2 ln n), is not taken for
   # a gain at large K (the winner's curse of argmax over noisy estimates; Smith and Winkler 2006,
   # "The optimizer's curse"). 'none': margin x spread whatever K.

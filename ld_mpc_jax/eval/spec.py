@@ -21,7 +21,8 @@ import ml_collections
 from ld_mpc_jax import data
 from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax.model import search, tasks
+from ld_mpc_jax.model import tasks
+from ld_mpc_jax.plan import search
 from ld_mpc_jax.plan.modes import ActSettings
 
 

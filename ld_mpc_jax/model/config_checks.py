@@ -13,7 +13,7 @@ from typing import Optional, Tuple
 
 import ml_collections
 
-from ld_mpc_jax.model import actors, dynamics, objective, proposals, search
+from ld_mpc_jax.model import actors, dynamics, objective, proposals
 from ld_mpc_jax.model.critics import CRITIC_HEADS, TD_TARGETS
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
 from ld_mpc_jax.ops import legacy
@@ -73,8 +73,9 @@ def _leaves(config, prefix: str = ''):
 
 def check_sections(config: ml_collections.ConfigDict
                    ) -> Tuple[ModelSettings, PlanSettings, LossSettings]:
-  """Each section's values (the settings' checks, in their order) but `online`'s and the seeds'
-  and optimiser's; returns the settings built for them."""
+  """Each section's values (the settings' checks, in their order) but `online`'s, the seeds',
+  the optimiser's and the planner's search (ld_mpc_jax.plan.search.validate_plan, which the
+  planner's builders and runs.checks.validate_config run); returns the settings built."""
   model = ModelSettings.from_config(config)
   plan, losses = PlanSettings.from_config(config), LossSettings.from_config(config)
   model.check_sizes()
@@ -83,8 +84,7 @@ def check_sections(config: ml_collections.ConfigDict
   model.check_targets()
   losses.check_weights()
   _validate_eval_and_data(config, model)
-  check_kinds(model, plan)  # The kinds, then what the planner asks of them.
-  search.validate_plan(plan, model)
+  check_kinds(model, plan)  # The kinds; what the planner asks of them: plan.search.validate_plan.
   check_critic(model, losses, plan)
   check_tasks(model, config.train.batch_size, config.data.source if 'data' in config else None)
   return model, plan, losses

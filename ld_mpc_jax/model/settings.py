@@ -10,7 +10,7 @@ networks, `plan` and the loss takes these instead:
 
 All are frozen and hashable, so a builder cached on them (ops.build_cache.by_settings) traces
 once per value in a process. Their defaults and the reasons for them stay in configs/base.py (one
-place to read a choice); ld_mpc_jax.model.search.validate_plan holds the planner's checks,
+place to read a choice); ld_mpc_jax.plan.search.validate_plan holds the planner's checks,
 `ModelSettings.check` the encoder's.
 """
 

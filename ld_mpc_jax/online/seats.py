@@ -22,7 +22,7 @@ from ld_mpc_jax.online.schedule import ar1_noise
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
-from ld_mpc_jax.model.search import CANDIDATES
+from ld_mpc_jax.plan.search import CANDIDATES
 
 
 @dataclasses.dataclass(frozen=True)

@@ -15,7 +15,8 @@ import ml_collections
 
 from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.data import demos as demos_lib
-from ld_mpc_jax.model import proposals, search
+from ld_mpc_jax.model import proposals
+from ld_mpc_jax.plan import search
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings, _Hashable
 
 # Policy modes (ld_mpc_jax.plan.agent.POLICY_MODES) that can act online: the planner, or the actor

@@ -15,6 +15,7 @@ import ml_collections
 
 from ld_mpc_jax.model import dynamics
 from ld_mpc_jax.model.config_checks import check_config
+from ld_mpc_jax.plan.search import validate_plan
 from ld_mpc_jax.model.models import build_networks
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.ops.numerics import rms_normalize
@@ -36,8 +37,9 @@ class ActSettings:
   def from_config(cls, config: ml_collections.ConfigDict) -> 'ActSettings':
     """The settings of a config, after its checks (one-line ValueErrors)."""
     check_config(config)
-    return cls(ModelSettings.from_config(config), PlanSettings.from_config(config),
-               tuple(sorted(config.mppi.items())))
+    model, plan = ModelSettings.from_config(config), PlanSettings.from_config(config)
+    validate_plan(plan, model)
+    return cls(model, plan, tuple(sorted(config.mppi.items())))
 
 
 # What a decision reports beside its action: float32 [6] = (kind of the winning candidate, an

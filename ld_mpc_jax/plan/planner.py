@@ -30,7 +30,7 @@ from ld_mpc_jax.model.config_checks import check_config
 from ld_mpc_jax.model.models import Networks, build_networks
 from ld_mpc_jax.model.objective import (Intrinsic, ScoreFn, as_members, make_member_scores,
                                        make_score, make_score_draws)
-from ld_mpc_jax.model.search import (CANDIDATE_KINDS, CANDIDATES, Pool, beats, effective_margin,
+from ld_mpc_jax.plan.search import (CANDIDATE_KINDS, CANDIDATES, Pool, beats, effective_margin,
                                      first_action_spread, first_round_counts, refine, select,
                                      validate_plan)
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
@@ -186,7 +186,7 @@ def _scan_rollout(m: ModelSettings, p: PlanSettings, nets: Networks) -> Callable
 
 def _make_first_round(m: ModelSettings, p: PlanSettings, nets: Networks) -> Callable:
   """first(params, z, prop_key, noise_key, init) -> the first round's proposals: the sequences
-  [N, H, A] of the kinds in `plan.first_round` (ld_mpc_jax.model.search.CANDIDATES; by default the
+  [N, H, A] of the kinds in `plan.first_round` (ld_mpc_jax.plan.search.CANDIDATES; by default the
   proposal's K - P, then `plan.num_gaussian` broad Gaussian ones), or for single-step proposal
   kinds the int K - P (drawn inside the rollout)."""
   if not proposals.get(m).sequence:
@@ -213,7 +213,7 @@ def _first_kinds(p: PlanSettings) -> jnp.ndarray:
 
 def _make_refine(p: PlanSettings, score_draws: Callable, plain_rollout: Callable
                  ) -> Optional[Callable]:
-  """`plan.iterations` refinement rounds (ld_mpc_jax.model.search.refine), or None without:
+  """`plan.iterations` refinement rounds (ld_mpc_jax.plan.search.refine), or None without:
   refine(params, z, key, first: Pool, intrinsic) -> the first round's pool with the rounds'
   elites appended, and `unique` [K'] bool (elites kept from the first round appear twice: once
   only in the softmax over elites)."""
@@ -265,7 +265,7 @@ def make_plan(config: ml_collections.ConfigDict,
               score_fn: Optional[ScoreFn] = None) -> Callable:
   """Builds the jit-compiled planner of a config: `build_plan` of its model's and planner's
   settings (ld_mpc_jax.model.settings), after the config's checks."""
-  check_config(config)
+  check_config(config)  # build_plan checks the planner's settings.
   return build_plan(ModelSettings.from_config(config), PlanSettings.from_config(config),
                     score_fn)
 
@@ -297,8 +297,8 @@ def build_plan(model: ModelSettings, plan: PlanSettings,
   The first round holds the kinds of `plan.first_round` (search.CANDIDATES: by default the
   proposal's K - P, then `plan.num_gaussian` broad Gaussian sequences, TD-MPC2's first MPPI
   samples), then the P actor-prior ones (the first is the actor's own sequence);
-  `plan.iterations` refinement rounds follow (ld_mpc_jax.model.search.refine), whose elites are
-  appended to `candidates` and `scores`. Selection: ld_mpc_jax.model.search.select.
+  `plan.iterations` refinement rounds follow (ld_mpc_jax.plan.search.refine), whose elites are
+  appended to `candidates` and `scores`. Selection: ld_mpc_jax.plan.search.select.
   """
   validate_plan(plan, model)
   if score_fn is None:  # One traced planner per settings value in a process (build_cache).

@@ -5,6 +5,7 @@ import ml_collections
 from ld_mpc_jax.learn.train_state import OptimSettings
 from ld_mpc_jax.model.config_checks import check_sections, fields_checked
 from ld_mpc_jax.online.settings import OnlineSettings
+from ld_mpc_jax.plan.search import validate_plan
 
 
 def validate_config(config: ml_collections.ConfigDict) -> None:
@@ -13,6 +14,7 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   online training's (OnlineSettings.check) where it is on."""
   with fields_checked(config):  # Its NaN check after the sections'.
     model, plan, losses = check_sections(config)
+    validate_plan(plan, model)
     t = config.train
     check_seeds(t.num_seeds, t.get('seed_devices', 1),
                 t.data_parallel or ('eval' in config and config.eval.data_parallel))
