@@ -1,4 +1,4 @@
-"""ld_mpc_jax.model.exploration: the acting planner's settings, the annealed std of the executed-action
+"""ld_mpc_jax.online (settings, schedule): the acting planner's settings, the annealed std of the executed-action
 noise and its correlated (AR(1)) draws, and the intrinsic exploration term in J while acting
 (objective.Intrinsic: optimism over the value members, the dynamics draws' disagreement, annealed)."""
 

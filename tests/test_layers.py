@@ -168,7 +168,7 @@ MAX_CONFIG_TAKERS = 56
 
 def config_takers(root: str = ROOT) -> list:
   """'module:function' for every function of the package with a parameter annotated ConfigDict
-  (or agent.Settings, a ConfigDict or its settings), or unannotated and named config or cfg."""
+  (or named Settings), or unannotated and named config, cfg, base_config or run_config."""
   out = []
   for d, _, files in os.walk(os.path.join(root, PACKAGE)):
     for f in sorted(files):

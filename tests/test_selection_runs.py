@@ -11,7 +11,7 @@ from ld_mpc_jax.eval import multitask_eval
 def test_every_variant_and_actor_variant_runs_with_its_own_settings(monkeypatch):
   # Safe selection needs the actor prior's own sequence among the candidates (validate_config).
   config = overrides.with_overrides(door_open.get_config('smoke'), {'plan.num_prior_candidates': 1})
-  monkeypatch.setattr(checkpointing, 'load_for_evaluation', lambda workdir: (config, 'P', 7))
+  monkeypatch.setattr(checkpointing, 'load_for_evaluation', lambda workdir, check: (config, 'P', 7))
   seen = []
   def evaluate(spec, params, workdir, step, modes, splits, seeds, episodes, run):
     seen.append((modes[0], spec.act.plan.safe_selection, spec.eval.action_noise))

@@ -11,11 +11,11 @@ def evaluate_run(workdir: str, variants, baselines, episodes: int, seed: int,
   checkpoint's held-out episodes (of the tasks in `only_tasks` alone, for a multi-task
   checkpoint, if given)."""
   import functools
-  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval import multitask_eval
   from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.model.config_checks import check_config
-  config, params, step = checkpointing.load_for_evaluation(workdir)  # --tasks checked in main.
+  config, params, step = run_checks.load_for_evaluation(workdir)  # --tasks checked in main.
   records = []
   runs = [(f'plan[{name}]', 'plan', overrides.with_overrides(config, items))
           for name, items in variants]

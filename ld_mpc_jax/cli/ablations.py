@@ -112,14 +112,14 @@ def train_variant(base, name, dataset, seed, root, episodes) -> dict:
 
 def evaluate_on(root, source, dataset, seed, tag, overrides, mode, episodes, noise=0.0) -> dict:
   """Evaluates `mode` on `source`'s checkpoint with overrides; cached as <tag>.json beside it."""
-  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.runs.loop import run_evaluation
   workdir = os.path.join(root, dataset, source, f'seed{seed}')
   path = os.path.join(workdir, f'{tag}.json')
   if os.path.exists(path):
     return _load(path)
-  config, params, _ = checkpointing.load_for_evaluation(workdir)
+  config, params, _ = run_checks.load_for_evaluation(workdir)
   config = with_overrides(config, overrides)
   # The episodes of the variants' own final evaluation (its first evaluation seed, not the
   # training seed), so that every policy of a training seed runs the same episodes.

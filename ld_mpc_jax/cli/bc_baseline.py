@@ -13,9 +13,9 @@ The JSON keeps every episode's outcome.
   python -m experiments.evaluate bc --run=runs/sparse/seed0 --out=runs/sparse/seed0/bc.json
 
 With --run (an online run with `online.demos`), BC learns from that run's own demonstrations
-(the same scripted episodes, `data.demos.get_demos`) and is evaluated on the episodes of that
-run's final evaluation (held-out goals, its evaluation seeds), so that it pairs with the run's
-episodes.csv episode by episode.
+(the same scripted episodes, `OnlineSettings.demonstrations`) and is evaluated on the episodes
+of that run's final evaluation (held-out goals, its evaluation seeds), so that it pairs with the
+run's episodes.csv episode by episode.
 """
 
 import json

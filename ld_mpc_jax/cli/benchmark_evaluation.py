@@ -51,12 +51,12 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
   import jax
-  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval import evaluation, evaluation_suite
   from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.plan.agent import BatchAgentPolicy, make_policy
   with cli.one_line_errors():
-    config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
+    config, params, step = run_checks.load_for_evaluation(_WORKDIR.value)
     spec = EvalSpec.from_config(config)
   e = spec.eval
   chunk = e.plan_chunk if _CHUNK.value is None else _CHUNK.value

@@ -41,7 +41,7 @@ _SUMMARIZE = flags.DEFINE_string('summarize', None, 'Print the table of an --out
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.analysis import diagnostics
   from ld_mpc_jax.eval.spec import EvalSpec
   if _SUMMARIZE.value:
@@ -61,7 +61,7 @@ def main(argv):
       raise ValueError(f'--draws must be >= 1, got {_DRAWS.value}')
     if not os.path.isdir(_WORKDIR.value):
       raise FileNotFoundError(f'no run directory {_WORKDIR.value}')
-    config, params, _ = checkpointing.load_for_evaluation(_WORKDIR.value)
+    config, params, _ = run_checks.load_for_evaluation(_WORKDIR.value)
     if _VARIANT.value:
       _, items = overrides.parse_variant(_VARIANT.value)
       config = overrides.with_overrides(config, items)

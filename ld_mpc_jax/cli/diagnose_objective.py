@@ -34,7 +34,7 @@ flags.mark_flag_as_required('workdir')
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.analysis.diagnostics import (candidate_wins, held_out_windows, markdown,
                                       objective_correlation, success_by_k)
@@ -45,7 +45,7 @@ def main(argv):
     for flag in (_EPISODES, _DATA_EPISODES, _STRIDE):
       if flag.value < 1:
         raise ValueError(f'--{flag.name} must be >= 1, got {flag.value}')
-    config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
+    config, params, step = run_checks.load_for_evaluation(_WORKDIR.value)
     spec = EvalSpec.from_config(config)
   obs, actions, returns = held_out_windows(spec, _DATA_EPISODES.value, _STRIDE.value)
   report = dict(workdir=_WORKDIR.value, step=step, k=spec.act.plan.num_candidates,

@@ -37,7 +37,7 @@ flags.mark_flags_as_required(['workdir', 'episodes'])
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.analysis import diagnostics
   from ld_mpc_jax.eval.spec import EvalSpec
   with cli.one_line_errors():
@@ -47,7 +47,7 @@ def main(argv):
                        f'got {_EPISODES.value}')
     if not os.path.isdir(_WORKDIR.value):
       raise FileNotFoundError(f'no run directory {_WORKDIR.value}')
-    config, params, _ = checkpointing.load_for_evaluation(_WORKDIR.value)
+    config, params, _ = run_checks.load_for_evaluation(_WORKDIR.value)
     runs = [('actor', 'actor', config)] + ([('plan', 'plan', config)] if _PLAN.value else [])
     for name, items in (overrides.parse_variant(v) for v in _VARIANTS.value):
       runs.append((f'plan[{name}]', 'plan', overrides.with_overrides(config, items)))

@@ -56,7 +56,7 @@ def _checked_seeds() -> list:
 def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)
-  from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval import evaluation_suite, multitask_eval
   from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.model import tasks
@@ -73,7 +73,7 @@ def main(argv):
       cli.check_new_output(video, _OVERWRITE.value, flag='--video_out')
     cli.check_subset('--splits', _SPLITS.value, ['held_out', 'train'])
     cli.check_subset('--modes', _MODES.value, ['plan', 'actor', 'proposal', 'mppi'])
-    config, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
+    config, params, step = run_checks.load_for_evaluation(_WORKDIR.value)
     config = with_overrides(config, parse_items(OVERRIDES))
     validate_config(config)
     spec = EvalSpec.from_config(config)

@@ -94,6 +94,7 @@ def main(argv):
   import tqdm
   from ld_mpc_jax.plan import agent
   from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval import evaluation_suite
   from ld_mpc_jax.eval.spec import GoalSource
   from ld_mpc_jax.ops import stats
@@ -108,7 +109,7 @@ def main(argv):
     if not tasks.is_multitask(config):
       raise ValueError(f'{_WORKDIR.value} is a single-task run ({config.task}); MT10 needs a '
                        'multi-task one (config.tasks)')
-    _, params, step = checkpointing.load_for_evaluation(_WORKDIR.value)
+    _, params, step = run_checks.load_for_evaluation(_WORKDIR.value)
   except (ValueError, FileNotFoundError) as err:
     cli.fail(str(err))
   envs = gym.make_vec('Meta-World/MT10', vector_strategy='sync', seed=_SEED.value)

@@ -27,12 +27,12 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-restore INFO lines out.
   from ld_mpc_jax.analysis import reward_calibration as rc  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs import checks as run_checks  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.eval.spec import EvalSpec  # pylint: disable=g-import-not-at-top
   predicted, success = [], []
   for workdir in _WORKDIR.value:
     with cli.one_line_errors():
-      config, params, step = checkpointing.load_for_evaluation(workdir)
+      config, params, step = run_checks.load_for_evaluation(workdir)
       spec = EvalSpec.from_config(config)
     for episode in rc.record_episodes(spec, params, _MODE.value, _EPISODES.value, _SEED.value):
       predicted.append(rc.predicted_rewards(spec.act.model, params, episode))

@@ -23,7 +23,7 @@ class Buffer:
   bool). Windows are sampled uniformly over the offline data and the online episodes
   (`ReplayBuffer`), and a share of each batch uniformly over the demonstrations, with one
   persistent generator, whose state the checkpoint keeps. The demonstrations are not saved:
-  they are drawn again, the same, from the config (`demos.get_demos`). With `progress`, windows
+  they are drawn again, the same, from the config (`OnlineSettings.demonstrations`). With `progress`, windows
   carry the learned progress reward's targets (`replay.progress_targets`).
   """
 

@@ -380,13 +380,15 @@ def restore_latest(manager: ocp.CheckpointManager, target: TrainState) -> Option
   return restore_intact(manager, target)[1]
 
 
-def load_for_evaluation(workdir: str):
-  """(config, ema_params, step) from a training workdir's config and newest intact checkpoint
-  (a newer damaged one is skipped with a warning line, and left as it is)."""
+def load_for_evaluation(workdir: str, check: Optional[Callable] = None):
+  """(config, ema_params, step) from a workdir's config and newest intact checkpoint (a newer
+  damaged one skipped with a warning line, left as it is); `check(config)` (check_config; the
+  commands: runs.checks.validate_config) refuses a hand-edited config before any is read."""
   config = load_config(workdir)
-  from ld_mpc_jax.model.config_checks import check_config  # pylint: disable=g-import-not-at-top
+  if check is None:
+    from ld_mpc_jax.model.config_checks import check_config as check  # pylint: disable=g-import-not-at-top
   try:  # A hand-edited config is its own fault, not the checkpoints'.
-    check_config(config)
+    check(config)
   except ValueError as err:
     raise WorkdirError(f'{os.path.join(workdir, CONFIG_FILE)} is not a valid config ({err}); '
                        'undo the edit (the checkpoints were not read)') from None

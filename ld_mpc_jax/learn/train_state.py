@@ -68,10 +68,12 @@ def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
   obs [N, obs_dim]: the dataset's observations, whose mean and std the encoder normalises with
   (`config.model.normalize_obs`); None leaves the identity normalisation (mean 0, std 1).
   """
-  params = init_params(config, key)
+  params = init_params(config, key)  # After check_config.
   if obs is not None and config.model.normalize_obs:
     params = set_obs_normalization(params, obs, config.model.obs_mask_constant)
-  tx = make_optimizer(OptimSettings.from_config(config))
+  optim = OptimSettings.from_config(config)
+  optim.check(LossSettings.from_config(config))  # The optimiser's own (check_config leaves them).
+  tx = make_optimizer(optim)
 
   @jax.jit  # One program, not one small compiled operation per leaf.
   def fresh(params):

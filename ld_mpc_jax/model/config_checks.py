@@ -33,8 +33,9 @@ _POSITIVE_INTS = (
 
 def check_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work, in every section but
-  `online` and the training seeds' and optimiser's settings (ld_mpc_jax.runs.checks.validate_config,
-  what a run calls, checks all)."""
+  `online`, the training seeds', the optimiser's (OptimSettings.check) and the planner's search
+  (plan.search.validate_plan): ld_mpc_jax.runs.checks.validate_config, what a run calls, checks
+  them all; the builders check their own (make_plan, make_update, create_train_state)."""
   with fields_checked(config):
     check_sections(config)
 

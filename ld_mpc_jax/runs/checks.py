@@ -2,6 +2,7 @@
 
 import ml_collections
 
+from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.learn.train_state import OptimSettings
 from ld_mpc_jax.model.config_checks import check_sections, fields_checked
 from ld_mpc_jax.online.settings import OnlineSettings
@@ -37,3 +38,9 @@ def check_seeds(num_seeds: int, seed_devices: int, data_parallel: bool) -> None:
   if num_seeds > 1 and data_parallel:
     raise ValueError('config.train.num_seeds > 1 runs on one device: set '
                      'config.train.data_parallel and config.eval.data_parallel off')
+
+
+def load_for_evaluation(workdir: str):
+  """(config, ema_params, step) of a training workdir (checkpointing.load_for_evaluation), its
+  config refused on one line naming config.json when a hand edit broke any of its checks."""
+  return checkpointing.load_for_evaluation(workdir, check=validate_config)

@@ -39,7 +39,7 @@ PY
 fi
 python3 - "$CONFIG" <<'PY'  # Every task's dataset, one process per task (cached ones load).
 import concurrent.futures, importlib.util, sys, time
-from ld_mpc_jax import tasks
+from ld_mpc_jax.envs import tasks
 from ld_mpc_jax.data import sources
 path, _, preset = sys.argv[1].partition(':')
 spec = importlib.util.spec_from_file_location('cfg', path); mod = importlib.util.module_from_spec(spec)
@@ -47,7 +47,7 @@ spec.loader.exec_module(mod)
 config = mod.get_config(preset or None)
 def collect(k):
   t = time.time()
-  sources.load_for_config(tasks.task_config(config, k), progress=False)
+  sources.load_dataset(sources.DataSpec.from_config(tasks.task_config(config, k)), progress=False)
   return f'{tasks.task_names(config)[k]} ready in {time.time() - t:.0f} s'
 with concurrent.futures.ProcessPoolExecutor(tasks.num_tasks(config)) as pool:
   print('\n'.join(pool.map(collect, range(tasks.num_tasks(config)))))
