@@ -1,5 +1,5 @@
-"""ld_mpc_jax.runs.checks.validate_config: bad values fail with one line naming the field; the online batch
-against the windows of the seed data; acting settings; the multi-task batch."""
+"""ld_mpc_jax.runs.checks.validate_config: bad values fail with one line naming the field; the
+online batch against the windows of the seed data; acting settings; the multi-task batch."""
 
 import dataclasses
 
@@ -198,7 +198,8 @@ def test_the_builders_check_their_own_settings_and_a_hand_edit_is_blamed(tmp_pat
   with pytest.raises(ValueError, match='ema_decay'):
     create_train_state(with_overrides(config, {'train.ema_decay': 1.5}), jax.random.key(0))
   checkpointing.save_config(with_overrides(config, {'plan.selection': 'bogus'}), str(tmp_path))
-  with pytest.raises(checkpointing.WorkdirError, match='config.json is not a valid config.*selection'):
+  with pytest.raises(checkpointing.WorkdirError,
+                     match='config.json is not a valid config.*selection'):
     checks.load_for_evaluation(str(tmp_path))
   with pytest.raises(FileNotFoundError, match='no checkpoint'):  # check_config alone passes it.
     checkpointing.load_for_evaluation(str(tmp_path))
