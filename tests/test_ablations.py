@@ -142,7 +142,8 @@ def test_baselines_run_the_variants_evaluation_seed_not_the_training_seed(
   workdir.mkdir(parents=True)
   (workdir / 'report.json').write_text(json.dumps({'num_params': 3}))
   smoke_config.eval.seeds = (7,)
-  monkeypatch.setattr(checkpointing, 'load_for_evaluation', lambda w: (smoke_config, {}, 4))
+  monkeypatch.setattr(checkpointing, 'load_for_evaluation',
+                      lambda w, check=None: (smoke_config, {}, 4))
   seen = []
   monkeypatch.setattr(runs, 'run_evaluation', lambda c, p, mode, n, seed, **k: seen.append(
       seed) or {'success_rate': 0.5, 'successes': 1, 'records': []})

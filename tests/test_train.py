@@ -12,7 +12,7 @@ from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.eval.spec import EvalSpec
-from ld_mpc_jax.runs import loop as runs, train
+from ld_mpc_jax.runs import loop as runs, train, train_seeds
 from ld_mpc_jax.ops import stats
 from ld_mpc_jax.data import replay
 
@@ -252,7 +252,10 @@ def test_rerunning_a_finished_run_changes_nothing(unevaluated_runs, tmp_path, da
   shutil.copytree(unevaluated_runs['a'][0], workdir)
   before = {p: p.read_bytes() for p in workdir.rglob('*') if p.is_file()}
   monkeypatch.setattr(train, 'make_update', lambda *a, **k: pytest.fail('trained again'))
-  c = smoke(data_dir)
+  monkeypatch.setattr(train_seeds, 'make_seeds_update',
+                      lambda *a, **k: pytest.fail('trained again'))
+  with open(workdir / 'config.json') as f:  # The xdist worker that built it had its own data dir.
+    c = smoke(json.load(f)['data']['dir'])
   c.eval.episodes = 0
   report = train.train_and_evaluate(c, str(workdir))
   assert report.pop('records') == [] and report == unevaluated_runs['a'][1]  # Not evaluated.

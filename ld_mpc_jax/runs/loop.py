@@ -3,9 +3,10 @@
 A run directory holds config.json, checkpoints/ (orbax, with progress.json beside them), tb/
 (TensorBoard), eval.csv (periodic held-out evaluations), episodes.csv (the final evaluation's
 episodes), the plots (`run_files.write_plots`), report.json and report.md. `Run` writes all of
-them, one method per file, for both jobs; `loop` drives a `Job` (`train.OfflineJob`: one update
-per advance; `online.OnlineJob`: one wave of episodes and its updates) to its end, checkpointing
-and evaluating at the same crossings for both.
+them, one method per file, for every job; `loop` drives a `Job` (`train_seeds.OfflineSeedsJob`:
+one update of every seed per advance, N >= 1 seeds; `train.OfflineJob`: the data-parallel one
+seed; `online.OnlineJob`: one wave of episodes and its updates) to its end, checkpointing and
+evaluating at the same crossings for all.
 """
 
 import json

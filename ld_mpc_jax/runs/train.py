@@ -102,9 +102,10 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   stage(f'data: {dataset.num_episodes:,} episodes, {dataset.num_transitions:,} transitions '
              f'({config.data.source}, {config.task})')
   runs.check_data_fits(dataset, ModelSettings.from_config(config), config.train.batch_size)
-  if config.train.num_seeds > 1:  # N seeds in one process, vmapped (ld_mpc_jax.runs.train_seeds).
+  if not config.train.data_parallel:  # N >= 1 seeds on the seed axis (runs.train_seeds).
     from ld_mpc_jax.runs import train_seeds  # pylint: disable=g-import-not-at-top
     return train_seeds.train_seeds(config, workdir, dataset, _report, _summary_md)
+  # One seed, its batch split over every device (and process): the data-parallel job.
   run = runs.Run(config, workdir)
   state = run.restore()
   if state is None:
@@ -142,7 +143,9 @@ class _Timer:
 
 
 class OfflineJob:
-  """Offline training as a `runs.Job`: each advance is one update on dataset windows."""
+  """Data-parallel offline training of one seed as a `runs.Job` (`train.data_parallel`): each
+  advance is one update on dataset windows, the batch split over the devices. Without it,
+  offline training is runs.train_seeds.OfflineSeedsJob for any number of seeds."""
 
   def __init__(self, config, run: runs.Run, dataset: data.Dataset, state):
     t = config.train

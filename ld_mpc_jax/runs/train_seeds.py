@@ -1,11 +1,14 @@
-"""Several training seeds of an offline run in one process (`train.num_seeds` = N > 1).
+"""The training seeds of an offline run in one process (`train.num_seeds` = N >= 1; one seed is
+N = 1 of the same path, written into the workdir itself; `train.data_parallel` runs
+train.OfflineJob instead).
 
-Each seed is the run it would make alone: its own config (seed config.seed + i, saved as a run of
-one seed), run directory <workdir>/seed<seed>, data order and update keys; their TrainStates are
-stacked on a leading seed axis, one stack per device (`train.seed_devices`, `ops.seed_groups`), and
-the update is vmapped over each device's seeds (`train_state.make_seeds_update`), one jitted call
-per device, dispatched without waiting. Checkpoints, logs, periodic and
-final evaluations and reports are each seed's own; the run adds pooled.json and pooled.md.
+With N > 1 each seed is the run it would make alone: its own config (seed config.seed + i, saved
+as a run of one seed), run directory <workdir>/seed<seed>, data order and update keys; their
+TrainStates are stacked on a leading seed axis, one stack per device (`train.seed_devices`,
+`ops.seed_groups`), and the update is vmapped over each device's seeds
+(`train_state.make_seeds_update`; with one seed, the unbatched update on the squeezed stack), one
+jitted call per device, dispatched without waiting. Checkpoints, logs, periodic and final
+evaluations and reports are each seed's own; N > 1 adds pooled.json and pooled.md.
 """
 
 import json
@@ -69,7 +72,8 @@ class OfflineSeedsJob:
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.seconds, self._last = 0.0, None  # Timed from the second logged interval.
     self._timed_steps = 0
-    self.bar = progress_bar(t.num_steps, self.progress, f'train x{len(pairs)}')
+    self.bar = progress_bar(t.num_steps, self.progress,
+                            'train' if len(pairs) == 1 else f'train x{len(pairs)}')
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, or None."""
@@ -137,8 +141,10 @@ def train_seeds(config: ml_collections.ConfigDict, workdir: str, dataset: data.D
   """Trains and evaluates every seed; writes each seed's report and the pooled one."""
   job = OfflineSeedsJob(config, workdir, dataset)
   t = config.train
-  runs.loop(job.runs, job, t.num_steps, t.checkpoint_every, t.eval_every)
-  job.bar.close()
+  try:
+    runs.loop(job.runs, job, t.num_steps, t.checkpoint_every, t.eval_every)
+  finally:
+    job.bar.close()  # Its line ends: an error line (an interrupt, a full disk) starts its own.
   reports, records = [], []
   for i, run in enumerate(job.seed_runs):
     run.manager.wait_until_finished()
@@ -147,6 +153,8 @@ def train_seeds(config: ml_collections.ConfigDict, workdir: str, dataset: data.D
     report = report_fn(run, dataset, job.seed_view(i), final, baselines, summary, recs)
     reports.append(run.write_report(report, summary_fn(report), recs))
     records.append(recs)
+  if len(reports) == 1:  # One seed: its run is the workdir, its report the run's.
+    return reports[0]
   seeds = [c.seed for c in job.configs]
   table = online_report.pool_seeds(seeds, records)
   out = dict(task=config.task, steps=job.progress, seeds=seeds, policies=table,
