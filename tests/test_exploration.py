@@ -26,7 +26,7 @@ def acting_plan(config):
 
 
 def acting_schedule(config, learn_start):
-  return schedule.ActingSchedule.of(OnlineSettings.from_config(config), learn_start)
+  return schedule.ActingSchedule(OnlineSettings.from_config(config), learn_start)
 
 
 def test_acting_plan_is_the_plans_with_the_online_noise_and_pessimism():

@@ -27,7 +27,7 @@ def acting_plan(config):
 
 
 def acting_schedule(config, learn_start):
-  return schedule.ActingSchedule.of(OnlineSettings.from_config(config), learn_start)
+  return schedule.ActingSchedule(OnlineSettings.from_config(config), learn_start)
 
 ON = {'loss.w_novelty': 1.0}
 D, A = 6, 2

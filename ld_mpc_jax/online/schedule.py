@@ -21,7 +21,7 @@ def _linear(start: float, end: float, env_steps: int, first: int, total: int) ->
 @dataclasses.dataclass(frozen=True)
 class ActingSchedule:
   """The acting planner's settings that anneal with environment steps (`config.online`), built
-  once per run (`of`) where it knows when learning starts.
+  once per run where it knows when learning starts.
 
   Each is linear from its start value at its first step to its end value at `end` (= schedule_end:
   `online.schedule_steps`, or `online.env_steps` where that is 0), constant after:
@@ -30,39 +30,37 @@ class ActingSchedule:
     `act_disagreement`, `act_novelty` -> their `_end`), from `plan_start` (the first planner
     wave); under 'constant' those keep their start values.
   """
-  schedule: str  # online.act_schedule: 'constant' | 'linear'.
-  end: int
-  learn_start: int
-  plan_start: int
-  exec_noise_start: float
-  exec_noise_end: float
-  act_pessimism: float
-  act_pessimism_end: float
-  act_disagreement: float
-  act_disagreement_end: float
-  act_novelty: float
-  act_novelty_end: float
+  online: OnlineSettings  # Its start and end values, act_schedule and schedule_end.
+  learn_start: int  # Environment steps where updates start.
 
-  @classmethod
-  def of(cls, online: OnlineSettings, learn_start: int) -> 'ActingSchedule':
-    """`learn_start`: environment steps where updates start. The first planner wave follows the
-    actor prior's seed waves with demonstrations and `online.demo_seed_actor`, else it is there."""
-    names = ('exec_noise_start', 'exec_noise_end', 'act_pessimism', 'act_pessimism_end',
-             'act_disagreement', 'act_disagreement_end', 'act_novelty', 'act_novelty_end')
-    first = online.seed_steps if online.demos and online.demo_seed_actor else learn_start
-    return cls(schedule=online.act_schedule, end=online.schedule_end, learn_start=learn_start,
-               plan_start=first, **{name: float(getattr(online, name)) for name in names})
+  @property
+  def schedule(self) -> str:
+    return self.online.act_schedule  # 'constant' | 'linear'.
+
+  @property
+  def end(self) -> int:
+    return self.online.schedule_end
+
+  @property
+  def plan_start(self) -> int:
+    """The first planner wave: after the actor prior's seed waves with demonstrations and
+    `online.demo_seed_actor`, else where learning starts."""
+    o = self.online
+    return o.seed_steps if o.demos and o.demo_seed_actor else self.learn_start
+
+  def _value(self, name: str) -> float:
+    return float(getattr(self.online, name))
 
   def executed_noise(self, env_steps: int) -> float:
     """Std of the noise on the executed action at `env_steps`."""
-    return _linear(self.exec_noise_start, self.exec_noise_end, env_steps, self.learn_start,
-                   self.end)
+    return _linear(self._value('exec_noise_start'), self._value('exec_noise_end'), env_steps,
+                   self.learn_start, self.end)
 
   def _scheduled(self, name: str, env_steps: int) -> float:
-    start = getattr(self, name)
+    start = self._value(name)
     if self.schedule == 'constant':
       return start
-    return _linear(start, getattr(self, f'{name}_end'), env_steps, self.plan_start, self.end)
+    return _linear(start, self._value(f'{name}_end'), env_steps, self.plan_start, self.end)
 
   def exploration(self, env_steps: int) -> Tuple[float, float]:
     """(pessimism, disagreement weight) of the acting planner at `env_steps`."""

@@ -138,7 +138,7 @@ class OnlineJob:
     # pretrained on them, plus the executed-action noise), learn from the start.
     self.learn_start = 0 if source is not None or o.demos else o.seed_steps
     self.online = OnlineSettings.from_config(config)
-    self.acting_schedule = ActingSchedule.of(self.online, self.learn_start)  # Annealed.
+    self.acting_schedule = ActingSchedule(self.online, self.learn_start)  # Annealed.
     self.per_call = o.updates_per_call
     self.update = {n: make_seeds_update(config, n, self.per_call) for n in set(self.groups.sizes)}
     self.keys = self.groups.split(jnp.stack([seat.update_key for seat in self.seats]))
