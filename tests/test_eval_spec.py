@@ -88,8 +88,8 @@ def test_a_multi_task_spec_holds_each_tasks():
 def test_the_goal_source_of_each_kind_of_training_data():
   config = door_open.get_config('smoke')
   source = GoalSource.from_config(config)
-  assert (source.task, source.online, source.load) == (config.task, '', None)
-  assert source.action_repeat == config.eval.action_repeat  # The data's, as collected.
+  assert (source.task, source.online, source.data.source) == (config.task, '', 'metaworld')
+  assert source.data.action_repeat == config.eval.action_repeat  # The data's, as collected.
   online = door_open_online.get_config('smoke')
   assert GoalSource.from_config(online).online == 'mt1'
   online.online.train_goals = 'random'
@@ -98,8 +98,8 @@ def test_the_goal_source_of_each_kind_of_training_data():
   assert GoalSource.from_config(online).online == ''
   tdmpc2 = with_overrides(config, {'data.source': 'tdmpc2', 'data.path': '/chunks'})
   source = GoalSource.from_config(tdmpc2)
-  assert source.path == '/chunks' and callable(source.load)
-  assert source == GoalSource.from_config(tdmpc2)  # The loader is no part of the value.
+  assert source.data.path == '/chunks' and source.data.source == 'tdmpc2'
+  assert source == GoalSource.from_config(tdmpc2)  # A value: equal for equal configs.
 
 
 def test_tdmpc2_goals_come_from_the_chunks_training_read(fake_torch, tmp_path):

@@ -53,12 +53,13 @@ def dataset_goals(source: GoalSource) -> Tuple[np.ndarray, Optional[int]]:
   """
   if source.online == 'random':
     return np.zeros((0, envs.metaworld_env.GOAL_DIM)), None
+  d = source.data
   if source.online:
-    return goals.mt1_goals(source.task, source.seed)[1], source.seed
-  if source.source == 'tdmpc2':
+    return goals.mt1_goals(d.task, d.seed)[1], d.seed
+  if d.source == 'tdmpc2':
     return goals.dataset_goal_vectors(source.load()), None
-  return _dataset_goals(source.task, source.preset, source.episodes, source.seed, source.dir,
-                        source.action_repeat, source.max_episode_steps)
+  return _dataset_goals(d.task, d.preset, d.episodes, d.seed, d.dir, d.action_repeat,
+                        d.max_episode_steps)
 
 
 def available_splits(source: GoalSource, splits: Sequence[str]) -> Tuple[str, ...]:

@@ -12,9 +12,8 @@ frozen; the ConfigDict stays the command line's surface and the saved `config.js
 """
 
 import dataclasses
-import functools
 import json
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Dict, Tuple
 
 import ml_collections
 
@@ -40,39 +39,28 @@ def without(section: dict, defaults: dict) -> dict:
 @dataclasses.dataclass(frozen=True)
 class GoalSource:
   """The training data's goals, which the goal splits are drawn against
-  (evaluation_suite.dataset_goals): `config.task` and `config.data`, with the action repeat the
-  data were collected at (`config.eval.action_repeat`)."""
-  task: str
-  source: str  # config.data.source: the suite's scripted episodes or 'tdmpc2'.
-  preset: str
-  episodes: int
-  seed: int
-  dir: str
-  action_repeat: int
-  max_episode_steps: int
-  path: str  # config.data.path (TD-MPC2's chunk files).
+  (evaluation_suite.dataset_goals): the data the config trains on (`data`: its task,
+  `config.data` and the action repeat the data were collected at), or online training's goals."""
+  data: data.DataSpec
   # Online training from scratch (config.online without init_from), by `online.train_goals`:
-  # 'random' (a fresh goal per episode) or 'mt1' (the goals of MT1 seed `seed`); '' for a
+  # 'random' (a fresh goal per episode) or 'mt1' (the goals of MT1 seed `data.seed`); '' for a
   # dataset's goals.
   online: str = ''
-  # TD-MPC2's data only: () -> the dataset (data.load_dataset of the config's DataSpec: the chunk files
-  # training read, cached by the data layer). Not compared: `path` and `task` name the data.
-  load: Optional[Callable[[], Any]] = dataclasses.field(
-      default=None, compare=False, hash=False, repr=False)
 
   @classmethod
   def from_config(cls, config: ml_collections.ConfigDict) -> 'GoalSource':
-    d = config.data
     online = ''
     if online_enabled(config) and not config.online.init_from:
       online = 'random' if config.online.train_goals == 'random' else 'mt1'
-    load = None
-    if not online and d.source == 'tdmpc2':
-      load = functools.partial(data.load_dataset, data.DataSpec.from_config(config))
-    return cls(task=config.task, source=d.source, preset=d.preset, episodes=d.episodes,
-               seed=d.seed, dir=d.dir, action_repeat=config.eval.action_repeat,
-               max_episode_steps=d.max_episode_steps, path=str(d.get('path', '')),
-               online=online, load=load)
+    return cls(data.DataSpec.from_config(config), online)
+
+  @property
+  def task(self) -> str:
+    return self.data.task
+
+  def load(self):
+    """The dataset (TD-MPC2's chunk files: read once, cached by the data layer)."""
+    return data.load_dataset(self.data)
 
 
 _EVAL_FIELDS = ('batch_size', 'plan_chunk', 'data_parallel', 'key_seed', 'action_noise',
