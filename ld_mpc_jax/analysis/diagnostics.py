@@ -32,7 +32,7 @@ _HORIZON_MARGIN = 100  # Decisions of return a window needs after its start (1 /
 
 def held_out_windows(spec: EvalSpec, data_episodes: int, stride: int):
   """(obs [N, H+1, obs_dim], actions [N, H, A], returns [N]) from held-out dataset episodes."""
-  d, m = spec.goals, spec.act.model
+  d, m = spec.goals.data, spec.act.model
   h = m.horizon
   ds = data.get_or_collect(d.task, d.preset, data_episodes, d.seed + 1000, d.dir,
                            action_repeat=d.action_repeat)
