@@ -244,6 +244,11 @@ def get_config() -> ml_collections.ConfigDict:
   c.loss = l = ml_collections.ConfigDict()
   l.w_dyn = 1.0  # Latent dynamics denoising loss.
   l.w_act = 1.0  # Action-proposal denoising loss.
+  # How the proposal's denoising loss weights the data's sequences: 'uniform' (each alike: it imitates
+  # whatever acted) or 'advantage' (by the critics' weight of the window's first action, exp of its
+  # advantage over V at critic.awr_temperature, capped at critic.awr_max_weight, scaled to mean 1 over
+  # the batch: it imitates what did better than the value expected; needs critics).
+  l.act_weighting = 'uniform'
   # Two-hot cross-entropies start near log(101) = 4.6; TD-MPC2 weights them 0.1 against its
   # consistency loss; 0.5 keeps them from dominating the two MSE-scale diffusion losses.
   l.w_rew = 0.5

@@ -10,7 +10,8 @@ like every other position.
 
   L_dyn    the dynamics kind's loss (ld_mpc_jax.model.dynamics; z_{i+1} = sg(enc(o_{i+1})));
            like L_act, left out (not computed) where its weight is 0;
-  L_act    the proposal kind's loss (ld_mpc_jax.model.proposals);
+  L_act    the proposal kind's loss (ld_mpc_jax.model.proposals), each window alike or, with
+           `loss.act_weighting='advantage'`, by the critics' weight of its first action;
   L_rew    two-hot cross-entropy of r_i, i < H, read at the a_i tokens (`reward_loss`);
   L_val    the value kind's loss on the objective's value head ('behaviour', ld_mpc_jax.model.objective;
            0 for 'expectile', whose values are the critics');
@@ -161,6 +162,10 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
   critic_loss = _make_critic_loss(m, losses, nets)
   model_rollout = make_model_rollout(m, losses, nets) if losses.latent_rollout else None
   objective_terms = make_objective_terms(m, losses, nets)
+  weigh_act = losses.act_weighting == 'advantage'
+  if weigh_act and critic_loss is None:
+    raise ValueError("config.loss.act_weighting='advantage' weights by the critics' "
+                     'advantages: the model has none (config.critic.value or critic.actor needs them)')
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
@@ -179,7 +184,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
     # A term of weight 0 is left out, not computed (the TD-MPC2 control trains neither).
     if losses.w_dyn:
       terms['dyn'] = dyn.loss(m, nets.dynamics, params, z, action, k_dyn, drop(0))
-    if losses.w_act:
+    if losses.w_act and not weigh_act:
       terms['act'] = proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1))
     z_sets = (z,)
     if model_rollout is not None:  # The objective also learns on the latents it scores.
@@ -196,6 +201,10 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
                                                     action, reward, jax.random.fold_in(key, 103))
       terms.update(critic)
       metrics.update(critic_metrics)
+    if losses.w_act and weigh_act:  # By the critics' weights, scaled to mean 1 over the batch.
+      act_weights = weights / jnp.maximum(jnp.mean(weights), 1e-8)
+      terms['act'] = proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1),
+                                   weights=act_weights)
     terms['actor'] = actor.loss(losses, nets, params, z, action, weights, k_pi)
     if 'demo' in batch:  # Structure, not value: known when tracing.
       terms['demo_bc'] = demo_bc_loss(nets, params, sg(z[:, :-1]), action, batch['demo'])

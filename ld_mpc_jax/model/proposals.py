@@ -149,12 +149,14 @@ class DiffusionSequence:
     z = jnp.zeros((1, m.latent_dim))
     return jnp.zeros((1, m.horizon, m.action_dim)), jnp.zeros((1,)), z
 
-  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
-    """Denoising loss of a_{0:H-1} given z_0: z [B, H+2, D], action [B, H+1, A] -> []."""
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs, weights=None):
+    """Denoising loss of a_{0:H-1} given z_0: z [B, H+2, D], action [B, H+1, A] -> []; with
+    `weights` [B, H+1] (mean 1), each window's by the weight of its first action."""
     h = m.horizon
     fn = lambda a_t, t: module.apply({'params': params['proposal']}, a_t, t, z[:, 0],
                                      deterministic=False, rngs=rngs)
-    return diffusion.denoising_loss(fn, action[:, :h], key, m.prediction).mean()
+    per_window = diffusion.denoising_loss(fn, action[:, :h], key, m.prediction)
+    return per_window.mean() if weights is None else jnp.mean(weights[:, 0] * per_window)
 
   def make_propose(self, m: ModelSettings, plan: PlanSettings, module, guide=None):
     return _diffusion_propose(m, plan, module, m.horizon, guide)
@@ -172,12 +174,14 @@ class DiffusionStep(_SingleStep):
     z = jnp.zeros((1, m.latent_dim))
     return jnp.zeros((1, 1, m.action_dim)), jnp.zeros((1,)), z
 
-  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
-    """Denoising loss of a_i given z_i, all i <= H: z [B, H+2, D], action [B, H+1, A] -> []."""
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs, weights=None):
+    """Denoising loss of a_i given z_i, all i <= H: z [B, H+2, D], action [B, H+1, A] -> [];
+    with `weights` [B, H+1] (mean 1), each pair's by its weight."""
     z_in, a_in = transitions(z, action)
     fn = lambda a_t, t: module.apply({'params': params['proposal']}, a_t, t, z_in,
                                      deterministic=False, rngs=rngs)
-    return diffusion.denoising_loss(fn, a_in[:, None], key, m.prediction).mean()
+    per_pair = diffusion.denoising_loss(fn, a_in[:, None], key, m.prediction)
+    return per_pair.mean() if weights is None else jnp.mean(weights.reshape(-1) * per_pair)
 
   def make_step(self, m: ModelSettings, plan: PlanSettings, module) -> Callable:
     """step(params, zs [N, D], key) -> [N, A] in [-1, 1], `plan.action_steps` steps."""
@@ -207,11 +211,15 @@ class GaussianMLP(_SingleStep):
   def init_args(self, m: ModelSettings):
     return (jnp.zeros((1, m.latent_dim)),)
 
-  def loss(self, m: ModelSettings, module, params, z, action, key, rngs):
-    """Gaussian NLL per dimension of a_i given z_i, all i <= H -> []."""
+  def loss(self, m: ModelSettings, module, params, z, action, key, rngs, weights=None):
+    """Gaussian NLL per dimension of a_i given z_i, all i <= H -> []; with `weights` [B, H+1]
+    (mean 1), each pair's by its weight."""
     z_in, a_in = transitions(z, action)
     mean, log_std = module.apply({'params': params['proposal']}, z_in)
-    return gaussian_nll(mean, log_std, a_in)
+    if weights is None:
+      return gaussian_nll(mean, log_std, a_in)
+    nll = jnp.mean(0.5 * ((a_in - mean) * jnp.exp(-log_std)) ** 2 + log_std, axis=-1)
+    return jnp.mean(weights.reshape(-1) * nll)
 
   def make_step(self, m: ModelSettings, plan: PlanSettings, module) -> Callable:
     """step(params, zs [N, D], key) -> [N, A]: mean + std noise, clipped to [-1, 1]."""

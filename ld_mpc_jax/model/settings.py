@@ -255,7 +255,10 @@ class PlanSettings(_Hashable):
 
 
 _LOSS_FIELDS = ('w_dyn', 'w_act', 'w_rew', 'w_val', 'w_actor', 'w_consistency', 'w_q', 'w_v',
-                'w_demo_bc', 'w_noise_inv', 'w_progress', 'w_novelty', 'reward_balance')
+                'w_demo_bc', 'w_noise_inv', 'w_progress', 'w_novelty', 'reward_balance',
+                'act_weighting')
+# How the proposal's loss weights the data's sequences (ld_mpc_jax.learn.losses).
+ACT_WEIGHTINGS = ('uniform', 'advantage')
 _CRITIC_LOSS_FIELDS = ('expectile', 'awr_temperature', 'awr_max_weight', 'td_target',
                        'entropy_coef', 'latent_rollout', 'rollout_steps', 'rollout_unroll')
 
@@ -279,6 +282,7 @@ class LossSettings:
   w_progress: float
   w_novelty: float
   reward_balance: float
+  act_weighting: str
   # config.critic
   expectile: float
   awr_temperature: float
@@ -301,6 +305,9 @@ class LossSettings:
     """One-line ValueError for the progress reward's weight (ld_mpc_jax.model.progress)."""
     if self.w_progress < 0:
       raise ValueError(f'config.loss.w_progress must be >= 0, got {self.w_progress}')
+    if self.act_weighting not in ACT_WEIGHTINGS:
+      raise ValueError(f'config.loss.act_weighting must be one of {list(ACT_WEIGHTINGS)}, got '
+                       f'{self.act_weighting!r}')
 
   def check_batch(self) -> None:
     """One-line ValueErrors for how the loss weights and noises a batch: the reward loss's

@@ -53,7 +53,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 8
+CONFIG_VERSION = 9
 
 
 def _online_fields(saved: dict) -> dict:
@@ -157,8 +157,21 @@ def to_v8(saved: dict) -> None:
       fill(saved, section, fields)
 
 
+# Field added in version 9, with the value that changes nothing: the proposal's loss weights every
+# sequence alike.
+V9_FIELDS = {'loss': dict(act_weighting='uniform')}
+
+
+def to_v9(saved: dict) -> None:
+  """Version 8 -> 9 (in place): `loss.act_weighting` 'uniform'."""
+  for section, fields in V9_FIELDS.items():
+    if section in saved:
+      fill(saved, section, fields)
+
+
 # version -> the step that brings a config of version - 1 to it.
-STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7, 8: to_v8}
+STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7, 8: to_v8,
+         9: to_v9}
 
 
 def migrate(saved: dict) -> dict:
