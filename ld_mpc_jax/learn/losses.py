@@ -151,6 +151,29 @@ def _make_critic_loss(m: ModelSettings, losses: LossSettings, nets: Networks):
   return make_critic_loss(m, losses, nets.critics, policy, sample)
 
 
+def _weighs_act(losses: LossSettings, has_critics: bool) -> bool:
+  """Whether the proposal's loss weighs its windows by the critics' weights
+  (`loss.act_weighting='advantage'`); a one-line ValueError for a model without critics."""
+  if losses.act_weighting == 'advantage' and not has_critics:
+    raise ValueError("config.loss.act_weighting='advantage' weights by the critics' "
+                     'advantages: the model has none (config.critic.value or critic.actor needs them)')
+  return losses.act_weighting == 'advantage'
+
+
+def _critic_terms(critic_loss, terms, metrics, params, target_params, z, z_ema, z_sets, action,
+                  reward, key):
+  """The critics' terms and metrics added to `terms` and `metrics` (in place); returns their
+  weights [B, H+1], or None for a model without critics (`critic_loss` None)."""
+  if critic_loss is None:
+    return None
+  z_model = z_sets[1] if len(z_sets) > 1 else None
+  critic, weights, critic_metrics = critic_loss(params, target_params, z, z_ema, z_model, action,
+                                                reward, key)
+  terms.update(critic)
+  metrics.update(critic_metrics)
+  return weights
+
+
 def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Callable:
   """Returns loss_fn(params, target_params, batch, key) -> (loss [], metrics {name: []}).
 
@@ -162,10 +185,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
   critic_loss = _make_critic_loss(m, losses, nets)
   model_rollout = make_model_rollout(m, losses, nets) if losses.latent_rollout else None
   objective_terms = make_objective_terms(m, losses, nets)
-  weigh_act = losses.act_weighting == 'advantage'
-  if weigh_act and critic_loss is None:
-    raise ValueError("config.loss.act_weighting='advantage' weights by the critics' "
-                     'advantages: the model has none (config.critic.value or critic.actor needs them)')
+  weigh_act = _weighs_act(losses, critic_loss is not None)
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
@@ -194,17 +214,11 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
     obj_terms, metrics = objective_terms(params, target_params, z_sets, z_ema, action, reward,
                                          drop(2))
     terms.update(obj_terms)
-    weights = None
-    if critic_loss is not None:
-      z_model = z_sets[1] if len(z_sets) > 1 else None
-      critic, weights, critic_metrics = critic_loss(params, target_params, z, z_ema, z_model,
-                                                    action, reward, jax.random.fold_in(key, 103))
-      terms.update(critic)
-      metrics.update(critic_metrics)
+    weights = _critic_terms(critic_loss, terms, metrics, params, target_params, z, z_ema, z_sets,
+                            action, reward, jax.random.fold_in(key, 103))
     if losses.w_act and weigh_act:  # By the critics' weights, scaled to mean 1 over the batch.
-      act_weights = weights / jnp.maximum(jnp.mean(weights), 1e-8)
       terms['act'] = proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1),
-                                   weights=act_weights)
+                                   weights=weights / jnp.maximum(jnp.mean(weights), 1e-8))
     terms['actor'] = actor.loss(losses, nets, params, z, action, weights, k_pi)
     if 'demo' in batch:  # Structure, not value: known when tracing.
       terms['demo_bc'] = demo_bc_loss(nets, params, sg(z[:, :-1]), action, batch['demo'])
