@@ -161,10 +161,11 @@ def state_hash(state) -> Optional[str]:
 def step_hashes(workdir: str) -> Dict[int, str]:
   """{step: `state_hash`} of every checkpoint step of an intact workdir."""
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.learn.train_state import LearnSettings  # pylint: disable=g-import-not-at-top
   import orbax.checkpoint as ocp  # pylint: disable=g-import-not-at-top
   config = checkpointing.load_config(workdir)
   manager = checkpointing.checkpoint_manager(workdir)
-  target = checkpointing.abstract_state(config)
+  target = checkpointing.abstract_state(LearnSettings.from_config(config))
   return {step: state_hash(manager.restore(step, args=ocp.args.StandardRestore(target)))
           for step in manager.all_steps()}
 
@@ -174,10 +175,11 @@ def final_state(workdir: str):
   it has none (a warning line per damaged step, as the library prints)."""
   import jax  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.learn.train_state import LearnSettings  # pylint: disable=g-import-not-at-top
   try:
-    config = checkpointing.load_config(workdir)
+    learn = LearnSettings.from_config(checkpointing.load_config(workdir))
     step, state, _ = checkpointing.restore_intact(checkpointing.checkpoint_manager(workdir),
-                                                  checkpointing.abstract_state(config))
+                                                  checkpointing.abstract_state(learn))
   except (checkpointing.WorkdirError, FileNotFoundError):
     return None, None
   return step, (None if state is None else jax.tree.map(np.asarray, state))

@@ -1,4 +1,5 @@
-"""FLOPs of one `plan` call: an analytic count from the config and a trip-count-corrected XLA count.
+"""FLOPs of one `plan` call: an analytic count from the model's and the planner's settings
+(ModelSettings, PlanSettings) and a trip-count-corrected XLA count.
 
 Counting convention: a multiply-add is 2 FLOPs, a bias add 1 FLOP per output element. The
 analytic (hand) count covers every matrix product of the models (dense layers, attention scores
@@ -22,10 +23,10 @@ from typing import Callable
 
 import jax
 import jax.numpy as jnp
-import ml_collections
 
 from ld_mpc_jax.ops import diffusion
-from ld_mpc_jax.model.models import ActionProposal, LatentDynamics, build_networks, init_params
+from ld_mpc_jax.model.models import (ActionProposal, LatentDynamics, build_networks,
+                                     init_params_from)
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
@@ -84,8 +85,8 @@ def time_embedding_flops(width: int) -> int:
   return 2 * dense_flops(width, width, 1)
 
 
-def plan_flops(config: ml_collections.ConfigDict) -> dict:
-  """Hand count of one `plan(params, z, key)` call, broken down by network.
+def plan_flops(m: ModelSettings, p: PlanSettings) -> dict:
+  """Hand count of one `plan(params, z, key)` call of `build_plan(m, p)`, broken down by network.
 
   Follows the code: the proposal's conditioning token is computed once per plan, the dynamics'
   conditioning tokens once per transition, time embeddings once per denoising step (shared by
@@ -96,8 +97,7 @@ def plan_flops(config: ml_collections.ConfigDict) -> dict:
   Returns:
     {'proposal', 'dynamics', 'objective', 'actor', 'total'}: FLOPs (ints).
   """
-  m, p = config.model, config.plan
-  h, a, d, w, r = config.horizon, config.action_dim, m.latent_dim, m.width, m.mlp_ratio
+  h, a, d, w, r = m.horizon, m.action_dim, m.latent_dim, m.width, m.mlp_ratio
   k, num_prior = p.num_candidates, p.num_prior_candidates
   n = k - num_prior
   action_steps = p.action_steps
@@ -146,38 +146,35 @@ def compiled_flops(compiled) -> float:
   return float(cost['flops'])
 
 
-def _abstract_inputs(config: ml_collections.ConfigDict):
-  params = jax.eval_shape(lambda key: init_params(config, key), jax.random.key(0))
+def _abstract_inputs(m: ModelSettings):
+  params = jax.eval_shape(lambda key: init_params_from(m, key), jax.random.key(0))
   key = jax.eval_shape(lambda: jax.random.key(0))
-  z = jax.ShapeDtypeStruct((config.model.latent_dim,), jnp.float32)
+  z = jax.ShapeDtypeStruct((m.latent_dim,), jnp.float32)
   return params, z, key
 
 
-def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None = None,
-                   plan_args: tuple | None = None, plan_once: float | None = None,
-                   plan: PlanSettings | None = None) -> dict:
+def xla_plan_flops(m: ModelSettings, p: PlanSettings, plan_fn: Callable | None = None,
+                   plan_args: tuple | None = None, plan_once: float | None = None) -> dict:
   """Trip-count-corrected XLA FLOPs of one `plan` call (see the module docstring).
 
   Args:
-    config: LD-MPC config.
-    plan_fn: the jitted plan to analyse; default `make_plan(config)`.
+    m: the model's settings (ModelSettings.from_config(config)).
+    p: the planner's settings of `plan_fn` (PlanSettings.from_config(config), or the acting
+      planner's: OnlineSettings.acting_plan).
+    plan_fn: the jitted plan to analyse; default `build_plan(m, p)`.
     plan_args: its arguments (arrays or ShapeDtypeStructs); default (params, z, key). Pass
       (params, z, key, prev_sequence) for a warm-started call.
     plan_once: C(plan) if already known (from the caller's own compilation).
-    plan: the planner's settings of `plan_fn` when they are not the config's (the acting
-      planner's, OnlineSettings.acting_plan); default PlanSettings.from_config(config).
   Returns:
     {'plan_once': C(plan), 'proposal_step', 'transition', 'dynamics_step', 'total'} in FLOPs.
   """
   from ld_mpc_jax.plan import planner  # Local: planner imports nothing from here, keep it that way.
-  m = ModelSettings.from_config(config)
-  p = PlanSettings.from_config(config) if plan is None else plan
   nets = build_networks(m)
   h, a, w = m.horizon, m.action_dim, m.width
   k, n = p.num_candidates, p.num_candidates - p.num_prior_candidates
-  params, z, key = _abstract_inputs(config)
+  params, z, key = _abstract_inputs(m)
   if plan_once is None:
-    plan_fn = plan_fn or planner.make_plan(config)
+    plan_fn = plan_fn or planner.build_plan(m, p)
     plan_once = xla_flops(plan_fn, *(plan_args or (params, z, key)))
 
   def proposal_step(prop_params, x, cond, key):
@@ -195,7 +192,7 @@ def xla_plan_flops(config: ml_collections.ConfigDict, plan_fn: Callable | None =
 
   f32 = lambda *shape: jax.ShapeDtypeStruct(shape, jnp.float32)
   prop = xla_flops(proposal_step, params['proposal'], f32(n, h, a), f32(n, 1, w), key)
-  dyn = xla_flops(dynamics_step, params['dynamics'], f32(k, config.model.latent_dim),
+  dyn = xla_flops(dynamics_step, params['dynamics'], f32(k, m.latent_dim),
                   f32(k, 2, w), key)
   # One transition (conditioning, actor prior, one dynamics step): the rollout's outer scan
   # with a single denoising step, counted once by XLA.

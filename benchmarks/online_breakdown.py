@@ -77,9 +77,9 @@ def _flops(config: ml_collections.ConfigDict) -> Dict[str, float]:
   from ld_mpc_jax.model.settings import ModelSettings, PlanSettings  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.online.settings import OnlineSettings  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.plan import planner  # pylint: disable=g-import-not-at-top
+  model = ModelSettings.from_config(config)
   act = OnlineSettings.from_config(config).acting_plan(PlanSettings.from_config(config))
-  plan_fn = planner.build_plan(ModelSettings.from_config(config), act)
-  decision = flops.xla_plan_flops(config, plan_fn, plan=act)['total']
+  decision = flops.xla_plan_flops(model, act, planner.build_plan(model, act))['total']
   update = training.benchmark_update('update', config, repeats=1, warmup=0)  # One seed's.
   return dict(decision_gflop=decision / 1e9, update_gflop=update['gflop'])
 

@@ -30,7 +30,7 @@ import numpy as np
 from benchmarks.training import random_batch
 from ld_mpc_jax.model.models import encode, init_params
 from ld_mpc_jax.plan.planner import make_plan
-from ld_mpc_jax.learn.train_state import create_train_state, make_update
+from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state, make_update
 
 NETWORKS = (('ActionProposal', 'proposal'), ('LatentDynamics', 'dynamics'),
             ('TrajectoryDynamics', 'dynamics'), ('SequenceObjective', 'objective'),
@@ -160,10 +160,11 @@ def profile_plan(config, calls: int = 3) -> dict:
 
 def profile_update(config, calls: int = 3) -> dict:
   """As profile_plan, for one training update of `config` on a synthetic batch."""
-  state = create_train_state(config, jax.random.key(0))
+  learn = LearnSettings.from_config(config)
+  state = create_train_state(learn, jax.random.key(0))
   batch = random_batch(config, config.train.batch_size)
   key = jax.random.key(1)
-  compiled = make_update(config).lower(state, batch, key).compile()
+  compiled = make_update(learn).lower(state, batch, key).compile()
 
   def call():  # The update donates its state: carry the new one.
     nonlocal state

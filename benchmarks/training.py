@@ -9,6 +9,7 @@ scans too), and reads the cost analysis of that scan-free program: the FLOPs of 
 (benchmarks.flops corrects the planner instead by lowering each loop body on its own.)
 """
 
+import dataclasses
 import time
 from typing import Callable, Dict, Optional
 
@@ -22,7 +23,7 @@ from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.model import tasks
 from benchmarks.flops import compiled_flops
 from ld_mpc_jax.model.models import count_params
-from ld_mpc_jax.learn.train_state import create_train_state, make_update
+from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state, make_update
 
 # Primitives whose sub-jaxpr is evaluated in line, so that the scans inside them are unrolled too.
 _INLINE = {'pjit': 'jaxpr', 'jit': 'jaxpr', 'closed_call': 'call_jaxpr',
@@ -119,8 +120,9 @@ def random_batch(config: ml_collections.ConfigDict, batch_size: int, seed: int =
   batch = dict(obs=rng.normal(size=(b, h + 2, config.obs_dim)).astype(np.float32),
                action=rng.uniform(-1, 1, (b, h + 1, config.action_dim)).astype(np.float32),
                reward=rng.uniform(0, 10, (b, h + 1)).astype(np.float32))
-  if tasks.is_multitask(config):
-    n = tasks.num_tasks(config)
+  trained = tasks.Tasks.from_config(config)
+  if trained.multitask:
+    n = len(trained)
     batch['task'] = np.repeat(np.arange(n, dtype=np.int32), b // n)
   return batch
 
@@ -140,12 +142,12 @@ def benchmark_update(name: str, config: ml_collections.ConfigDict, repeats: int,
     scans unrolled), gflop_xla_once (scan bodies counted once), num_params, batch_size, devices.
   """
   b = config.train.batch_size
-  single_config = ml_collections.ConfigDict(config.to_dict())  # The plain single-device update.
-  single_config.train.data_parallel = False
+  learn = LearnSettings.from_config(config)
+  single = dataclasses.replace(learn, data_parallel=False)  # The plain single-device update.
   data_parallel = data_parallel or config.train.data_parallel
   mesh = sharding.make_mesh() if data_parallel else None
-  update = make_update(single_config, mesh)
-  state = create_train_state(config, jax.random.key(0))
+  update = make_update(single, mesh)
+  state = create_train_state(learn, jax.random.key(0))
   batches = [random_batch(config, b, seed=i) for i in range(min(4, warmup + repeats))]
   put = (lambda x: sharding.shard_batch(x, mesh)) if mesh is not None else (lambda x: x)
   if mesh is not None:
@@ -166,9 +168,9 @@ def benchmark_update(name: str, config: ml_collections.ConfigDict, repeats: int,
     raise FloatingPointError(f'{name}: non-finite loss in the benchmark')
   flops = {'xla_once': float('nan'), 'total': float('nan')}
   if count_flops:  # Of the single-device program: the global FLOPs of a step.
-    abstract = jax.eval_shape(lambda: create_train_state(config, jax.random.key(0)))
+    abstract = jax.eval_shape(lambda: create_train_state(learn, jax.random.key(0)))
     once = compiled_flops(compiled) if mesh is None else None
-    flops = unrolled_flops(make_update(single_config), abstract, batches[0], jax.random.key(0),
+    flops = unrolled_flops(make_update(single), abstract, batches[0], jax.random.key(0),
                            once=once)
   return dict(name=name, step_s=times, compile_s=compile_s, gflop=flops['total'] / 1e9,
               gflop_xla_once=flops['xla_once'] / 1e9, num_params=num_params, batch_size=b,

@@ -8,7 +8,7 @@ from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.ops import build_cache, registry
 from ld_mpc_jax import make_plan
 from ld_mpc_jax.model import models
-from ld_mpc_jax.learn.train_state import make_update
+from ld_mpc_jax.learn.train_state import LearnSettings, make_update
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 
 
@@ -63,11 +63,12 @@ def test_settings_given_lists_still_hash():
 def test_builders_trace_once_per_settings_value():
   config = door_open.get_config('smoke')
   assert make_plan(config) is make_plan(door_open.get_config('smoke'))
-  assert make_update(config) is make_update(door_open.get_config('smoke'))
+  learn = lambda c: LearnSettings.from_config(c)
+  assert make_update(learn(config)) is make_update(learn(door_open.get_config('smoke')))
   # Fields that change neither the model, its loss nor its optimiser share the update.
   other = door_open.get_config('smoke')
   other.eval.episodes, other.train.num_steps = 3, 7
-  assert make_update(other) is make_update(config)
+  assert make_update(learn(other)) is make_update(learn(config))
   # A score function of the caller's own is never cached.
   score = lambda params, latents, actions: jnp.zeros(latents.shape[0])
   assert make_plan(config, score) is not make_plan(config, score)

@@ -17,7 +17,7 @@ from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.runs.checks import validate_config
-from ld_mpc_jax.learn.train_state import create_train_state
+from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state
 
 # Fields whose fallbacks moved into migrate_config, with what a run saved before them did.
 OLD_RUN_VALUES = {
@@ -115,7 +115,8 @@ def test_a_checkpoint_round_trip_returns_the_same_state(tmp_path):
   evaluation reads."""
   import chex
   config = door_open.get_config('smoke')
-  fresh = create_train_state(config, jax.random.key(3))
+  learn = LearnSettings.from_config(config)
+  fresh = create_train_state(learn, jax.random.key(3))
   rng = np.random.default_rng(4)
   move = lambda x: x + (7 if np.issubdtype(x.dtype, np.integer)
                         else rng.standard_normal(x.shape).astype(x.dtype))
@@ -125,7 +126,7 @@ def test_a_checkpoint_round_trip_returns_the_same_state(tmp_path):
   manager.save(int(state.step), args=ocp.args.StandardSave(state))
   manager.wait_until_finished()
   restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)),
-                                          checkpointing.abstract_state(config))
+                                          checkpointing.abstract_state(learn))
   chex.assert_trees_all_equal(restored, state, strict=True)
   loaded, ema_params, step = checkpointing.load_for_evaluation(str(tmp_path))
   chex.assert_trees_all_equal(ema_params, state.ema_params, strict=True)
@@ -161,8 +162,8 @@ def test_a_config_with_an_objective_section_is_refused_naming_critic():
 def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
   """A run trained on a GPU is evaluated on a laptop: the saved placement ("cuda:0") is not
   this machine's, and the state still restores, onto this process's device, values intact."""
-  config = door_open.get_config('smoke')
-  state = create_train_state(config, jax.random.key(3))
+  learn = LearnSettings.from_config(door_open.get_config('smoke'))
+  state = create_train_state(learn, jax.random.key(3))
   manager = checkpointing.checkpoint_manager(str(tmp_path))
   manager.save(7, args=ocp.args.StandardSave(state))
   manager.wait_until_finished()
@@ -171,7 +172,7 @@ def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
   assert '"cpu:0"' in saved.replace('\\"', '"')
   placement.write_text(saved.replace('cpu:0', 'cuda:0'))
   restored = checkpointing.restore_latest(checkpointing.checkpoint_manager(str(tmp_path)),
-                                          checkpointing.abstract_state(config))
+                                          checkpointing.abstract_state(learn))
   assert int(restored.step) == int(state.step)
   for a, b in zip(jax.tree.leaves(restored.ema_params), jax.tree.leaves(state.ema_params)):
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
@@ -203,7 +204,8 @@ def test_continuing_with_other_networks_is_refused_even_with_the_flag(tmp_path):
   config = door_open.get_config('smoke')
   checkpointing.save_config(config, workdir)
   manager = checkpointing.checkpoint_manager(workdir)
-  manager.save(1, args=ocp.args.StandardSave(create_train_state(config, jax.random.key(0))))
+  state = create_train_state(LearnSettings.from_config(config), jax.random.key(0))
+  manager.save(1, args=ocp.args.StandardSave(state))
   manager.wait_until_finished()
   wider = with_overrides(door_open.get_config('smoke'), {'model.width': 32})
   with pytest.raises(checkpointing.WorkdirError, match=r'networks differ \(model.width'):
@@ -242,7 +244,7 @@ def _two_checkpoints(workdir):
   config = door_open.get_config('smoke')
   checkpointing.save_config(config, workdir)
   manager = checkpointing.checkpoint_manager(workdir)
-  state = create_train_state(config, jax.random.key(0))
+  state = create_train_state(LearnSettings.from_config(config), jax.random.key(0))
   for step in (1, 2):
     manager.save(step, args=ocp.args.StandardSave(state.replace(step=step)))
   manager.wait_until_finished()
@@ -289,13 +291,13 @@ def test_a_resumed_run_sets_damaged_steps_aside_and_saves_them_again(tmp_path):
 
 def test_a_step_without_what_the_run_needs_is_skipped(tmp_path):
   workdir = str(tmp_path)
-  config = door_open.get_config('smoke')
+  learn = LearnSettings.from_config(door_open.get_config('smoke'))
   manager = checkpointing.checkpoint_manager(workdir)
-  state = create_train_state(config, jax.random.key(0))
+  state = create_train_state(learn, jax.random.key(0))
   for step in (1, 2):
     manager.save(step, args=ocp.args.StandardSave(state))
   manager.wait_until_finished()
-  target = checkpointing.abstract_state(config)
+  target = checkpointing.abstract_state(learn)
   step, _, skipped = checkpointing.restore_intact(
       manager, target, lambda s: 'no buffer_2.npz' if s == 2 else None)
   assert (step, skipped) == (1, [2])
@@ -340,7 +342,8 @@ def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_las
   workdir = str(tmp_path)
   config = door_open.get_config('smoke')
   run = runs.Run(config, workdir)
-  state = create_train_state(config, jax.random.key(0))
+  learn = LearnSettings.from_config(config)
+  state = create_train_state(learn, jax.random.key(0))
   run.save(state.replace(step=1), 1, 0.0)
   folder = os.path.join(workdir, 'checkpoints')
 
@@ -359,7 +362,7 @@ def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_las
   assert sorted(os.listdir(folder)) == ['1']  # No partial step 2 left to be picked up.
   assert json.load(open(tmp_path / 'progress.json'))['step'] == 1
   step, restored, skipped = checkpointing.restore_intact(
-      checkpointing.checkpoint_manager(workdir), checkpointing.abstract_state(config))
+      checkpointing.checkpoint_manager(workdir), checkpointing.abstract_state(learn))
   assert (step, skipped) == (1, [])
   same = jax.tree.map(lambda a, b: np.array_equal(a, b), restored, state.replace(step=1))
   assert all(jax.tree_util.tree_leaves(same))

@@ -186,17 +186,16 @@ def test_the_update_checks_keep_their_order():
 
 
 def test_the_builders_check_their_own_settings_and_a_hand_edit_is_blamed(tmp_path):
-  """create_train_state refuses bad optimiser settings (check_config leaves them to it); the
+  """LearnSettings.from_config refuses bad optimiser settings (check_config leaves them to it); the
   commands' loader refuses a config.json whose search settings a hand edit broke, naming the
   file, before any checkpoint is read (checkpointing's own default checks less)."""
-  import jax  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax import create_train_state  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax import LearnSettings  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.configs.overrides import with_overrides  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.runs import checks  # pylint: disable=g-import-not-at-top
   config = door_open.get_config('smoke')
   with pytest.raises(ValueError, match='ema_decay'):
-    create_train_state(with_overrides(config, {'train.ema_decay': 1.5}), jax.random.key(0))
+    LearnSettings.from_config(with_overrides(config, {'train.ema_decay': 1.5}))
   checkpointing.save_config(with_overrides(config, {'plan.selection': 'bogus'}), str(tmp_path))
   with pytest.raises(checkpointing.WorkdirError,
                      match='config.json is not a valid config.*selection'):

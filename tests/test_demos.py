@@ -92,7 +92,7 @@ def test_a_run_with_demos_pretrains_on_them_and_plans_from_the_first_wave(tmp_pa
   config.eval.splits, config.eval.baselines, config.eval.episodes = ('held_out',), (), 2
   shares = []
 
-  def counting(cfg, n, per_call):  # Records each batch's share of demo windows; no compiling.
+  def counting(learn, n, per_call):  # Records each batch's share of demo windows; no compiling.
     def update(state, batch, keys):
       obs = np.asarray(batch['obs'])[0]  # [B, T, obs_dim] of the one seed.
       from_demos = np.all(obs == DEMO_OBS, axis=(1, 2))

@@ -13,7 +13,6 @@ from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.eval import evaluation_suite
 from ld_mpc_jax.eval.spec import EvalSpec, GoalSource
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax.model import tasks
 from tests.tdmpc2_chunks import fake_torch, write_mt80_chunk  # pylint: disable=unused-import
 
 
@@ -36,6 +35,14 @@ def _config_key(config, step, mode, split, seed, num_episodes, obs_noise_std, ve
   if obs_noise_std > 0 and config.eval.obs_noise_dims != 'all':
     relevant['eval']['obs_noise_dims'] = config.eval.obs_noise_dims
   return hashlib.sha1(dumps(relevant).encode()).hexdigest()[:10]
+
+
+def _task_config(config, k):
+  """A copy of multi-task `config` for task index `k` alone (config.task set, config.tasks
+  removed): the config whose spec a task's spec must be."""
+  out = with_overrides(config, {'task': tuple(config.tasks)[k]})
+  del out['tasks']
+  return out
 
 
 def _configs(tmp_path):
@@ -62,7 +69,7 @@ def test_cache_keys_are_the_configs_byte_for_byte(tmp_path):
     assert spec.task == name
     for cell in grid[:8]:
       assert (evaluation_suite._cache_key(spec, *cell)
-              == _config_key(tasks.task_config(config, k), *cell))
+              == _config_key(_task_config(config, k), *cell))
 
 
 def test_a_variant_of_the_planner_is_the_spec_of_the_changed_config():
@@ -81,7 +88,7 @@ def test_a_multi_task_spec_holds_each_tasks():
   spec = EvalSpec.from_config(config)
   assert spec.multitask and [n for n, _ in spec.tasks] == list(config.tasks)
   _, first = spec.tasks[0]
-  assert first == EvalSpec.from_config(tasks.task_config(config, 0)) and not first.multitask
+  assert first == EvalSpec.from_config(_task_config(config, 0)) and not first.multitask
   assert not EvalSpec.from_config(door_open.get_config('smoke')).multitask
 
 

@@ -9,7 +9,7 @@ import jax
 
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.runs import loop as runs
-from ld_mpc_jax.learn.train_state import create_train_state
+from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MARKER = b'not json: a stand-in for the mp4'
@@ -34,7 +34,7 @@ app.run(evaluate.main)
 def test_video_and_json_are_separate_files(tmp_path, smoke_config):
   workdir = str(tmp_path / 'run')
   checkpointing.save_config(smoke_config, workdir)
-  state = create_train_state(smoke_config, jax.random.key(0))
+  state = create_train_state(LearnSettings.from_config(smoke_config), jax.random.key(0))
   runs.save_checkpoint(workdir, checkpointing.checkpoint_manager(workdir), state, 1, 0.0)
   done = subprocess.run(
       [sys.executable, '-c', _SCRIPT, f'--workdir={workdir}', '--video', '--modes=actor',

@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import pytest
 
 from ld_mpc_jax.model import tdmpc2_world
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.plan import mppi
 from benchmarks import flops
 from ld_mpc_jax.nets import TransformerBlock
@@ -61,16 +62,17 @@ def small_config(smoke_config):
 # Marked long: benchmark tooling on a whole compiled program (about 13 s each on a quiet core).
 @pytest.mark.long
 def test_plan_hand_count_matches_corrected_xla(small_config):
-  hand = flops.plan_flops(small_config)
+  settings = lambda c: (ModelSettings.from_config(c), PlanSettings.from_config(c))
+  hand = flops.plan_flops(*settings(small_config))
   assert hand['total'] == (hand['proposal'] + hand['dynamics'] + hand['objective']
                            + hand['actor'])
-  xla = flops.xla_plan_flops(small_config)
+  xla = flops.xla_plan_flops(*settings(small_config))
   assert abs(xla['total'] / hand['total'] - 1) < 0.1
   # The uncorrected cost analysis misses most denoising steps (scan bodies counted once).
   small_config.plan.action_steps = 6
   small_config.plan.dynamics_steps = 5
-  xla6 = flops.xla_plan_flops(small_config)
-  hand6 = flops.plan_flops(small_config)
+  xla6 = flops.xla_plan_flops(*settings(small_config))
+  hand6 = flops.plan_flops(*settings(small_config))
   assert abs(xla6['total'] / hand6['total'] - 1) < 0.1
   assert xla6['plan_once'] < 0.6 * xla6['total']
 

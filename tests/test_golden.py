@@ -34,13 +34,15 @@ def test_old_smoke_checkpoint_loads_and_plans_the_same(tmp_path):
 
 def test_cpu_preset_plans_the_same():
   config = door_open.get_config('cpu')
-  params = train_state.create_train_state(config, jax.random.key(0)).ema_params
+  learn = train_state.LearnSettings.from_config(config)
+  params = train_state.create_train_state(learn, jax.random.key(0)).ema_params
   _check('cpu', make_golden.decisions(config, params))
 
 
 def test_the_fixture_can_tell_a_change():
   """Another key gives other plans: equal decisions above are not an accident of the fixture."""
   config = door_open.get_config('smoke')
-  params = train_state.create_train_state(config, jax.random.key(1)).ema_params
+  learn = train_state.LearnSettings.from_config(config)
+  params = train_state.create_train_state(learn, jax.random.key(1)).ema_params
   with pytest.raises(AssertionError):
     _check('smoke', make_golden.decisions(config, params))

@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from ld_mpc_jax import create_train_state, init_params, make_update
+from ld_mpc_jax import LearnSettings, create_train_state, init_params, make_update
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.model import models
 from ld_mpc_jax.runs.checks import validate_config
@@ -37,7 +37,8 @@ def test_the_latent_is_the_standardised_observation():
 
 def test_an_update_trains_the_observation_dynamics():
   config = obs_space_config()
-  state = create_train_state(config, jax.random.key(0))
+  learn = LearnSettings.from_config(config)
+  state = create_train_state(learn, jax.random.key(0))
   rng = np.random.default_rng(0)
   h = config.horizon
   batch = {'obs': rng.normal(size=(8, h + 2, 39)).astype(np.float32),
@@ -45,7 +46,7 @@ def test_an_update_trains_the_observation_dynamics():
            'reward': rng.uniform(0, 5, (8, h + 1)).astype(np.float32)}
   before = jax.tree_util.tree_map(np.array, state.params['dynamics'])
   encoder = jax.tree_util.tree_map(np.array, state.params['encoder'])
-  update, losses = make_update(config), []
+  update, losses = make_update(learn), []
   for _ in range(20):
     state, metrics = update(state, batch, jax.random.key(1))
     losses.append(float(metrics['loss']))

@@ -49,7 +49,7 @@ def _record_policies(config, workdir, monkeypatch):
   monkeypatch.setattr(evaluation_suite, 'BatchAgentPolicy',
                       recording('eval', evaluation_suite.BatchAgentPolicy))
   # No learning needed here: an update that only counts (and compiles in no time).
-  monkeypatch.setattr(online, 'make_seeds_update', lambda cfg, n, per_call: (
+  monkeypatch.setattr(online, 'make_seeds_update', lambda learn, n, per_call: (
       lambda state, batch, keys: (state.replace(step=state.step + 1),
                                   {'loss': jnp.ones(n, jnp.float32)})))
   online.train_online(config, workdir)

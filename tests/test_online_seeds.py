@@ -10,6 +10,7 @@ import pytest
 
 from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.learn.train_state import LearnSettings
 from ld_mpc_jax import data
 from ld_mpc_jax.runs import online
 
@@ -23,9 +24,8 @@ def _config(seed, num_seeds):
 
 
 def _params(workdir, config):
-  state = checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir),
-                                       checkpointing.abstract_state(config))
-  return state.params
+  target = checkpointing.abstract_state(LearnSettings.from_config(config))
+  return checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir), target).params
 
 
 def _episodes(workdir):

@@ -65,9 +65,10 @@ def _batch(config, b=8):
 
 
 def test_toy_dynamics_trains(toy_config):
-  state = train_state.create_train_state(toy_config, jax.random.key(0))
+  learn = train_state.LearnSettings.from_config(toy_config)
+  state = train_state.create_train_state(learn, jax.random.key(0))
   assert set(state.params['dynamics']) == {'linear'}
-  update, batch = train_state.make_update(toy_config), _batch(toy_config)
+  update, batch = train_state.make_update(learn), _batch(toy_config)
   losses = []
   for i in range(8):
     state, metrics = update(state, batch, jax.random.key(i))

@@ -32,7 +32,8 @@ def test_single_task_configs_keep_their_parameter_tree():
   one = door_open.get_config('smoke')
   one.tasks = ('door-open-v3',)  # One task: no embedding either, the same values.
   chex.assert_trees_all_equal(models.init_params(one, jax.random.key(0)), params)
-  assert not tasks.is_multitask(one) and tasks.task_names(single) == ('door-open-v3',)
+  assert (not tasks.Tasks.from_config(one).multitask
+          and tasks.Tasks.from_config(single).names == ('door-open-v3',))
 
 
 def test_bound_parameters_are_a_single_task_tree(mt_config, mt_params):

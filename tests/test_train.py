@@ -10,6 +10,7 @@ import pytest
 
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.learn.train_state import LearnSettings
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.runs import loop as runs, train, train_seeds
@@ -221,8 +222,9 @@ def test_packed_run_evaluates_as_trained_and_holds_no_training_state(unevaluated
   for x, y in zip(jax.tree.leaves(ema), jax.tree.leaves(original)):
     np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
   assert np.any(np.asarray(jax.tree.leaves(ema)[0]))
+  learn = LearnSettings.from_config(config)
   state = checkpointing.restore_latest(checkpointing.checkpoint_manager(packed),
-                                       checkpointing.abstract_state(config))
+                                       checkpointing.abstract_state(learn))
   assert not any(np.any(np.asarray(x)) for x in jax.tree.leaves(state.params))
   empty = tmp_path / 'empty'
   os.makedirs(empty / 'checkpoints')

@@ -11,6 +11,7 @@ import pytest
 
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.learn.train_state import LearnSettings
 from ld_mpc_jax.runs.train import train_and_evaluate
 
 
@@ -23,8 +24,8 @@ def _config(seed, num_seeds):
 
 
 def _params(workdir, seed):
-  return checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir),
-                                      checkpointing.abstract_state(_config(seed, 1))).params
+  target = checkpointing.abstract_state(LearnSettings.from_config(_config(seed, 1)))
+  return checkpointing.restore_latest(checkpointing.checkpoint_manager(workdir), target).params
 
 
 @pytest.fixture(scope='module')
@@ -111,7 +112,7 @@ def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(r
   config.data.update(source.data.to_dict())
   job = online.OnlineJob(config, str(tmp_path / 'ft'), source, data.load_dataset(data.DataSpec.from_config(config)))
   job.bar.close()
-  assert [seat.config.online.init_from for seat in job.seats] == [
+  assert [seat.run.config.online.init_from for seat in job.seats] == [
       str(runs / 'both' / f'seed{s}') for s in (0, 1)]
   (stack,) = job.states  # One device: both seeds in one stack.
   for s in (0, 1):

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from ld_mpc_jax import create_train_state, make_update
+from ld_mpc_jax import LearnSettings, create_train_state, make_update
 from ld_mpc_jax.learn.train_state import ema_update
 
 
@@ -35,9 +35,21 @@ def fit_config(smoke_config):
   return smoke_config
 
 
-def test_update_lowers_loss_on_fixed_batch(fit_config):
-  state = create_train_state(fit_config, jax.random.key(0))
-  update = make_update(fit_config)
+@pytest.fixture
+def learn(fit_config):
+  return LearnSettings.from_config(fit_config)
+
+
+def test_learn_settings_hash_by_value(fit_config, learn):
+  """Equal configs give equal settings, one key of the update's cache (ops.build_cache)."""
+  again = LearnSettings.from_config(fit_config)
+  assert again == learn and hash(again) == hash(learn)
+  assert make_update(again) is make_update(learn)
+
+
+def test_update_lowers_loss_on_fixed_batch(fit_config, learn):
+  state = create_train_state(learn, jax.random.key(0))
+  update = make_update(learn)
   batch, key = make_batch(fit_config), jax.random.key(1)  # Same noise every step.
   losses = []
   for _ in range(40):
@@ -48,10 +60,10 @@ def test_update_lowers_loss_on_fixed_batch(fit_config):
   assert int(state.step) == 40
 
 
-def test_update_applies_ema_of_new_params(fit_config):
-  state = create_train_state(fit_config, jax.random.key(0))
+def test_update_applies_ema_of_new_params(fit_config, learn):
+  state = create_train_state(learn, jax.random.key(0))
   old_ema = jax.tree_util.tree_map(np.array, state.ema_params)  # Copies: the update donates.
-  update = make_update(fit_config)
+  update = make_update(learn)
   state, _ = update(state, make_batch(fit_config), jax.random.key(1))
   params, ema = jax.device_get((state.params, state.ema_params))  # NumPy from here on.
   decay = fit_config.train.ema_decay
@@ -64,17 +76,17 @@ def test_update_applies_ema_of_new_params(fit_config):
   assert max(moved) > 0
 
 
-def test_update_rejects_wrong_batch_shape(fit_config):
-  state = create_train_state(fit_config, jax.random.key(0))
+def test_update_rejects_wrong_batch_shape(fit_config, learn):
+  state = create_train_state(learn, jax.random.key(0))
   batch = make_batch(fit_config)
   batch['obs'] = batch['obs'][:, :-1]
   with pytest.raises(ValueError, match="batch\\['obs'\\]"):
-    make_update(fit_config)(state, batch, jax.random.key(0))
+    make_update(learn)(state, batch, jax.random.key(0))
 
 
-def test_update_does_not_recompile(fit_config):
-  state = create_train_state(fit_config, jax.random.key(0))
-  update = make_update(fit_config)  # Shared by every test of this config (build_cache).
+def test_update_does_not_recompile(fit_config, learn):
+  state = create_train_state(learn, jax.random.key(0))
+  update = make_update(learn)  # Shared by every test of this config (build_cache).
   sizes = []
   for i in range(3):
     state, _ = update(state, make_batch(fit_config, seed=i), jax.random.key(i))

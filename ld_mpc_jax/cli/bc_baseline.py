@@ -103,9 +103,8 @@ def _run_demos(workdir):
     config = checkpointing.load_config(workdir)
     if 'online' not in config or not config.online.demos:
       raise ValueError(f'--run={workdir!r} is not an online run with demonstrations')
-  ds = dataset.Dataset.from_episodes(OnlineSettings.from_config(config).demonstrations(
-      config.task, config.seed, config.data.seed), metadata=dict(
-      action_repeat=config.eval.action_repeat))
+  ds = dataset.Dataset.from_episodes(OnlineSettings.from_config(config).demonstrations(),
+                                     metadata=dict(action_repeat=config.eval.action_repeat))
   source = GoalSource.from_config(config)
   episodes = [ep for split in config.eval.splits for s in config.eval.seeds
               for ep in evaluation_suite.episodes(source, split, s, config.eval.episodes)][

@@ -23,19 +23,21 @@ import time
 from absl import app, flags
 import jax
 import jax.numpy as jnp
-import ml_collections
 from ml_collections import config_flags
 import numpy as np
 
 from ld_mpc_jax.cli import errors as cli
 from ld_mpc_jax.configs import CONFIG_DIR
 from ld_mpc_jax.configs.overrides import with_overrides
+from ld_mpc_jax.model.config_checks import check_config
+from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from benchmarks import planning
 from benchmarks.hardware import device_info, measure_peak  # Shared with benchmark_training.
 
 
-# name -> overrides (dotted config field -> value, or a function of the config for values that
-# depend on the width). Applied on top of --config with the width's model section.
+# name -> overrides (dotted config field -> value, or a function of the model's settings,
+# ModelSettings, at the width for values that depend on it). Applied on top of --config with the
+# width's model section.
 _DDIM_8X2 = {'plan.action_steps': 8, 'plan.dynamics_steps': 2, 'plan.action_eta': 0.0,
              'plan.dynamics_eta': 0.0}
 _DDIM_4X1 = {'plan.action_steps': 4, 'plan.dynamics_steps': 1, 'plan.action_eta': 0.0,
@@ -46,17 +48,17 @@ _SAFE = {'plan.safe_selection': True, 'plan.safe_margin': 2.0,
          'plan.safe_margin_scaling': 'expected_max'}
 # Planning in observation space (D-MPC style, issue 105): the latent is the standardised
 # observation (model.encoder_type='identity'), the networks' widths unchanged.
-_OBS_SPACE = {'model.encoder_type': 'identity', 'model.latent_dim': lambda c: c.obs_dim,
+_OBS_SPACE = {'model.encoder_type': 'identity', 'model.latent_dim': lambda m: m.obs_dim,
               'model.normalize_dynamics': False}
 # From pixels (issue 105): flat 64 x 64 RGB images, the latent of a convolutional encoder
 # (model.encoder_type='conv'); and pixel-space planning, D-MPC on frames: the latent is the
 # image (identity encoder), the dynamics a convolutional frame denoiser ('conv_frames').
-_IMAGE_DIM = lambda c: c.model.image_size ** 2 * c.model.image_channels
+_IMAGE_DIM = lambda m: m.image_size ** 2 * m.image_channels
 _PIXELS = {'obs_dim': _IMAGE_DIM, 'model.encoder_type': 'conv', 'model.normalize_obs': False}
 _PIXEL_SPACE = {'obs_dim': _IMAGE_DIM, 'model.encoder_type': 'identity',
                 'model.latent_dim': _IMAGE_DIM, 'model.dynamics_type': 'conv_frames',
                 'model.normalize_dynamics': False}
-_CHEAP_OBJECTIVE = {'model.objective_blocks': lambda c: max(1, c.model.objective_blocks // 5)}
+_CHEAP_OBJECTIVE = {'model.objective_blocks': lambda m: max(1, m.objective_blocks // 5)}
 VARIANTS = {
     'reference': {},
     'ddim_8x2': _DDIM_8X2,
@@ -126,45 +128,50 @@ def time_calls(fn, params, z, keys, carry_fn=None, carry=None, warmup: int = 2):
   return compiled, compile_s, first_s, latencies
 
 
-def variant_config(base: ml_collections.ConfigDict, sizes: ml_collections.ConfigDict,
-                   overrides: dict):
-  """base with the network sizes of `sizes` (a preset's config: its `model` and its value and Q
-  heads' `critic.hidden`) and overrides applied -> (config, resolved overrides)."""
-  c = with_overrides(base, {**{f'model.{name}': value for name, value in sizes.model.items()},
-                            'critic.hidden': sizes.critic.hidden})
-  resolved = {dotted: value(c) if callable(value) else value
-              for dotted, value in overrides.items()}
-  return with_overrides(c, resolved), resolved
+def width_overrides(preset) -> dict:
+  """The network sizes of `preset` (a WIDTHS value) of the file --config names, as dotted
+  overrides: its `model` section and its value and Q heads' `critic.hidden`."""
+  sizes = load_preset(preset)
+  return {**{f'model.{name}': value for name, value in sizes.model.items()},
+          'critic.hidden': sizes.critic.hidden}
 
 
-def run_ldmpc(name: str, width: str, config, overrides: dict, repeats: int, warmup: int) -> dict:
+def resolve(overrides: dict, model: ModelSettings) -> dict:
+  """A variant's overrides (a VARIANTS value) with the values that depend on the width computed
+  from `model`, the settings of the model at that width."""
+  return {dotted: value(model) if callable(value) else value
+          for dotted, value in overrides.items()}
+
+
+def run_ldmpc(name: str, width: str, model: ModelSettings, p: PlanSettings, overrides: dict,
+              repeats: int, warmup: int) -> dict:
+  """One LD-MPC entry: the planner `build_plan(model, p)` of a checked config (its variant at a
+  width, `overrides` as resolved) on random parameters, timed and counted."""
   import ld_mpc_jax as ldmpc
   from benchmarks import flops
-  from ld_mpc_jax.model.settings import ModelSettings
-  params = ldmpc.init_params(config, jax.random.key(0))
-  plan = ldmpc.make_plan(config)
-  images = config.model.encoder_type == 'conv' or config.model.dynamics_type == 'conv_frames'
-  low, high = (0.0, 255.0) if images else (-1.0, 1.0)  # Pixels' range, or a state's.
-  obs = np.linspace(low, high, config.obs_dim, dtype=np.float32)
+  from ld_mpc_jax.model.models import init_params_from
+  params = init_params_from(model, jax.random.key(0))
+  plan = ldmpc.build_plan(model, p)
+  low, high = (0.0, 255.0) if model.images else (-1.0, 1.0)  # Pixels' range, or a state's.
+  obs = np.linspace(low, high, model.obs_dim, dtype=np.float32)
   z = ldmpc.encode(params, obs)
   keys = list(jax.random.split(jax.random.key(1), 1 + warmup + repeats))
-  encode_ms = time_encoder(ModelSettings.from_config(config), params, obs, repeats, warmup)
-  warm = config.plan.warm_start_steps > 0
-  carry = jnp.zeros((config.horizon, config.action_dim)) if warm else None
+  encode_ms = time_encoder(model, params, obs, repeats, warmup)
+  warm = p.warm_start_steps > 0
+  carry = jnp.zeros((model.horizon, model.action_dim)) if warm else None
   compiled, compile_s, first_s, lat = time_calls(
       plan, params, z, keys, (lambda out: out.sequence) if warm else None, carry, warmup)
   args = (params, z, keys[0]) + ((carry,) if warm else ())
-  if config.model.dynamics_type == 'conv_frames':  # The counts know the transformers only.
+  if model.dynamics_type == 'conv_frames':  # The counts know the transformers only.
     nan = float('nan')
     xla = dict(plan_once=flops.compiled_flops(compiled), total=nan)
     hand = dict(proposal=nan, dynamics=nan, objective=nan, actor=nan, total=nan)
   else:
-    xla = flops.xla_plan_flops(config, plan, args, plan_once=flops.compiled_flops(compiled))
-    hand = flops.plan_flops(config)
-  p = config.plan
+    xla = flops.xla_plan_flops(model, p, plan, args, plan_once=flops.compiled_flops(compiled))
+    hand = flops.plan_flops(model, p)
   return dict(name=f'{name}/{width}', variant=name, width=width, overrides=overrides,
-              model={k: config.model[k] for k in ('latent_dim', 'width', 'proposal_blocks',
-                                                  'dynamics_blocks', 'objective_blocks')},
+              model={k: getattr(model, k) for k in ('latent_dim', 'width', 'proposal_blocks',
+                                                    'dynamics_blocks', 'objective_blocks')},
               num_params=ldmpc.count_params(params), num_candidates=p.num_candidates,
               steps=(f'{p.warm_start_steps if warm else p.action_steps}x{p.dynamics_steps}'),
               compile_s=compile_s, first_call_s=first_s, latencies_ms=lat,
@@ -265,9 +272,13 @@ def main(argv):
       print('skipping warm_start: this config has no plan.warm_start_steps')
       total -= len(_WIDTHS.value)
       continue
-    for width in _WIDTHS.value:
-      config, resolved = variant_config(base, load_preset(WIDTHS[width]), VARIANTS[name])
-      add(run_ldmpc(name, width, config, resolved, _REPEATS.value, _WARMUP.value))
+    for width in _WIDTHS.value:  # The variant's overrides on --config at the width's sizes.
+      sized = with_overrides(base, width_overrides(WIDTHS[width]))
+      resolved = resolve(VARIANTS[name], ModelSettings.from_config(sized))
+      config = with_overrides(sized, resolved)
+      check_config(config)
+      add(run_ldmpc(name, width, ModelSettings.from_config(config),
+                    PlanSettings.from_config(config), resolved, _REPEATS.value, _WARMUP.value))
   peak_end = measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak at the end: {peak_end:.1f} GFLOP/s')
   print(planning.markdown(planning.write_partial(_OUT.value, entries, max(peak, peak_end), device,

@@ -27,14 +27,15 @@ def main(argv):
   from ld_mpc_jax.data import collection, sources
   config = _CONFIG.value
   try:  # Bad input: one line and exit code 2.
-    tasks.check_tasks(config)
+    config_tasks = tasks.Tasks.from_config(config)
+    config_tasks.check()
     spec = sources.DataSpec.from_config(config)
     sources.check_source(spec)
   except ValueError as err:
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)
   rows = {}
-  for name in tasks.task_names(config):
+  for name in config_tasks.names:
     try:  # An unknown preset or a dataset that does not fit the config: one line too.
       ds = sources.load_dataset(spec.for_task(name))
     except ValueError as err:

@@ -73,10 +73,11 @@ def main(argv):
       from ld_mpc_jax.model import tasks
       for workdir in _workdirs():
         config = checkpointing.load_config(workdir)
-        if not tasks.is_multitask(config):
+        trained = tasks.Tasks.from_config(config)
+        if not trained.multitask:
           raise ValueError(f'--tasks needs multi-task checkpoints; {workdir} holds {config.task} '
                            'alone')
-        cli.check_subset('--tasks', _TASKS.value, tasks.task_names(config))
+        cli.check_subset('--tasks', _TASKS.value, trained.names)
   records = []
   for workdir in _workdirs():
     records.extend(evaluate_run(workdir, variants, _BASELINES.value, _EPISODES.value,

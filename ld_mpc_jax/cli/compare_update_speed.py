@@ -40,13 +40,17 @@ def _compile_from(root: str, config):
   sys.path.insert(0, root)
   try:
     from benchmarks.training import random_batch
-    from ld_mpc_jax.learn.train_state import create_train_state, make_update
+    from ld_mpc_jax.learn import train_state
     module = os.path.abspath(sys.modules['ld_mpc_jax'].__file__)
     if not module.startswith(os.path.abspath(root) + os.sep):
       raise ImportError(f'ld_mpc_jax was imported from {module}, not from {root}')
-    state = create_train_state(config, jax.random.key(0))
+    # A checkout from before LearnSettings builds from the config itself.
+    learn = (train_state.LearnSettings.from_config(config)
+             if hasattr(train_state, 'LearnSettings') else config)
+    state = train_state.create_train_state(learn, jax.random.key(0))
     batch = random_batch(config, config.train.batch_size)
-    return make_update(config).lower(state, batch, jax.random.key(0)).compile(), state, batch
+    update = train_state.make_update(learn)
+    return update.lower(state, batch, jax.random.key(0)).compile(), state, batch
   finally:
     sys.path.remove(root)
 

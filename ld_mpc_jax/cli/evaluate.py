@@ -59,7 +59,6 @@ def main(argv):
   from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval import evaluation_suite, multitask_eval
   from ld_mpc_jax.eval.spec import EvalSpec
-  from ld_mpc_jax.model import tasks
   from ld_mpc_jax.runs.checks import validate_config
   from ld_mpc_jax.eval.run_files import git_commit
   from ld_mpc_jax.runs.loop import run_evaluation
@@ -86,8 +85,8 @@ def main(argv):
   records = evaluate(spec, params, None, step, _MODES.value, splits, seeds, episodes,
                      run=config.seed)  # A multi-task agent: every task, records per task.
   summary = evaluation_suite.summarize(records)
-  if tasks.is_multitask(config):
-    names = tasks.task_names(config)
+  if spec.multitask:
+    names = spec.task_names
     print(multitask_eval.markdown(multitask_eval.per_task(records, names), names))
   print(evaluation_suite.markdown(summary))
   out = {'step': step, 'episodes': episodes, 'seeds': seeds, 'overrides': OVERRIDES,

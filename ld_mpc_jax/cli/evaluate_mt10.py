@@ -34,21 +34,23 @@ flags.mark_flags_as_required(['workdir'])
 class MT10Agent:
   """metaworld.evaluation's Agent: one jitted act per environment, with its task's parameters.
 
-  Environment i acts for task index `task_ids[i]` with `tasks.bind(params, task_ids[i])`; a
-  decision is held for `repeat` environment steps; warm starts and decision keys restart with
+  Environment i acts for task index `task_ids[i]` with `tasks.bind(params, task_ids[i])` and the
+  policy of `act` (a task's ActSettings: EvalSpec.tasks); a decision is held for `repeat`
+  environment steps (config.eval.action_repeat); warm starts and decision keys restart with
   each episode (fold_in(fold_in(key(seed), episode), t)). An environment whose task has its
   `episodes` counted episodes does not plan any more (zero actions) while the others finish.
   Records whether each episode started on one of the training data's goals
   (`on_train_goal[i]`, in episode order).
   """
 
-  def __init__(self, config, params, mode, task_ids, train_goals, seed, episodes, bar):
+  def __init__(self, act: ActSettings, repeat: int, params, mode, task_ids, train_goals, seed,
+               episodes, bar):
     import jax
     from ld_mpc_jax.plan import agent
     from ld_mpc_jax.model import tasks
-    self.act = agent.make_act(ActSettings.from_config(tasks.task_config(config, 0)), mode)
+    self.act = agent.make_act(act, mode)
     self.params = [tasks.bind(params, k) for k in task_ids]
-    self.task_ids, self.train_goals, self.repeat = task_ids, train_goals, config.eval.action_repeat
+    self.task_ids, self.train_goals, self.repeat = task_ids, train_goals, repeat
     self.key, self.episodes, self.bar = jax.random.key(seed), episodes, bar
     n = len(task_ids)
     self.episode, self.step = [-1] * n, [0] * n
@@ -96,7 +98,7 @@ def main(argv):
   from ld_mpc_jax.learn import checkpointing
   from ld_mpc_jax.runs import checks as run_checks
   from ld_mpc_jax.eval import evaluation_suite
-  from ld_mpc_jax.eval.spec import GoalSource
+  from ld_mpc_jax.eval.spec import EvalSpec
   from ld_mpc_jax.ops import stats
   from ld_mpc_jax.model import tasks
   try:  # Bad input: one line and exit code 2.
@@ -106,25 +108,25 @@ def main(argv):
     if bad or not _MODES.value or _EPISODES.value < 1:
       raise ValueError(f'--modes must be among {agent.MODES} and --episodes >= 1, got '
                        f'{_MODES.value}, {_EPISODES.value}')
-    if not tasks.is_multitask(config):
+    if not tasks.Tasks.from_config(config).multitask:
       raise ValueError(f'{_WORKDIR.value} is a single-task run ({config.task}); MT10 needs a '
                        'multi-task one (config.tasks)')
     _, params, step = run_checks.load_for_evaluation(_WORKDIR.value)
+    spec = EvalSpec.from_config(config)  # Each task's spec: spec.tasks.
   except (ValueError, FileNotFoundError) as err:
     cli.fail(str(err))
   envs = gym.make_vec('Meta-World/MT10', vector_strategy='sync', seed=_SEED.value)
   names = mw_evaluation._get_task_names(envs)  # pylint: disable=protected-access
-  missing = [n for n in names if n not in tasks.task_names(config)]
+  missing = [n for n in names if n not in spec.task_names]
   if missing:
     cli.fail(f'the run was not trained on MT10 tasks {missing}')
-  task_ids = [tasks.task_names(config).index(n) for n in names]
-  sources = [GoalSource.from_config(tasks.task_config(config, k)) for k in task_ids]
-  train_goals = [evaluation_suite.dataset_goals(source)[0] for source in sources]
+  task_ids = [spec.task_names.index(n) for n in names]
+  train_goals = [evaluation_suite.dataset_goals(spec.tasks[k][1].goals)[0] for k in task_ids]
   results = {}
   for mode in _MODES.value:
     with tqdm.tqdm(total=len(names) * _EPISODES.value, desc=f'MT10 {mode}') as bar:
-      policy = MT10Agent(config, params, mode, task_ids, train_goals, _SEED.value,
-                         _EPISODES.value, bar)
+      policy = MT10Agent(spec.tasks[0][1].act, spec.eval.action_repeat, params, mode, task_ids,
+                         train_goals, _SEED.value, _EPISODES.value, bar)
       mean, mean_return, per_task, _ = mw_evaluation.evaluation(policy, envs, _EPISODES.value)
     on_train = {n: float(np.mean(policy.on_train_goal[i][:_EPISODES.value]))
                 for i, n in enumerate(names)}

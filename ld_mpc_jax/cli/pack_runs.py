@@ -24,12 +24,13 @@ def pack(workdir: str, out: str) -> str | None:
   import jax.numpy as jnp
   import orbax.checkpoint as ocp
   from ld_mpc_jax.learn import checkpointing
+  from ld_mpc_jax.learn.train_state import LearnSettings
   workdir = os.path.normpath(workdir)
   name = os.path.basename(workdir)
   config = checkpointing.load_config(workdir)
   manager = checkpointing.checkpoint_manager(workdir)
   step, state, _ = checkpointing.restore_intact(  # Newest intact step.
-      manager, checkpointing.abstract_state(config))
+      manager, checkpointing.abstract_state(LearnSettings.from_config(config)))
   if state is None:
     return None
   tmp = tempfile.mkdtemp()

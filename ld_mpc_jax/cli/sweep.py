@@ -87,8 +87,9 @@ def main(argv):
           f'({", ".join(map(str, eval_seeds))}) and training seed; all policies on the same '
           'episodes.\n\n' + pooled_table(summary) + '\nPaired, pooled over all training and '
           'evaluation seeds:\n\n' + evaluation_suite.markdown(summary).split('\n\n', 1)[1])
-  if tasks.is_multitask(config):  # Per task, pooled over training seeds (ld_mpc_jax.model.tasks).
-    names = tasks.task_names(config)
+  trained = tasks.Tasks.from_config(config)
+  if trained.multitask:  # Per task, pooled over training seeds (ld_mpc_jax.model.tasks).
+    names = trained.names
     text += ('\nPer task, pooled over training and evaluation seeds:\n\n'
              + multitask_eval.markdown(multitask_eval.per_task(records, names), names))
   with open(os.path.join(root, 'sweep.md'), 'w') as f:

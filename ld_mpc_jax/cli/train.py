@@ -74,14 +74,14 @@ def main(argv):
   from ld_mpc_jax.configs import online_enabled
   from ld_mpc_jax.runs.checks import validate_config
   from ld_mpc_jax.data import DatasetError, sources
-  from ld_mpc_jax.model.tasks import check_tasks
+  from ld_mpc_jax.model.tasks import Tasks
   from ld_mpc_jax.model.settings import ModelSettings
   from ld_mpc_jax.envs.pixels import check_rendering
   from ld_mpc_jax.runs.train import train_and_evaluate
   try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
     cli.check_workdir(_WORKDIR.value)
     validate_config(_CONFIG.value)
-    check_tasks(_CONFIG.value)  # config.task, or every name of a multi-task config.tasks.
+    Tasks.from_config(_CONFIG.value).check()  # config.task, or every name of config.tasks.
     sources.check_source(sources.DataSpec.from_config(_CONFIG.value))
     SeedGroups(t.num_seeds, devices)  # Enough devices for train.seed_devices (e.g. one GPU).
     if ModelSettings.from_config(_CONFIG.value).images:  # Frames are rendered: can they be?

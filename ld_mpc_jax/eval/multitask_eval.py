@@ -1,7 +1,7 @@
 """Evaluating a multi-task agent: every task with the single-task evaluation, then per task.
 
-Task k is evaluated as a single-task agent: its spec (`EvalSpec.tasks`: that of
-`tasks.task_config(config, k)`) with `tasks.bind(params, k)` through `evaluation_suite` (batched
+Task k is evaluated as a single-task agent: its spec (`EvalSpec.tasks`: `EvalSpec.for_task`, that
+of a config of task k alone) with `tasks.bind(params, k)` through `evaluation_suite` (batched
 episodes, held-out and train goals of that task's data, cached cells under <workdir>/evals/).
 Records gain a `task` field, so policies still pair on the same episodes. `per_task` tabulates
 success per task, split and policy with Wilson intervals, and the average over tasks; `markdown`

@@ -7,8 +7,9 @@ Its parts: the training goals the goal splits are drawn against (`GoalSource`), 
 settings (`EvalSettings`), the policies' settings (plan.modes.ActSettings) and the config's part
 of an evaluation's cache key (`CacheKey`: the JSON of the sections evaluation_suite's keys hash,
 as the config holds them, so that a key is byte for byte the one the config gave). A multi-task
-config's spec also holds each task's own (`tasks`: the spec of `tasks.task_config`). All are
-frozen; the ConfigDict stays the command line's surface and the saved `config.json`.
+config's spec also holds each task's own (`tasks`: `for_task`, the spec narrowed to one task, as a
+config of that task alone gives it). All are frozen; the ConfigDict stays the command line's
+surface and the saved `config.json`.
 """
 
 import dataclasses
@@ -20,7 +21,6 @@ import ml_collections
 from ld_mpc_jax import data
 from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax.model import tasks
 from ld_mpc_jax.plan import search
 from ld_mpc_jax.plan.modes import ActSettings
 
@@ -131,12 +131,20 @@ class EvalSpec:
   @classmethod
   def from_config(cls, config: ml_collections.ConfigDict) -> 'EvalSpec':
     """The spec of a config, after its checks (one-line ValueErrors)."""
-    per_task = ()
-    if tasks.is_multitask(config):
-      per_task = tuple((name, cls.from_config(tasks.task_config(config, k)))
-                       for k, name in enumerate(tasks.task_names(config)))
-    return cls(GoalSource.from_config(config), EvalSettings.from_config(config),
-               ActSettings.from_config(config), CacheKey.from_config(config), per_task)
+    spec = cls(GoalSource.from_config(config), EvalSettings.from_config(config),
+               ActSettings.from_config(config), CacheKey.from_config(config))
+    # A multi-task config's tasks (config.tasks), in task-index order; () for one task.
+    names = spec.goals.data.tasks
+    return dataclasses.replace(spec, tasks=tuple((n, spec.for_task(n)) for n in names))
+
+  def for_task(self, name: str) -> 'EvalSpec':
+    """The single-task spec of task `name` of a multi-task spec: what an agent bound to that
+    task (`tasks.bind(params, k)`) is evaluated with, equal to the spec of a config of `name`
+    alone (`config.task` set, `config.tasks` removed)."""
+    act = dataclasses.replace(self.act, model=dataclasses.replace(self.act.model, num_tasks=1))
+    goals = dataclasses.replace(self.goals, data=self.goals.data.for_task(name))
+    return dataclasses.replace(self, goals=goals, act=act,
+                               key=dataclasses.replace(self.key, task=name), tasks=())
 
   @property
   def task(self) -> str:
@@ -146,6 +154,11 @@ class EvalSpec:
   def multitask(self) -> bool:
     """Whether the agent is task-conditioned (`tasks` holds each task's spec)."""
     return bool(self.tasks)
+
+  @property
+  def task_names(self) -> Tuple[str, ...]:
+    """A multi-task spec's task names, in task-index order; () for one task."""
+    return tuple(name for name, _ in self.tasks)
 
   def with_plan(self, **changes) -> 'EvalSpec':
     """This spec with these planner settings (`config.plan` fields) changed, checked as the

@@ -18,7 +18,7 @@ import orbax.checkpoint as ocp
 
 from ld_mpc_jax import configs
 from ld_mpc_jax.ops import legacy
-from ld_mpc_jax.learn.train_state import TrainState, create_train_state
+from ld_mpc_jax.learn.train_state import LearnSettings, TrainState, create_train_state
 
 CONFIG_FILE = 'config.json'
 def legacy_defaults() -> dict:
@@ -229,7 +229,7 @@ def check_workdir(config: ml_collections.ConfigDict, workdir: str,
     raise WorkdirError(f'{workdir} holds a run of another config; this one differs in {shown}: '
                        'choose another --workdir, or pass --continue_with_changes to continue '
                        'that run under this config')
-  shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, abstract_state(c))
+  shapes = lambda c: jax.tree.map(lambda x: x.shape, abstract_state(LearnSettings.from_config(c)))
   if has_checkpoint(workdir) and shapes(saved) != shapes(config):
     raise WorkdirError(f'{workdir}: even with --continue_with_changes, its checkpoints cannot '
                        f'continue under this config: the networks differ ({", ".join(changes)})')
@@ -283,14 +283,14 @@ def migrate_config(saved: dict) -> ml_collections.ConfigDict:
   return ml_collections.ConfigDict(legacy.migrate(saved))
 
 
-def abstract_state(config: ml_collections.ConfigDict) -> TrainState:
+def abstract_state(settings: LearnSettings) -> TrainState:
   """Shapes, dtypes and placement of a TrainState, without allocating it (restore target).
 
   Placed on this process's first device: without a placement orbax takes the one saved with the
   checkpoint, and a checkpoint written on a GPU then refuses to load on a CPU ("Topology
   mismatch"). Data-parallel runs replicate the restored state themselves.
   """
-  shapes = jax.eval_shape(lambda: create_train_state(config, jax.random.key(0)))
+  shapes = jax.eval_shape(lambda: create_train_state(settings, jax.random.key(0)))
   here = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
   return jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=here), shapes)
 
@@ -393,8 +393,8 @@ def load_for_evaluation(workdir: str, check: Optional[Callable] = None):
     raise WorkdirError(f'{os.path.join(workdir, CONFIG_FILE)} is not a valid config ({err}); '
                        'undo the edit (the checkpoints were not read)') from None
   folder = os.path.join(workdir, 'checkpoints')  # Not made by a manager when it is missing:
-  state = (restore_latest(checkpoint_manager(workdir), abstract_state(config))
-           if os.path.isdir(folder) else None)
+  state = None if not os.path.isdir(folder) else restore_latest(
+      checkpoint_manager(workdir), abstract_state(LearnSettings.from_config(config)))
   if state is None:
     raise FileNotFoundError(f'no checkpoint under {folder}')
   return config, state.ema_params, int(state.step)

@@ -1,4 +1,4 @@
-"""Train state and the jitted update step."""
+"""Train state and the jitted update step, built from `LearnSettings.from_config(config)`."""
 
 import dataclasses
 from typing import Any, Callable, Optional
@@ -14,7 +14,7 @@ from ld_mpc_jax.ops import build_cache, sharding
 from ld_mpc_jax.model import tasks
 from ld_mpc_jax.model.config_checks import check_config
 from ld_mpc_jax.learn.losses import make_loss_fn
-from ld_mpc_jax.model.models import build_networks, init_params, set_obs_normalization
+from ld_mpc_jax.model.models import build_networks, init_params_from, set_obs_normalization
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings
 
 
@@ -52,6 +52,26 @@ class OptimSettings:
                        f'>= 0, got {self.learning_rate}, {self.grad_clip}, {self.warmup_steps}')
 
 
+@dataclasses.dataclass(frozen=True)
+class LearnSettings:
+  """What a fresh train state and an update read: the model's, the loss's and the optimiser's
+  settings, and how the update spreads a batch (`config.train.data_parallel`, `batch_size`).
+  Frozen and hashable; `from_config` runs the checks the update's builders rely on."""
+  model: ModelSettings
+  losses: LossSettings
+  optim: OptimSettings
+  data_parallel: bool
+  batch_size: int
+
+  @classmethod
+  def from_config(cls, config: ml_collections.ConfigDict) -> 'LearnSettings':
+    check_config(config)
+    model, losses = ModelSettings.from_config(config), LossSettings.from_config(config)
+    optim = OptimSettings.from_config(config)
+    optim.check(losses)  # The update's own settings (check_config leaves them).
+    return cls(model, losses, optim, config.train.data_parallel, config.train.batch_size)
+
+
 def make_optimizer(t: OptimSettings) -> optax.GradientTransformation:
   """Adam with linear warmup to a constant rate, after global-norm gradient clipping."""
   warmup = max(t.warmup_steps, 1)
@@ -61,19 +81,19 @@ def make_optimizer(t: OptimSettings) -> optax.GradientTransformation:
   return optax.chain(optax.clip_by_global_norm(t.grad_clip), optax.adam(schedule))
 
 
-def create_train_state(config: ml_collections.ConfigDict, key: jax.Array,
+def create_train_state(settings: LearnSettings, key: jax.Array,
                        obs: Optional[jnp.ndarray] = None) -> TrainState:
-  """Fresh parameters; the EMA starts as a copy of them.
+  """Fresh parameters of `settings` (LearnSettings.from_config(config), which checks them); the
+  EMA starts as a copy of them.
 
   obs [N, obs_dim]: the dataset's observations, whose mean and std the encoder normalises with
   (`config.model.normalize_obs`); None leaves the identity normalisation (mean 0, std 1).
   """
-  params = init_params(config, key)  # After check_config.
-  if obs is not None and config.model.normalize_obs:
-    params = set_obs_normalization(params, obs, config.model.obs_mask_constant)
-  optim = OptimSettings.from_config(config)
-  optim.check(LossSettings.from_config(config))  # The optimiser's own (check_config leaves them).
-  tx = make_optimizer(optim)
+  m = settings.model
+  params = init_params_from(m, key)
+  if obs is not None and m.normalize_obs:
+    params = set_obs_normalization(params, obs, m.obs_mask_constant)
+  tx = make_optimizer(settings.optim)
 
   @jax.jit  # One program, not one small compiled operation per leaf.
   def fresh(params):
@@ -89,7 +109,7 @@ def ema_update(ema_params, params, decay: float):
   return optax.incremental_update(params, ema_params, step_size=1.0 - decay)
 
 
-def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) -> Callable:
+def make_update(settings: LearnSettings, mesh: Optional[Mesh] = None) -> Callable:
   """Returns jitted update(state, batch, key) -> (state, metrics); `state` is donated.
 
   batch: obs [B, H+2, obs_dim], action [B, H+1, A], reward [B, H+1] (float32): windows of
@@ -99,21 +119,19 @@ def make_update(config: ml_collections.ConfigDict, mesh: Optional[Mesh] = None) 
   same jitted function serves every config of the same settings in this process
   (ld_mpc_jax.ops.build_cache), so a second run of a config traces nothing again.
 
-  With `config.train.data_parallel` (or a `mesh` given), the same update is compiled for a 1-D
-  device mesh (default: all devices, ld_mpc_jax.ops.sharding): the batch split along its first
-  axis, state, key and metrics replicated. Pass the state through `sharding.replicate` and the
-  batch through `sharding.shard_batch`. Otherwise it is a plain single-device jit.
+  With `settings.data_parallel` (`config.train.data_parallel`, or a `mesh` given), the same
+  update is compiled for a 1-D device mesh (default: all devices, ld_mpc_jax.ops.sharding): the
+  batch split along its first axis, state, key and metrics replicated. Pass the state through
+  `sharding.replicate` and the batch through `sharding.shard_batch`. Otherwise it is a plain
+  single-device jit.
   """
-  check_config(config)
-  settings = (ModelSettings.from_config(config), LossSettings.from_config(config),
-              OptimSettings.from_config(config))
-  settings[2].check(settings[1])  # The update's own settings (check_config leaves them).
-  if mesh is None and not config.train.data_parallel:
-    return _jitted_update(*settings)
+  parts = (settings.model, settings.losses, settings.optim)  # Checked by from_config.
+  if mesh is None and not settings.data_parallel:
+    return _jitted_update(*parts)
   mesh = sharding.make_mesh() if mesh is None else mesh
-  sharding.local_batch_size(config.train.batch_size, mesh)  # Raises if B % devices != 0.
+  sharding.local_batch_size(settings.batch_size, mesh)  # Raises if B % devices != 0.
   rep = sharding.replicated(mesh)
-  return jax.jit(_update_fn(*settings), in_shardings=(rep, sharding.batch_sharded(mesh), rep),
+  return jax.jit(_update_fn(*parts), in_shardings=(rep, sharding.batch_sharded(mesh), rep),
                  out_shardings=(rep, rep), donate_argnums=0)
 
 
@@ -158,12 +176,12 @@ def _update_fn(m: ModelSettings, losses: LossSettings, t: OptimSettings) -> Call
   return update
 
 
-def make_multi_update(config: ml_collections.ConfigDict, num: int) -> Callable:
+def make_multi_update(settings: LearnSettings, num: int) -> Callable:
   """Returns jitted update(state, batches, key) -> (state, metrics of the last update): `num`
   updates in one call (lax.scan), batches stacked on a leading axis [num, B, ...], the i-th
   update's key fold_in(key, i). One dispatch for `num` small updates: on a 2-core CPU about
   3x fewer seconds per update at the online `:cpu` size (docs/online.md). State donated."""
-  update = make_update(config).unjitted
+  update = make_update(settings).unjitted
 
   def multi(state, batches, key):
     def body(state, inputs):
@@ -182,16 +200,15 @@ def stack_states(states):
   return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *states)
 
 
-def make_seeds_update(config: ml_collections.ConfigDict, num_seeds: int, per_call: int = 1
-                      ) -> Callable:
+def make_seeds_update(settings: LearnSettings, num_seeds: int, per_call: int = 1) -> Callable:
   """Returns jitted update(state, batches, keys) -> (state, metrics) for `num_seeds`
   independent agents (`config.train.num_seeds`): state, batches and keys [N] carry a leading
   seed axis, and the update (`make_update`, or `per_call` updates in one call,
   `make_multi_update`, batches [N, per_call, B, ...]) is vmapped over it; metrics [N]. With one
   seed it is the unbatched update on the squeezed arguments, the same program a single run
   compiles. State donated."""
-  one = (make_update(config).unjitted if per_call == 1
-         else make_multi_update(config, per_call).unjitted)
+  one = (make_update(settings).unjitted if per_call == 1
+         else make_multi_update(settings, per_call).unjitted)
   if num_seeds == 1:
     squeeze = lambda tree: jax.tree_util.tree_map(lambda x: x[0], tree)
     expand = lambda tree: jax.tree_util.tree_map(lambda x: x[None], tree)

@@ -2,14 +2,17 @@
 section but `online` (ld_mpc_jax.online.settings checks it) and the training seeds' and the
 optimiser's settings (ld_mpc_jax.runs.checks, above the learn layer that holds them).
 
-The checks of values are the settings' own (ld_mpc_jax.model.settings) and, where they need the
-model's registries, the functions here that take settings; what must read the config itself (its
-fields' presence and types, NaN anywhere, renamed sections) is `fields_checked`.
+`check_config(config)` is the one entry: it builds the settings once and takes the config as a
+plain nested dict (`config.to_dict()`) once. The checks of values are the settings' own
+(ld_mpc_jax.model.settings) and, where they need the model's registries, the functions here that
+take settings; what must read the config's fields themselves (their presence and types, NaN
+anywhere, renamed sections, `eval` and `data`, which no settings of this layer hold) reads that
+plain dict: `fields_checked` and `check_sections`.
 """
 
 import contextlib
 import math
-from typing import Optional, Tuple
+from typing import Any, Dict, Optional
 
 import ml_collections
 
@@ -36,21 +39,23 @@ def check_config(config: ml_collections.ConfigDict) -> None:
   `online`, the training seeds', the optimiser's (OptimSettings.check) and the planner's search
   (plan.search.validate_plan): ld_mpc_jax.runs.checks.validate_config, what a run calls, checks
   them all; the builders check their own (make_plan, make_update, create_train_state)."""
-  with fields_checked(config):
-    check_sections(config)
+  fields = config.to_dict()
+  with fields_checked(fields):  # The settings are built once the fields they read are there.
+    check_sections(fields, ModelSettings.from_config(config), PlanSettings.from_config(config),
+                   LossSettings.from_config(config))
 
 
 @contextlib.contextmanager
-def fields_checked(config: ml_collections.ConfigDict):
-  """The checks that read the config itself around the checks of its values: before them, no
-  section of an old name and the positive integers by dotted name (each present); after them,
-  no NaN field."""
+def fields_checked(fields: Dict[str, Any]):
+  """The checks of the config's fields themselves (`fields`: config.to_dict()) around the checks
+  of its values: before them, no section of an old name and the positive integers by dotted name
+  (each present); after them, no NaN field."""
   for old_name in legacy.RENAMED_SECTIONS:  # Only a saved config is migrated (on load).
-    if old_name in config:
+    if old_name in fields:
       raise ValueError(f'the config has a section {old_name!r}'
                        f'{legacy.renamed_hint(old_name)}; rename it')
   for name in _POSITIVE_INTS:
-    v = config
+    v = fields
     for part in name.split('.'):
       if part not in v:
         raise ValueError(f'config is missing field `{name}`')
@@ -58,71 +63,77 @@ def fields_checked(config: ml_collections.ConfigDict):
     if not isinstance(v, int) or isinstance(v, bool) or v < 1:
       raise ValueError(f'config.{name} must be an integer >= 1, got {v!r}')
   yield
-  for name, v in _leaves(config):  # NaN passes every `<=` check: the rest refused here.
+  for name, v in _leaves(fields):  # NaN passes every `<=` check: the rest refused here.
     if isinstance(v, float) and math.isnan(v):
       raise ValueError(f'config.{name} is NaN; give it a number')
 
 
-def _leaves(config, prefix: str = ''):
-  """(dotted name, value) of every field of a ConfigDict, depth first."""
-  for k, v in config.items():
-    if isinstance(v, ml_collections.ConfigDict):
+def _leaves(tree: Dict[str, Any], prefix: str = ''):
+  """(dotted name, value) of every field of a config as nested dicts, depth first."""
+  for k, v in tree.items():
+    if isinstance(v, dict):
       yield from _leaves(v, f'{prefix}{k}.')
     else:
       yield f'{prefix}{k}', v
 
 
-def check_sections(config: ml_collections.ConfigDict
-                   ) -> Tuple[ModelSettings, PlanSettings, LossSettings]:
+def check_sections(fields: Dict[str, Any], model: ModelSettings, plan: PlanSettings,
+                   losses: LossSettings) -> None:
   """Each section's values (the settings' checks, in their order) but `online`'s, the seeds',
   the optimiser's and the planner's search (ld_mpc_jax.plan.search.validate_plan, which the
-  planner's builders and runs.checks.validate_config run); returns the settings built."""
-  model = ModelSettings.from_config(config)
-  plan, losses = PlanSettings.from_config(config), LossSettings.from_config(config)
+  planner's builders and runs.checks.validate_config run). `fields`: config.to_dict(), for the
+  sections no settings here hold (`eval`, `data`) and the batch size; the settings: the
+  config's (`.from_config`)."""
   model.check_sizes()
   model.check(plan.latent_filter)
   model.check_latent_norm(plan.latent_filter)
   model.check_targets()
   losses.check_weights()
-  _validate_eval_and_data(config, model)
+  _check_eval(fields.get('eval'), model.images)
+  _check_data(fields.get('data'))
   check_kinds(model, plan)  # The kinds; what the planner asks of them: plan.search.validate_plan.
   check_critic(model, losses, plan)
-  check_tasks(model, config.train.batch_size, config.data.source if 'data' in config else None)
-  return model, plan, losses
+  check_tasks(model, fields['train']['batch_size'],
+              fields['data']['source'] if 'data' in fields else None)
 
 
-def _validate_eval_and_data(config: ml_collections.ConfigDict, model: ModelSettings) -> None:
-  """config.eval (policies, episodes, splits, batching) and config.data's source."""
-  if 'eval' in config:
-    if not all(isinstance(m, str) for m in config.eval.baselines):
-      raise ValueError(f'config.eval.baselines must name policy modes, got '
-                       f'{config.eval.baselines}')  # runs.Run checks them: agent.POLICY_MODES
-  if 'eval' in config and config.eval.episodes < 0:
+def _check_eval(e: Optional[Dict[str, Any]], images: bool) -> None:
+  """config.eval (policies, episodes, splits, batching, noise; `e`: the section as a dict, None
+  without one), for a model of images (`images`: ModelSettings.images) or of states."""
+  if e is None:
+    return
+  if not all(isinstance(m, str) for m in e['baselines']):
+    raise ValueError(f'config.eval.baselines must name policy modes, got '
+                     f"{e['baselines']}")  # runs.Run checks them: agent.POLICY_MODES
+  if e['episodes'] < 0:
     raise ValueError(f'config.eval.episodes must be >= 0 (0 skips evaluation), '
-                     f'got {config.eval.episodes}')
-  if 'eval' in config:
-    e = config.eval
-    bad = set(e.splits) - {'held_out', 'train'}
-    if bad or not e.splits:
-      raise ValueError(f'config.eval.splits must name held_out and/or train, got {e.splits}')
-    for name, least in (('batch_size', 1), ('plan_chunk', 0), ('key_seed', -1)):
-      if name in e and (not isinstance(e[name], int) or e[name] < least):
-        raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
-    for name in ('action_noise', 'obs_noise'):
-      if name in e and not 0.0 <= float(e[name]) < float('inf'):
-        raise ValueError(f'config.eval.{name} must be a std >= 0, got {e[name]!r}')
-    if 'obs_noise_dims' in e and e.obs_noise_dims not in ('all', 'informative'):
-      raise ValueError(f"config.eval.obs_noise_dims must be 'all' or 'informative', "
-                       f'got {e.obs_noise_dims!r}')
-    if 'obs_noise' in e and e.obs_noise > 0 and model.images:
-      raise ValueError('config.eval.obs_noise is noise on the state, and image observations are '
-                       'rendered without it: set config.eval.obs_noise=0')
-  if 'data' in config:
-    from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
-    sources.SOURCES.check(config.data.source)
-    if config.data.source == 'tdmpc2' and not config.data.path:
-      raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
-                       'pattern or directory)')
+                     f"got {e['episodes']}")
+  bad = set(e['splits']) - {'held_out', 'train'}
+  if bad or not e['splits']:
+    raise ValueError(f"config.eval.splits must name held_out and/or train, got {e['splits']}")
+  for name, least in (('batch_size', 1), ('plan_chunk', 0), ('key_seed', -1)):
+    if name in e and (not isinstance(e[name], int) or e[name] < least):
+      raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
+  for name in ('action_noise', 'obs_noise'):
+    if name in e and not 0.0 <= float(e[name]) < float('inf'):
+      raise ValueError(f'config.eval.{name} must be a std >= 0, got {e[name]!r}')
+  if 'obs_noise_dims' in e and e['obs_noise_dims'] not in ('all', 'informative'):
+    raise ValueError(f"config.eval.obs_noise_dims must be 'all' or 'informative', "
+                     f"got {e['obs_noise_dims']!r}")
+  if 'obs_noise' in e and e['obs_noise'] > 0 and images:
+    raise ValueError('config.eval.obs_noise is noise on the state, and image observations are '
+                     'rendered without it: set config.eval.obs_noise=0')
+
+
+def _check_data(d: Optional[Dict[str, Any]]) -> None:
+  """config.data's source (`d`: the section as a dict, None without one)."""
+  if d is None:
+    return
+  from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
+  sources.SOURCES.check(d['source'])
+  if d['source'] == 'tdmpc2' and not d['path']:
+    raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
+                     'pattern or directory)')
 
 
 def check_kinds(model: ModelSettings, plan: PlanSettings) -> None:

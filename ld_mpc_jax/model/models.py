@@ -2,7 +2,7 @@
 
 All are plain flax modules. `build_networks(model)` instantiates them from the model's settings
 (ld_mpc_jax.model.settings.ModelSettings.from_config(config)); `init_params(config, key)` returns a
-dict of their parameters, one entry per network.
+dict of their parameters, one entry per network (`init_params_from(model, key)` from the settings).
 
 The proposal and the dynamics come in kinds, one registry entry each: `config.model.
 proposal_type` (ld_mpc_jax.model.proposals.PROPOSALS) and `config.model.dynamics_type`
@@ -202,7 +202,12 @@ def init_params(config: ml_collections.ConfigDict, key: jax.Array) -> dict:
   (about 16 s against 4 s on a 2-core CPU at smoke size).
   """
   check_config(config)
-  return _jitted_init(ModelSettings.from_config(config))(key)
+  return init_params_from(ModelSettings.from_config(config), key)
+
+
+def init_params_from(m: ModelSettings, key: jax.Array) -> dict:
+  """`init_params` from the model's settings (ModelSettings.from_config of a checked config)."""
+  return _jitted_init(m)(key)
 
 
 @build_cache.by_settings  # Traced once per settings value in a process.

@@ -28,9 +28,9 @@ import flax
 import jax
 import jax.numpy as jnp
 
-# The config-level helpers live with the environments (data and evaluation use them too); they
-# are re-exported here for the model's callers.
-from ld_mpc_jax.envs.tasks import check_tasks, is_multitask, num_tasks, task_config, task_names
+# A config's task names (`Tasks.from_config`) live with the environments (data and evaluation
+# use them too); re-exported here for the model's callers.
+from ld_mpc_jax.envs.tasks import Tasks
 from ld_mpc_jax.model.settings import ModelSettings
 
 # The layers that read a network's input (the observation for the encoder, a latent for the

@@ -1,5 +1,5 @@
 """The training seeds of an online run (ld_mpc_jax.runs.online, `train.num_seeds`): each seed's
-config, run directory, buffer and environments (`Seat`), its episodes of a wave while they run
+run directory, settings, buffer and environments (`Seat`), its episodes of a wave while they run
 (`SeatWave`) and what the wave left (`WaveRecord`). What a wave acts with is fixed at its start
 (`WaveSchedule`) and passed in: nothing of the job, a seat or a policy is set during a wave. The
 seeds' parameters live stacked in the job's TrainState."""
@@ -20,6 +20,7 @@ from ld_mpc_jax.data.online_buffer import Buffer
 from ld_mpc_jax.data.replay import window_length
 from ld_mpc_jax.online.schedule import ar1_noise
 from ld_mpc_jax.online.settings import OnlineSettings
+from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.plan.search import CANDIDATES
@@ -47,23 +48,25 @@ class WaveRecord:
 
 
 class Seat:
-  """One training seed of an online run: its config, run directory, buffer, environments and
+  """One training seed of an online run: its run directory, settings, buffer, environments and
   what its last wave did; the parameters live in the job's stacked TrainState."""
 
-  def __init__(self, config, run, offline: Optional[data.Dataset], index: int):
-    """`run`: the seed's run directory (runs.loop.Run of `config`)."""
-    o, self.config, self.index = config.online, config, index
-    self.run = run
-    demos = OnlineSettings.from_config(config).demonstrations(config.task, config.seed,
-                                                              config.data.seed)
-    self.buffer = Buffer(window_length(config.horizon), offline, config.seed, demos,
-                         progress=config.loss.w_progress > 0)
-    self.envs = [envs.make_env(config.task, seed=config.data.seed,
-                               action_repeat=config.eval.action_repeat,
-                               max_episode_steps=o.episode_steps,
-                               random_goals=o.train_goals == 'random')
-                 for _ in range(o.num_envs)]
-    self.update_key = jax.random.key(config.seed + 1)
+  def __init__(self, run, online: OnlineSettings, model: ModelSettings,
+               offline: Optional[data.Dataset], index: int):
+    """`run`: the seed's run directory (runs.loop.Run of the seed's config, which it saves);
+    `online`: the seed's settings (OnlineSettings.from_config of that config: its seed, task and
+    training goals); `model`: the run's (whether the progress reward and the exploration value
+    exist)."""
+    self.run, self.online, self.index = run, online, index
+    self.novelty = model.novelty  # config.loss.w_novelty > 0: the act_novelty column.
+    self.buffer = Buffer(window_length(online.horizon), offline, online.seed,
+                         online.demonstrations(), progress=model.progress)
+    self.envs = [envs.make_env(online.task, seed=online.goal_seed,
+                               action_repeat=online.action_repeat,
+                               max_episode_steps=online.episode_steps,
+                               random_goals=online.train_goals == 'random')
+                 for _ in range(online.num_envs)]
+    self.update_key = jax.random.key(online.seed + 1)
 
   def ema_params(self, job):
     return job.views()[self.index]
@@ -108,7 +111,7 @@ class Seat:
     out = dict(planned=int(wave.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
                spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
                act_disagreement=disagreement)
-    if self.config.loss.w_novelty > 0:  # Only runs with the exploration value have the column.
+    if self.novelty:  # Only runs with the exploration value have the column.
       out['act_novelty'] = (job.acting_schedule.novelty(before)
                             if mode == 'plan' else float('nan'))
     return out
@@ -141,12 +144,12 @@ class WavePolicy:
       mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
               if job.config.eval.data_parallel else None)
       self.inner = BatchAgentPolicy(job.acting, job.views()[0], schedule.mode,
-                                    seed=job.seats[0].config.seed, chunk=o.plan_chunk,
+                                    seed=job.seats[0].online.seed, chunk=o.plan_chunk,
                                     mesh=mesh, **knobs)
       self.inner.start(waves[0].episodes)
     else:
       self.inner = SeedsAgentPolicy(job.acting, job.group_ema_params(), schedule.mode,
-                                    [seat.config.seed for seat in job.seats], job.groups,
+                                    [seat.online.seed for seat in job.seats], job.groups,
                                     **knobs)
       self.inner.start([w.episodes for w in waves])
 
@@ -168,7 +171,7 @@ class SeatWave:
   noise and what each episode recorded."""
 
   def __init__(self, job, seat: Seat, first: int, schedule: WaveSchedule):
-    n, seed = len(seat.envs), seat.config.seed
+    n, seed = len(seat.envs), seat.online.seed
     self.job, self.seat, self.schedule = job, seat, schedule
     seeds = envs.episode_seeds(seed, first + n, 'online')[first:]
     self.episodes = [goals.Episode('online', first + i, 0, int(s), '', None)

@@ -4,16 +4,15 @@
   online.check(model, plan)                     # one-line ValueErrors naming the field
 
 Defaults and the reasons for them stay in configs/door_open_online.py (`online_settings`); an
-offline config has no `online` section, and `OnlineSettings.of(config)` is None for it.
+offline config has no `online` section: build them where `configs.online_enabled(config)`.
 """
 
 import dataclasses
 import os
-from typing import List, Optional, Tuple
+from typing import List, Tuple
 
 import ml_collections
 
-from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.data import demos as demos_lib
 from ld_mpc_jax.model import proposals
 from ld_mpc_jax.plan import search
@@ -32,7 +31,8 @@ SCHEDULES = ('constant', 'linear')
 class OnlineSettings(_Hashable):
   """`config.online` (field names are the section's), and the few settings of other sections that
   online training and its checks read: the model's horizon, the update's batch, the action repeat,
-  the evaluation's goal splits and whether the update is data-parallel."""
+  the evaluation's goal splits, whether the update is data-parallel, and the training seed's task,
+  seed and training goals (a seed's settings: each seed of a run has its own)."""
   enabled: bool
   init_from: str
   env_steps: int
@@ -78,6 +78,9 @@ class OnlineSettings(_Hashable):
   action_repeat: int  # config.eval.action_repeat
   eval_splits: Tuple[str, ...]  # config.eval.splits
   data_parallel: bool  # config.train.data_parallel
+  task: str  # config.task
+  seed: int  # config.seed: the training seed
+  goal_seed: int  # config.data.seed: MT1's seed of the training goals ('mt1' train_goals)
 
   @classmethod
   def from_config(cls, config: ml_collections.ConfigDict) -> 'OnlineSettings':
@@ -85,12 +88,8 @@ class OnlineSettings(_Hashable):
            if f.name in config.online}
     return cls(**own, horizon=config.horizon, batch_size=config.train.batch_size,
                action_repeat=config.eval.action_repeat, eval_splits=config.eval.splits,
-               data_parallel=config.train.data_parallel)
-
-  @classmethod
-  def of(cls, config: ml_collections.ConfigDict) -> Optional['OnlineSettings']:
-    """The settings of an online config; None where online training is off."""
-    return cls.from_config(config) if online_enabled(config) else None
+               data_parallel=config.train.data_parallel, task=config.task, seed=config.seed,
+               goal_seed=config.data.seed)
 
   @property
   def schedule_end(self) -> int:
@@ -111,7 +110,7 @@ class OnlineSettings(_Hashable):
     frac = min(max(env_steps / self.schedule_end, 0.0), 1.0)
     return float(self.demo_share_start + frac * (self.demo_share_end - self.demo_share_start))
 
-  def demonstrations(self, task: str, seed: int, goal_seed: int) -> List[demos_lib.Episode]:
+  def demonstrations(self) -> List[demos_lib.Episode]:
     """The run's demonstrations (none when `demos` = 0), with its reward: the first successful
     episodes of `demo_path`, or the scripted policy's on `task`'s training goals (MT1 seed
     `goal_seed`, episode seeds from the training seed `seed`)."""
@@ -120,8 +119,9 @@ class OnlineSettings(_Hashable):
     if self.demo_path:
       episodes = demos_lib.load_demos(self.demo_path, self.demos)
     else:
-      episodes = demos_lib.collect_demos(task, self.demos, seed, goal_seed, self.action_repeat,
-                                         self.episode_steps, self.demo_noise_std)
+      episodes = demos_lib.collect_demos(self.task, self.demos, self.seed, self.goal_seed,
+                                         self.action_repeat, self.episode_steps,
+                                         self.demo_noise_std)
     return demos_lib.with_reward(episodes, self.reward)
 
   def acting_plan(self, plan: PlanSettings) -> PlanSettings:

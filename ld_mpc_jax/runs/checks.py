@@ -4,7 +4,9 @@ import ml_collections
 
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.learn.train_state import OptimSettings
+from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.model.config_checks import check_sections, fields_checked
+from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.plan.search import validate_plan
 
@@ -13,16 +15,18 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work: every section
   (model.config_checks.check_config's checks, then the training seeds' and the update's), then
   online training's (OnlineSettings.check) where it is on."""
-  with fields_checked(config):  # Its NaN check after the sections'.
-    model, plan, losses = check_sections(config)
+  fields = config.to_dict()
+  with fields_checked(fields):  # Its NaN check after the sections'.
+    model, plan = ModelSettings.from_config(config), PlanSettings.from_config(config)
+    losses = LossSettings.from_config(config)
+    check_sections(fields, model, plan, losses)
     validate_plan(plan, model)
     t = config.train
     check_seeds(t.num_seeds, t.get('seed_devices', 1),
                 t.data_parallel or ('eval' in config and config.eval.data_parallel))
     OptimSettings.from_config(config).check(losses)
-  online = OnlineSettings.of(config)
-  if online is not None:
-    online.check(model, plan)
+  if online_enabled(config):
+    OnlineSettings.from_config(config).check(model, plan)
 
 
 def check_seeds(num_seeds: int, seed_devices: int, data_parallel: bool) -> None:

@@ -23,6 +23,7 @@ from tensorboardX import SummaryWriter
 import tqdm
 
 from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.learn.train_state import LearnSettings
 from ld_mpc_jax import data
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.runs.progress import INTERRUPTED, SAVING, Eta, stage
@@ -134,7 +135,7 @@ class Run:
     with a warning and moved to damaged_checkpoints/ (`checkpointing.restore_intact`).
     """
     self.step, state, skipped = checkpointing.restore_intact(
-        self.manager, checkpointing.abstract_state(self.config), usable)
+        self.manager, checkpointing.abstract_state(LearnSettings.from_config(self.config)), usable)
     checkpointing.set_aside(self.workdir, self.manager, skipped)
     if state is not None:
       # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which

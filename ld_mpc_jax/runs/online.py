@@ -47,7 +47,8 @@ from ld_mpc_jax.runs import loop as runs, online_report
 from ld_mpc_jax.runs.progress import progress_bar
 from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.model.models import set_obs_normalization
-from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
+from ld_mpc_jax.learn.train_state import (LearnSettings, create_train_state, make_seeds_update,
+                                          stack_states)
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.online.schedule import ActingSchedule
 from ld_mpc_jax.online.settings import OnlineSettings
@@ -94,7 +95,8 @@ def _check_source(config: ml_collections.ConfigDict) -> ml_collections.ConfigDic
                      f'{config.task}: pass --config.task={source.task}')
   if checkpointing.checkpoint_manager(path).latest_step() is None:
     raise ValueError(f'config.online.init_from={path!r} has no checkpoint')
-  shapes = lambda c: jax.tree_util.tree_map(lambda x: x.shape, checkpointing.abstract_state(c))
+  shapes = lambda c: jax.tree_util.tree_map(
+      lambda x: x.shape, checkpointing.abstract_state(LearnSettings.from_config(c)))
   if shapes(source) != shapes(config):
     fields = [f'model.{k}' for k in config.model if k != 'dropout' and  # JSON: lists = tuples.
               json.dumps(source.model[k] if k in source.model else None)
@@ -117,18 +119,20 @@ class OnlineJob:
 
   def __init__(self, config, workdir: str, source, offline: Optional[data.Dataset]):
     self.config, self.source, o = config, source, config.online
-    self.seats = [Seat(c, runs.Run(c, w), offline, i)
+    model = ModelSettings.from_config(config)  # The seeds' configs differ in their seeds only.
+    self.seats = [Seat(runs.Run(c, w), OnlineSettings.from_config(c), model, offline, i)
                   for i, (c, w) in enumerate(runs.seed_configs(config, workdir))]
     self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
                          pretrain_updates=0)
     states = self._restore()
+    learn = LearnSettings.from_config(config)  # The seeds' configs differ in their seeds only.
     if states is None and source is not None:
       states = [checkpointing.restore_latest(checkpointing.checkpoint_manager(
-          runs.seed_source(seat.config.online.init_from, seat.config.seed)),
-          checkpointing.abstract_state(seat.config))
+          runs.seed_source(seat.online.init_from, seat.online.seed)),
+          checkpointing.abstract_state(learn))
                 for seat in self.seats]
     elif states is None:  # From scratch; observation statistics come with the seed data.
-      states = [create_train_state(seat.config, jax.random.key(seat.config.seed))
+      states = [create_train_state(learn, jax.random.key(seat.online.seed))
                 for seat in self.seats]
       self.counters['normalized'] = not config.model.normalize_obs
     self.groups = SeedGroups(len(self.seats), config.train.seed_devices)
@@ -140,7 +144,7 @@ class OnlineJob:
     self.online = OnlineSettings.from_config(config)
     self.acting_schedule = ActingSchedule(self.online, self.learn_start)  # Annealed.
     self.per_call = o.updates_per_call
-    self.update = {n: make_seeds_update(config, n, self.per_call) for n in set(self.groups.sizes)}
+    self.update = {n: make_seeds_update(learn, n, self.per_call) for n in set(self.groups.sizes)}
     self.keys = self.groups.split(jnp.stack([seat.update_key for seat in self.seats]))
     # Each seed's update key at an update count: one jitted call, not one per seed.
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
@@ -376,6 +380,6 @@ def train_online(config: ml_collections.ConfigDict, workdir: str,
     records.append(recs)
   if len(job.seats) == 1:
     return reports[0]
-  pooled = online_report.write_pooled(workdir, [s.config.seed for s in job.seats], reports,
+  pooled = online_report.write_pooled(workdir, [s.online.seed for s in job.seats], reports,
                                       records)
   return dict(pooled, seeds=reports)

@@ -14,7 +14,7 @@ from ld_mpc_jax.eval.run_files import ONLINE_CSV
 
 def report(job, seat, final, summary) -> Dict[str, Any]:
   """report.json of one training seed (`seat`, an online.Seat) of `job` (an online.OnlineJob)."""
-  config, c, workdir, buffer = seat.config, job.counters, seat.run.workdir, seat.buffer
+  config, c, workdir, buffer = seat.run.config, job.counters, seat.run.workdir, seat.buffer
   curve = [dict(env_steps=int(r['step']), episodes=int(r['episodes']),
                 success_rate=float(r['success_rate']), ci95=[float(r['ci_lo']), float(r['ci_hi'])],
                 mean_return=float(r['mean_return']))

@@ -25,7 +25,7 @@ from ld_mpc_jax.model import tasks
 from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.model.models import count_params
-from ld_mpc_jax.learn.train_state import create_train_state, make_update
+from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state, make_update
 from ld_mpc_jax.model.settings import ModelSettings
 
 
@@ -93,7 +93,7 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
     from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
     return online.train_online(config, workdir, continue_with_changes)
   validate_config(config)
-  tasks.check_tasks(config)
+  tasks.Tasks.from_config(config).check()
   for seed_config, seed_workdir in runs.seed_configs(config, workdir):  # Each seed's, as saved.
     checkpointing.check_workdir(seed_config, seed_workdir, continue_with_changes)
   os.makedirs(workdir, exist_ok=True)
@@ -109,7 +109,8 @@ def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   run = runs.Run(config, workdir)
   state = run.restore()
   if state is None:
-    state = create_train_state(config, jax.random.key(config.seed), dataset.observations)
+    state = create_train_state(LearnSettings.from_config(config), jax.random.key(config.seed),
+                               dataset.observations)
   job = OfflineJob(config, run, dataset, state)
   t = config.train
   try:
@@ -153,7 +154,7 @@ class OfflineJob:
     self.start = self.progress  # Resumed at (0 from scratch).
     self.prior_seconds = run.prior_seconds() if self.progress else 0.0
     mesh = sharding.make_mesh() if t.data_parallel else None
-    self.update = make_update(config, mesh)
+    self.update = make_update(LearnSettings.from_config(config), mesh)
     self.batch_size, self.put = t.batch_size, lambda batch: batch
     if mesh is not None:  # Each process samples its share; the state lives on every device.
       self.batch_size = sharding.local_batch_size(t.batch_size, mesh)
@@ -166,7 +167,7 @@ class OfflineJob:
     # multi-process run draws its own windows (process 0 draws what a single-process run draws).
     seed = config.seed * 1_000_003 + 999_983 * jax.process_index()
     self.buffer = data.make_buffer(dataset, data.window_length(config.horizon),
-                                   tasks.num_tasks(config), seed=seed)
+                                   ModelSettings.from_config(config).num_tasks, seed=seed)
     self.buffer.skip(self.progress, self.batch_size)
     self.key = jax.random.key(config.seed + 1)
     self.timer = _Timer(self.progress)
@@ -201,11 +202,11 @@ class OfflineJob:
 
 def _report(run: runs.Run, dataset, job, final, baselines, summary, records):
   config = run.config
-  names = tasks.task_names(config)
+  trained = tasks.Tasks.from_config(config)
   return {
-      'task': config.task, 'tasks': list(names),
-      'per_task': (multitask_eval.per_task(records, names)
-                   if tasks.is_multitask(config) and records else None),
+      'task': config.task, 'tasks': list(trained.names),
+      'per_task': (multitask_eval.per_task(records, trained.names)
+                   if trained.multitask and records else None),
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
       'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
       'decisions_per_s': final['decisions_per_s'],

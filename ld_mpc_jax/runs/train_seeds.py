@@ -23,12 +23,12 @@ import numpy as np
 
 from ld_mpc_jax import data
 from ld_mpc_jax.eval import run_files
-from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
+from ld_mpc_jax.learn.train_state import (LearnSettings, create_train_state, make_seeds_update,
+                                          stack_states)
 from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
 from ld_mpc_jax.runs.progress import progress_bar
-from ld_mpc_jax.model import tasks
 
 
 class _SeedRuns:
@@ -53,16 +53,18 @@ class OfflineSeedsJob:
     self.runs = _SeedRuns(self.seed_runs)
     states = self._restore()
     self.progress = self.start = 0 if states is None else self.seed_runs[0].step
+    learn = LearnSettings.from_config(self.configs[0])  # The seeds' configs differ in seed only.
     if states is None:
-      states = [create_train_state(c, jax.random.key(c.seed), dataset.observations)
+      states = [create_train_state(learn, jax.random.key(c.seed), dataset.observations)
                 for c in self.configs]
     self.prior_seconds = self.seed_runs[0].prior_seconds() if self.progress else 0.0
     self.groups = SeedGroups(len(self.configs), t.seed_devices)
     self.states, self.metrics = self.groups.split(stack_states(states)), None
-    self.update = {n: make_seeds_update(self.configs[0], n) for n in set(self.groups.sizes)}
+    self.update = {n: make_seeds_update(learn, n) for n in set(self.groups.sizes)}
     self.batch_size = t.batch_size
     # Each seed's sampler as its run alone seeds it (`train.OfflineJob`), continued on resume.
-    self.buffers = [data.make_buffer(dataset, data.window_length(c.horizon), tasks.num_tasks(c),
+    self.buffers = [data.make_buffer(dataset, data.window_length(c.horizon),
+                                     learn.model.num_tasks,
                                      seed=c.seed * 1_000_003 + 999_983 * jax.process_index())
                     for c in self.configs]
     for buffer in self.buffers:

@@ -45,12 +45,13 @@ path, _, preset = sys.argv[1].partition(':')
 spec = importlib.util.spec_from_file_location('cfg', path); mod = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(mod)
 config = mod.get_config(preset or None)
-def collect(k):
+data, names = sources.DataSpec.from_config(config), tasks.Tasks.from_config(config).names
+def collect(name):
   t = time.time()
-  sources.load_dataset(sources.DataSpec.from_config(tasks.task_config(config, k)), progress=False)
-  return f'{tasks.task_names(config)[k]} ready in {time.time() - t:.0f} s'
-with concurrent.futures.ProcessPoolExecutor(tasks.num_tasks(config)) as pool:
-  print('\n'.join(pool.map(collect, range(tasks.num_tasks(config)))))
+  sources.load_dataset(data.for_task(name), progress=False)
+  return f'{name} ready in {time.time() - t:.0f} s'
+with concurrent.futures.ProcessPoolExecutor(len(names)) as pool:
+  print('\n'.join(pool.map(collect, names)))
 PY
 echo "data ready at $(( $(date +%s) - start )) s"
 for s in $SEEDS; do

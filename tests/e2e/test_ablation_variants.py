@@ -9,7 +9,7 @@ import pytest
 from ld_mpc_jax.cli import ablations
 from ld_mpc_jax.model import models
 from ld_mpc_jax.plan import planner
-from ld_mpc_jax.learn.train_state import create_train_state, make_update
+from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state, make_update
 
 
 def _batch(config):
@@ -25,9 +25,10 @@ def _batch(config):
 @pytest.mark.parametrize('name', list(ablations.VARIANTS))
 def test_variant_builds_trains_one_step_and_plans(smoke_config, name):
   config = ablations.with_overrides(smoke_config, ablations.VARIANTS[name][1])
-  state = create_train_state(config, jax.random.key(0))
+  learn = LearnSettings.from_config(config)
+  state = create_train_state(learn, jax.random.key(0))
   before = jax.tree_util.tree_map(np.array, state.params)  # Host copies: the update donates.
-  state, metrics = make_update(config)(state, _batch(config), jax.random.key(1))
+  state, metrics = make_update(learn)(state, _batch(config), jax.random.key(1))
   assert np.isfinite(float(metrics['loss']))
   after = jax.device_get(state.params)
   for net in ('proposal', 'dynamics'):  # Both kinds of network receive gradients.

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from ld_mpc_jax.learn import checkpointing
+from ld_mpc_jax.learn.train_state import LearnSettings
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -37,8 +38,9 @@ def test_offline_script_trains_compares_and_packs_ema_only_runs(tmp_path):
   _, original, _ = checkpointing.load_for_evaluation(str(tmp_path / 'runs' / 'smk_seed1'))
   for a, b in zip(jax.tree.leaves(ema), jax.tree.leaves(original)):
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))  # Evaluates as trained.
+  learn = LearnSettings.from_config(config)
   state = checkpointing.restore_latest(checkpointing.checkpoint_manager(packed),
-                                       checkpointing.abstract_state(config))
+                                       checkpointing.abstract_state(learn))
   assert all(not np.any(np.asarray(x)) for x in jax.tree.leaves(state.params))  # Zeroed.
   result = json.load(open(os.path.join(packed, 'selection_quick.json')))
   assert [r['policy'] for r in result['rows']] == ['plan[argmax]', 'actor']

@@ -22,7 +22,7 @@ import jax
 import numpy as np
 from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.ops import sharding
-from ld_mpc_jax.learn.train_state import create_train_state, make_update
+from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state, make_update
 
 c = door_open.get_config('smoke')
 c.critic.latent_rollout = False  # A third less to compile; the sharding does not depend on it.
@@ -31,14 +31,15 @@ rng = np.random.default_rng(0)
 batch = dict(obs=rng.normal(size=(b, h + 2, 39)).astype(np.float32),
              action=rng.uniform(-1, 1, (b, h + 1, 4)).astype(np.float32),
              reward=rng.uniform(0, 10, (b, h + 1)).astype(np.float32))
-fresh = lambda: create_train_state(c, jax.random.key(0), batch['obs'].reshape(-1, 39))
-single = make_update(c)
+learn = LearnSettings.from_config(c)
+fresh = lambda: create_train_state(learn, jax.random.key(0), batch['obs'].reshape(-1, 39))
+single = make_update(learn)
 state1 = fresh()
 for i in range(2):
   state1, m1 = single(state1, batch, jax.random.key(i))
 c.train.data_parallel = True
 mesh = sharding.make_mesh()
-parallel = make_update(c)  # The mesh comes from the config: all devices.
+parallel = make_update(LearnSettings.from_config(c))  # The mesh: all devices.
 state2 = sharding.replicate(fresh(), mesh)
 sharded = sharding.shard_batch(batch, mesh)
 compiled = parallel.lower(state2, sharded, jax.random.key(0)).compile()

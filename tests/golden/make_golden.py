@@ -51,14 +51,16 @@ def main() -> None:
   shutil.rmtree(SMOKE_DIR, ignore_errors=True)
   os.makedirs(SMOKE_DIR)
   checkpointing.save_config(smoke, SMOKE_DIR)
-  state = train_state.create_train_state(smoke, jax.random.key(0))
+  state = train_state.create_train_state(train_state.LearnSettings.from_config(smoke),
+                                         jax.random.key(0))
   manager = checkpointing.checkpoint_manager(SMOKE_DIR)
   manager.save(0, args=ocp.args.StandardSave(state))
   manager.wait_until_finished()
   _, params, _ = checkpointing.load_for_evaluation(SMOKE_DIR)
   arrays = {f'smoke_{k}': v for k, v in decisions(smoke, params).items()}
   cpu = door_open.get_config('cpu')
-  cpu_params = train_state.create_train_state(cpu, jax.random.key(0)).ema_params
+  cpu_learn = train_state.LearnSettings.from_config(cpu)
+  cpu_params = train_state.create_train_state(cpu_learn, jax.random.key(0)).ema_params
   arrays.update({f'cpu_{k}': v for k, v in decisions(cpu, cpu_params).items()})
   np.savez(PLANS, **arrays)
   print(f'wrote {SMOKE_DIR} and {PLANS}')
