@@ -88,6 +88,7 @@ def breakdown(config: ml_collections.ConfigDict, num_seeds: int, waves: int) -> 
   """One entry: ms per simulator step of each part over `waves` timed waves of `num_seeds`
   seeds, the simulator steps, decisions and updates they made, and the timed wall seconds."""
   from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs.seed_plan import seed_plans  # pylint: disable=g-import-not-at-top
   c = ml_collections.ConfigDict(config.to_dict())
   c.train.num_seeds, c.eval.episodes = num_seeds, 0
   o = c.online
@@ -98,7 +99,7 @@ def breakdown(config: ml_collections.ConfigDict, num_seeds: int, waves: int) -> 
   totals = {p: 0.0 for p in PARTS}
   counts = {'decisions': 0}
   with tempfile.TemporaryDirectory() as workdir:
-    job = online.OnlineJob(c, workdir, None, None)
+    job = online.OnlineJob(seed_plans(c, workdir), None)
     job.bar.disable = True
     with _timed(totals, counts):
       while job.progress < untimed:

@@ -29,7 +29,7 @@ def _wave_rates(workdir: str, skip: int) -> List[float]:
 def _run(c: ml_collections.ConfigDict, overlap: bool, skip: int):
   """(wall seconds, acting waves' rates) of one online run; without `overlap` every update
   waits for the steps that call for it."""
-  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs import train  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.online import seats as online_seats  # pylint: disable=g-import-not-at-top
   upcoming = online_seats.SeatWave.upcoming
   try:
@@ -37,7 +37,7 @@ def _run(c: ml_collections.ConfigDict, overlap: bool, skip: int):
       online_seats.SeatWave.upcoming = lambda self: 0
     with tempfile.TemporaryDirectory() as workdir:
       start = time.perf_counter()
-      online.train_online(c, workdir)
+      train.train_and_evaluate(c, workdir)
       wall = time.perf_counter() - start
       first = workdir if c.train.num_seeds == 1 else os.path.join(workdir, f'seed{c.seed}')
       return wall, _wave_rates(first, skip)

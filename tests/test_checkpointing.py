@@ -17,6 +17,7 @@ from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.runs.checks import validate_config
+from ld_mpc_jax.runs.seed_plan import seed_plans
 from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state
 
 # Fields whose fallbacks moved into migrate_config, with what a run saved before them did.
@@ -280,7 +281,7 @@ def test_a_resumed_run_sets_damaged_steps_aside_and_saves_them_again(tmp_path):
   from ld_mpc_jax.runs import loop as runs
   workdir = str(tmp_path)
   config = _two_checkpoints(workdir)
-  run = runs.Run(config, workdir)
+  run = runs.Run(seed_plans(config, workdir)[0])
   state = run.restore()
   assert (run.step, int(state.step)) == (1, 1)
   assert run.manager.all_steps() == [1]
@@ -319,7 +320,7 @@ def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_pat
   run_files.append_csv(str(tmp_path / runs.EVAL_CSV), {'step': 2, 'success_rate': 0.5})
   folder = os.path.join(workdir, 'checkpoints')
   for attempt in (lambda: checkpointing.load_for_evaluation(workdir),
-                  lambda: runs.Run(config, workdir).restore()):
+                  lambda: runs.Run(seed_plans(config, workdir)[0]).restore()):
     with pytest.raises(checkpointing.WorkdirError) as err:
       attempt()
     line = str(err.value)
@@ -328,7 +329,7 @@ def test_every_checkpoint_damaged_stops_on_one_line_that_says_what_to_do(tmp_pat
     assert line.endswith('or train into another --workdir')
   assert checkpointing.checkpoint_manager(workdir).all_steps() == [1, 2]  # Left as they were.
   os.rename(folder, folder + '.damaged')  # As the line says: the run starts over, its old log
-  run = runs.Run(config, workdir)  # rows gone (not repeated by the new run).
+  run = runs.Run(seed_plans(config, workdir)[0])  # rows gone (not repeated by the new run).
   assert run.restore() is None and run.step is None
   assert run_files.read_csv(str(tmp_path / runs.EVAL_CSV)) == []
 
@@ -341,7 +342,7 @@ def test_a_full_disk_during_a_checkpoint_write_stops_on_one_line_keeping_the_las
   from ld_mpc_jax.runs import loop as runs
   workdir = str(tmp_path)
   config = door_open.get_config('smoke')
-  run = runs.Run(config, workdir)
+  run = runs.Run(seed_plans(config, workdir)[0])
   learn = LearnSettings.from_config(config)
   state = create_train_state(learn, jax.random.key(0))
   run.save(state.replace(step=1), 1, 0.0)
@@ -396,9 +397,9 @@ def test_training_reports_a_full_disk_on_one_line(tmp_path, monkeypatch):
   from ld_mpc_jax.runs import train
   monkeypatch.setattr(sys, 'unraisablehook', sys.unraisablehook)  # As they were, after it.
   monkeypatch.setattr(threading, 'excepthook', threading.excepthook)
-  def fills(config, workdir, continue_with_changes):
+  def fills(plans, workdir):
     raise OSError(28, 'No space left on device', os.path.join(workdir, 'eval.csv'))
-  monkeypatch.setattr(train, '_train_and_evaluate', fills)
+  monkeypatch.setattr(train, '_train_offline', fills)
   with pytest.raises(checkpointing.DiskFullError, match=r'\(writing eval.csv\): no checkpoint'):
     train.train_and_evaluate(door_open.get_config('smoke'), str(tmp_path))
 

@@ -20,7 +20,8 @@ from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.eval import evaluation_suite, run_files
 from ld_mpc_jax.eval.spec import GoalSource
 from ld_mpc_jax.plan.search import CANDIDATE_KINDS
-from ld_mpc_jax.runs import online
+from ld_mpc_jax.runs import online, train
+from ld_mpc_jax.runs.seed_plan import seed_plans
 from ld_mpc_jax.online import seats as online_seats
 from ld_mpc_jax.model.models import init_params
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
@@ -52,7 +53,7 @@ def _record_policies(config, workdir, monkeypatch):
   monkeypatch.setattr(online, 'make_seeds_update', lambda learn, n, per_call: (
       lambda state, batch, keys: (state.replace(step=state.step + 1),
                                   {'loss': jnp.ones(n, jnp.float32)})))
-  online.train_online(config, workdir)
+  train.train_and_evaluate(config, workdir)
   return used
 
 
@@ -153,7 +154,7 @@ def test_fine_tuning_from_a_run_of_another_task_is_refused_naming_the_flag(tmp_p
   config.online.init_from = str(tmp_path / 'push_run')
   with pytest.raises(ValueError, match=r'trained on push-v3, not door-open-v3: pass '
                      r'--config.task=push-v3'):
-    online.check_init_from(config)
+    online.check_init_from(seed_plans(config, ''))
 
 
 class _Stop(Exception):
@@ -169,7 +170,7 @@ def test_update_ratio_zero_warns_once_before_the_work(tmp_path, monkeypatch, cap
     raise _Stop
   monkeypatch.setattr(online.runs, 'Run', stop)
   with pytest.raises(_Stop):
-    online.train_online(config, str(tmp_path / 'run'))
+    train.train_and_evaluate(config, str(tmp_path / 'run'))
   lines = [l for l in capsys.readouterr().err.splitlines() if l.startswith('warning:')]
   assert len(lines) == warnings
   if warnings:

@@ -12,7 +12,7 @@ from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.learn.train_state import LearnSettings
 from ld_mpc_jax import data
-from ld_mpc_jax.runs import online
+from ld_mpc_jax.runs import online, train
 
 
 def _config(seed, num_seeds):
@@ -37,8 +37,8 @@ def _episodes(workdir):
 def runs(build_once):
   """Seeds 0 and 1 in one run, and seed 1 alone: trained once for every xdist worker."""
   def build(root):
-    online.train_online(_config(0, 2), str(root / 'both'))
-    online.train_online(_config(1, 1), str(root / 'alone1'))
+    train.train_and_evaluate(_config(0, 2), str(root / 'both'))
+    train.train_and_evaluate(_config(1, 1), str(root / 'alone1'))
   return build_once('online_seeds', build)
 
 
@@ -80,7 +80,7 @@ def test_updates_dispatched_before_the_environments_step_are_the_updates_made_af
   from ld_mpc_jax.online import seats as online_seats  # pylint: disable=g-import-not-at-top
   made = []
   monkeypatch.setattr(online_seats.SeatWave, 'upcoming', lambda self: made.append(0) or 0)
-  online.train_online(_config(1, 1), str(tmp_path / 'waiting'))
+  train.train_and_evaluate(_config(1, 1), str(tmp_path / 'waiting'))
   assert made  # The planner's decisions asked, and no update was dispatched ahead.
   ours, theirs = (_params(d, _config(1, 1)) for d in (str(runs / 'alone1'), str(tmp_path / 'waiting')))
   for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(theirs), strict=True):
@@ -112,10 +112,10 @@ import jax
 jax.config.update('jax_num_cpu_devices', 2)
 sys.path.insert(0, 'tests')
 from test_online_seeds import _config
-from ld_mpc_jax.runs import online
+from ld_mpc_jax.runs import train
 config = _config(0, 2)
 config.train.seed_devices = 2
-online.train_online(config, sys.argv[1])
+train.train_and_evaluate(config, sys.argv[1])
 print(json.dumps(dict(devices=len(jax.local_devices()))))
 '''
 

@@ -8,6 +8,7 @@ from ld_mpc_jax.configs import door_open
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.runs import loop as runs
+from ld_mpc_jax.runs.seed_plan import seed_plans
 
 
 @pytest.mark.parametrize('before,after,every,expected', [
@@ -73,7 +74,7 @@ def test_a_run_killed_during_the_evaluation_after_its_checkpoint_makes_it_when_r
 
 
 def test_a_run_skips_the_catch_up_evaluation_it_has_logged(tmp_path, monkeypatch):
-  run = runs.Run(door_open.get_config('smoke'), str(tmp_path))
+  run = runs.Run(seed_plans(door_open.get_config('smoke'), str(tmp_path))[0])
   assert run.last_eval_step() == -1
   for step in (0, 100):
     run_files.append_csv(os.path.join(str(tmp_path), runs.EVAL_CSV), dict(step=step))
@@ -96,7 +97,7 @@ def test_checkpoint_comes_before_the_evaluation_of_the_same_step():
 
 def test_a_resumed_run_drops_log_rows_written_after_its_checkpoint(tmp_path, monkeypatch):
   workdir = str(tmp_path)
-  run = runs.Run(door_open.get_config('smoke'), workdir)
+  run = runs.Run(seed_plans(door_open.get_config('smoke'), workdir)[0])
   for step in (40, 80, 120):  # A run killed at 120, its last checkpoint at 80.
     run_files.append_csv(os.path.join(workdir, runs.EVAL_CSV), dict(step=step, success_rate=0.5))
     run_files.append_csv(os.path.join(workdir, run_files.METRICS_CSV), dict(step=step, loss=1.0))

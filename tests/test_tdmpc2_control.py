@@ -210,10 +210,10 @@ def _shrink(c) -> None:
 
 
 def test_a_tiny_tdmpc2_control_run_trains_and_evaluates(tmp_path):
-  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (environments)
+  from ld_mpc_jax.runs import train  # pylint: disable=g-import-not-at-top (environments)
   c = _tdmpc2_config()
   start = time.time()
-  online.train_online(c, str(tmp_path))
+  train.train_and_evaluate(c, str(tmp_path))
   elapsed = time.time() - start
   with open(tmp_path / 'online.csv') as f:
     rows = list(csv.DictReader(f))

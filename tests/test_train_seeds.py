@@ -105,14 +105,15 @@ def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(r
   from ld_mpc_jax import data  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.configs import door_open_online  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.runs.seed_plan import seed_plans  # pylint: disable=g-import-not-at-top
   config = door_open_online.get_config('smoke')
   config.model.normalize_obs = True  # As the offline run's networks.
   config.train.num_seeds, config.online.init_from = 2, str(runs / 'both')
-  source = online.check_init_from(config)
+  source = online.check_init_from(seed_plans(config, ''))
   config.data.update(source.data.to_dict())
-  job = online.OnlineJob(config, str(tmp_path / 'ft'), source, data.load_dataset(data.DataSpec.from_config(config)))
+  job = online.OnlineJob(seed_plans(config, str(tmp_path / 'ft')), data.load_dataset(data.DataSpec.from_config(config)))
   job.bar.close()
-  assert [seat.run.config.online.init_from for seat in job.seats] == [
+  assert [seat.run.plan.fields()['online']['init_from'] for seat in job.seats] == [
       str(runs / 'both' / f'seed{s}') for s in (0, 1)]
   (stack,) = job.states  # One device: both seeds in one stack.
   for s in (0, 1):
@@ -124,4 +125,4 @@ def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(r
   shutil.copytree(runs / 'both' / 'seed0', one / 'seed0')
   config.online.init_from = str(one)
   with pytest.raises(ValueError, match='run of several seeds without seed1/'):
-    online.check_init_from(config)
+    online.check_init_from(seed_plans(config, ''))

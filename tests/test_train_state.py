@@ -47,6 +47,21 @@ def test_learn_settings_hash_by_value(fit_config, learn):
   assert make_update(again) is make_update(learn)
 
 
+def test_a_config_instead_of_its_settings_is_one_line_naming_the_fix(smoke_config):
+  from ld_mpc_jax.learn import checkpointing  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.learn.train_state import (  # pylint: disable=g-import-not-at-top
+      make_multi_update, make_seeds_update)
+  for name, build in (('make_update', make_update),
+                      ('make_multi_update', lambda c: make_multi_update(c, 2)),
+                      ('make_seeds_update', lambda c: make_seeds_update(c, 2)),
+                      ('create_train_state', lambda c: create_train_state(c, jax.random.key(0))),
+                      ('abstract_state', checkpointing.abstract_state)):
+    with pytest.raises(TypeError) as err:
+      build(smoke_config)
+    assert str(err.value) == (f'{name} takes LearnSettings, not a ConfigDict: pass '
+                              'LearnSettings.from_config(config)')
+
+
 def test_update_lowers_loss_on_fixed_batch(fit_config, learn):
   state = create_train_state(learn, jax.random.key(0))
   update = make_update(learn)

@@ -86,9 +86,10 @@ def main(argv):
     SeedGroups(t.num_seeds, devices)  # Enough devices for train.seed_devices (e.g. one GPU).
     if ModelSettings.from_config(_CONFIG.value).images:  # Frames are rendered: can they be?
       check_rendering()
-    if online_enabled(_CONFIG.value):  # The offline run to fine-tune exists and fits.
-      from ld_mpc_jax.runs.online import check_init_from
-      check_init_from(_CONFIG.value)
+    if online_enabled(_CONFIG.value) and _CONFIG.value.online.init_from:  # The offline run
+      from ld_mpc_jax.runs.online import check_init_from  # to fine-tune exists and fits.
+      from ld_mpc_jax.runs.seed_plan import seed_plans
+      check_init_from(seed_plans(_CONFIG.value, _WORKDIR.value))
   except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
     cli.fail(' '.join(str(err).split()))
   from ld_mpc_jax.runs import progress

@@ -10,7 +10,7 @@ import re
 import shutil
 import sys
 import threading
-from typing import Callable, Iterator, List, Optional, Tuple
+from typing import Callable, Iterator, List, Optional, Tuple, Union
 
 import jax
 import ml_collections
@@ -18,12 +18,12 @@ import orbax.checkpoint as ocp
 
 from ld_mpc_jax import configs
 from ld_mpc_jax.ops import legacy
-from ld_mpc_jax.learn.train_state import LearnSettings, TrainState, create_train_state
+from ld_mpc_jax.learn.train_state import (LearnSettings, TrainState, check_settings,
+                                          create_train_state)
 
 CONFIG_FILE = 'config.json'
 def legacy_defaults() -> dict:
-  """{section: {field: value}}: what a config saved before a field existed is read with
-  (legacy.neutral_values).
+  """What a config saved before a field existed is read with ({section: {field: value}}).
 
   Such a value changes nothing against the code before the field (evaluation_suite drops fields
   at these values from its cache keys, so adding a field does not invalidate cached cells).
@@ -47,13 +47,13 @@ def has_checkpoint(workdir: str) -> bool:
           and checkpoint_manager(workdir).latest_step() is not None)
 
 
-def save_config(config: ml_collections.ConfigDict, workdir: str) -> str:
+def save_config(config: Union[ml_collections.ConfigDict, str], workdir: str) -> str:
+  """Writes config.json: `config`'s JSON, or `config` itself, that JSON (SeedPlan.config_json)."""
   os.makedirs(workdir, exist_ok=True)
   path = os.path.join(workdir, CONFIG_FILE)
-  tmp = path + '.tmp'
-  with open(tmp, 'w') as f:
-    f.write(config.to_json_best_effort(indent=2))
-  os.replace(tmp, path)
+  with open(path + '.tmp', 'w') as f:
+    f.write(config if isinstance(config, str) else config.to_json_best_effort(indent=2))
+  os.replace(path + '.tmp', path)
   return path
 
 
@@ -238,19 +238,19 @@ def check_workdir(config: ml_collections.ConfigDict, workdir: str,
 
 
 def _warn_moved_schedules(old: int, new: int) -> None:
-  """Warns, in one line, when a continued online run's annealed schedules (they end at
-  `online.env_steps` unless `online.schedule_steps` is set: configs.schedule_end) would end at
-  `new` simulator steps, elsewhere than its own (`old`)."""
+  """Warns, in one line, when a continued online run's annealed schedules (configs.schedule_end:
+  `online.schedule_steps`, or `online.env_steps`) would end at `new` steps, not its own `old`."""
   if old != new:
     _warn(f'the annealed schedules (demonstrations\' share, executed-action noise, '
           f'act_schedule=linear) of this run ended at {old} simulator steps and now end at {new}; '
           f'--config.online.schedule_steps={old} keeps the run\'s')
 
 
-def record_config(config: ml_collections.ConfigDict, workdir: str) -> str:
-  """Saves config.json; a different earlier one is kept as config.<n>.json (n = 1, 2, ...)."""
-  path = os.path.join(workdir, CONFIG_FILE)
-  if os.path.exists(path) and config_changes(load_config(workdir).to_dict(), config.to_dict()):
+def record_config(config: Union[ml_collections.ConfigDict, str], workdir: str) -> str:
+  """Saves config.json (`save_config`); a different earlier one is kept as config.<n>.json."""
+  path, current = os.path.join(workdir, CONFIG_FILE), (
+      json.loads(config) if isinstance(config, str) else config.to_dict())
+  if os.path.exists(path) and config_changes(load_config(workdir).to_dict(), current):
     n = 1
     while os.path.exists(os.path.join(workdir, f'config.{n}.json')):
       n += 1
@@ -290,6 +290,7 @@ def abstract_state(settings: LearnSettings) -> TrainState:
   checkpoint, and a checkpoint written on a GPU then refuses to load on a CPU ("Topology
   mismatch"). Data-parallel runs replicate the restored state themselves.
   """
+  check_settings(settings, 'abstract_state')
   shapes = jax.eval_shape(lambda: create_train_state(settings, jax.random.key(0)))
   here = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
   return jax.tree.map(lambda s: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=here), shapes)
@@ -375,8 +376,7 @@ def set_aside(workdir: str, manager: ocp.CheckpointManager, steps: List[int]) ->
 
 
 def restore_latest(manager: ocp.CheckpointManager, target: TrainState) -> Optional[TrainState]:
-  """The newest intact checkpoint restored into `target` (`restore_intact`), or None if there is
-  none."""
+  """The newest intact checkpoint restored into `target` (`restore_intact`), or None."""
   return restore_intact(manager, target)[1]
 
 

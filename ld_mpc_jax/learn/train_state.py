@@ -72,6 +72,14 @@ class LearnSettings:
     return cls(model, losses, optim, config.train.data_parallel, config.train.batch_size)
 
 
+def check_settings(settings, where: str) -> None:
+  """A one-line TypeError when `settings` is a config, not its LearnSettings (what `where`, a
+  builder of a train state or an update, or checkpointing.abstract_state, takes)."""
+  if isinstance(settings, ml_collections.ConfigDict):
+    raise TypeError(f'{where} takes LearnSettings, not a ConfigDict: pass '
+                    'LearnSettings.from_config(config)')
+
+
 def make_optimizer(t: OptimSettings) -> optax.GradientTransformation:
   """Adam with linear warmup to a constant rate, after global-norm gradient clipping."""
   warmup = max(t.warmup_steps, 1)
@@ -89,6 +97,7 @@ def create_train_state(settings: LearnSettings, key: jax.Array,
   obs [N, obs_dim]: the dataset's observations, whose mean and std the encoder normalises with
   (`config.model.normalize_obs`); None leaves the identity normalisation (mean 0, std 1).
   """
+  check_settings(settings, 'create_train_state')
   m = settings.model
   params = init_params_from(m, key)
   if obs is not None and m.normalize_obs:
@@ -125,6 +134,7 @@ def make_update(settings: LearnSettings, mesh: Optional[Mesh] = None) -> Callabl
   `sharding.replicate` and the batch through `sharding.shard_batch`. Otherwise it is a plain
   single-device jit.
   """
+  check_settings(settings, 'make_update')
   parts = (settings.model, settings.losses, settings.optim)  # Checked by from_config.
   if mesh is None and not settings.data_parallel:
     return _jitted_update(*parts)
@@ -181,6 +191,7 @@ def make_multi_update(settings: LearnSettings, num: int) -> Callable:
   updates in one call (lax.scan), batches stacked on a leading axis [num, B, ...], the i-th
   update's key fold_in(key, i). One dispatch for `num` small updates: on a 2-core CPU about
   3x fewer seconds per update at the online `:cpu` size (docs/online.md). State donated."""
+  check_settings(settings, 'make_multi_update')
   update = make_update(settings).unjitted
 
   def multi(state, batches, key):
@@ -207,6 +218,7 @@ def make_seeds_update(settings: LearnSettings, num_seeds: int, per_call: int = 1
   `make_multi_update`, batches [N, per_call, B, ...]) is vmapped over it; metrics [N]. With one
   seed it is the unbatched update on the squeezed arguments, the same program a single run
   compiles. State donated."""
+  check_settings(settings, 'make_seeds_update')
   one = (make_update(settings).unjitted if per_call == 1
          else make_multi_update(settings, per_call).unjitted)
   if num_seeds == 1:

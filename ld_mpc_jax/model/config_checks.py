@@ -38,7 +38,9 @@ def check_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work, in every section but
   `online`, the training seeds', the optimiser's (OptimSettings.check) and the planner's search
   (plan.search.validate_plan): ld_mpc_jax.runs.checks.validate_config, what a run calls, checks
-  them all; the builders check their own (make_plan, make_update, create_train_state)."""
+  them all; elsewhere the settings' builders check the rest: build_plan (under make_plan) the
+  search, LearnSettings.from_config (what make_update and create_train_state take) the
+  optimiser's."""
   fields = config.to_dict()
   with fields_checked(fields):  # The settings are built once the fields they read are there.
     check_sections(fields, ModelSettings.from_config(config), PlanSettings.from_config(config),

@@ -53,8 +53,8 @@ class Seat:
 
   def __init__(self, run, online: OnlineSettings, model: ModelSettings,
                offline: Optional[data.Dataset], index: int):
-    """`run`: the seed's run directory (runs.loop.Run of the seed's config, which it saves);
-    `online`: the seed's settings (OnlineSettings.from_config of that config: its seed, task and
+    """`run`: the seed's run directory (runs.loop.Run of the seed's plan, whose config it saves);
+    `online`: the seed's settings (OnlineSettings.from_config of its config: its seed, task and
     training goals); `model`: the run's (whether the progress reward and the exploration value
     exist)."""
     self.run, self.online, self.index = run, online, index
@@ -135,14 +135,14 @@ class WavePolicy:
   (`SeedsAgentPolicy`)."""
 
   def __init__(self, job, schedule: WaveSchedule, waves):
-    o, self.job = job.config.online, job
+    o, self.job = job.online, job
     self.single = len(job.seats) == 1
     # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
     knobs = dict(action_noise=0.0 if o.exec_noise_corr > 0 else schedule.noise_std,
                  intrinsic=schedule.intrinsic)  # The planner's intrinsic term's weights.
     if self.single:
       mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
-              if job.config.eval.data_parallel else None)
+              if job.plans[0].eval.eval.data_parallel else None)
       self.inner = BatchAgentPolicy(job.acting, job.views()[0], schedule.mode,
                                     seed=job.seats[0].online.seed, chunk=o.plan_chunk,
                                     mesh=mesh, **knobs)
@@ -181,7 +181,7 @@ class SeatWave:
     # Copies: `obs` rows are overwritten in place by every step below.
     self.eps = [dict(obs=[np.copy(x)], action=[], reward=[], success=[]) for x in self.obs]
     self.active = np.ones(n, bool)
-    self.noise = np.zeros((n, job.config.action_dim))
+    self.noise = np.zeros((n, job.model.action_dim))
     self.noise_rng = np.random.default_rng([seed, first, 29])
     self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
     self.spreads, self.dense_max = [], 0.0  # Each planned decision's first-action spreads [2].
@@ -198,7 +198,7 @@ class SeatWave:
     """One decision in each active environment, with the policy's `actions` [N, A] and
     `infos` [N, 6] (None: uniform random actions); returns the environment steps taken, summed
     over the environments (`info['substeps']`)."""
-    o, seat, n = self.job.config.online, self.seat, len(self.seat.envs)
+    o, seat, n = self.job.online, self.seat, len(self.seat.envs)
     if actions is not None:
       self._count_winners(infos)
       if o.exec_noise_corr > 0:
@@ -206,7 +206,7 @@ class SeatWave:
                                self.noise_rng)
         actions = np.clip(actions + self.noise, -1.0, 1.0).astype(np.float32)
     else:
-      actions = self.rng.uniform(-1.0, 1.0, (n, self.job.config.action_dim)).astype(np.float32)
+      actions = self.rng.uniform(-1.0, 1.0, (n, self.job.model.action_dim)).astype(np.float32)
     substeps = 0
     for i in np.flatnonzero(self.active):
       self.obs[i], reward, terminated, truncated, info = seat.envs[i].step(actions[i])

@@ -16,17 +16,15 @@ from typing import Any, Dict, List, Optional, Protocol, Sequence
 
 import jax
 import jax.numpy as jnp
-import ml_collections
 import numpy as np
 import orbax.checkpoint as ocp
 from tensorboardX import SummaryWriter
 import tqdm
 
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax.learn.train_state import LearnSettings
 from ld_mpc_jax import data
-from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.runs.progress import INTERRUPTED, SAVING, Eta, stage
+from ld_mpc_jax.runs.seed_plan import SeedPlan
 from ld_mpc_jax.eval import evaluation_suite, multitask_eval, run_files
 from ld_mpc_jax.eval.spec import EvalSpec
 from ld_mpc_jax.model.settings import ModelSettings
@@ -106,24 +104,29 @@ def save_checkpoint(workdir, manager, state, done, train_seconds) -> None:
 
 
 class Run:
-  """A run directory: its config.json, checkpoint manager, TensorBoard writer and report files."""
+  """A run directory: its config.json, checkpoint manager, TensorBoard writer and report files.
 
-  def __init__(self, config: ml_collections.ConfigDict, workdir: str):
+  `plan`: the training seed's (runs.seed_plan.seed_plans), whose config.json it records.
+  """
+
+  def __init__(self, plan: SeedPlan):
     from ld_mpc_jax.plan.agent import POLICY_MODES  # pylint: disable=g-import-not-at-top
-    for mode in config.eval.baselines:  # Before any training: one line naming the modes.
+    for mode in plan.evals.baselines:  # Before any training: one line naming the modes.
       POLICY_MODES.check(mode)
-    self.config, self.workdir = config, workdir
+    self.plan, self.workdir = plan, plan.workdir
+    workdir = plan.workdir
     self.commit = run_files.git_commit()  # The code this process runs: HEAD may move later.
     os.makedirs(workdir, exist_ok=True)
-    checkpointing.record_config(config, workdir)  # Checked first: checkpointing.check_workdir.
+    # Checked first: checkpointing.check_workdir (runs.seed_plan.seed_plans).
+    checkpointing.record_config(plan.config_json, workdir)
     run_files.write_provenance(workdir)  # Commit, dirty flag and command of this start.
-    self.manager = checkpointing.checkpoint_manager(workdir, config.train.max_checkpoints)
+    self.manager = checkpointing.checkpoint_manager(workdir, plan.loop.max_checkpoints)
     self.writer = (SummaryWriter(os.path.join(workdir, 'tb')) if run_files.primary()
                    else run_files.NoWriter())
 
   def provenance(self) -> Dict[str, Any]:
     """The report's closing fields: the config, package versions and the commit."""
-    return {'config': json.loads(self.config.to_json_best_effort()),
+    return {'config': self.plan.fields(),
             'versions': run_files.versions(), 'git_commit': self.commit,
             'command': run_files.command_line()}
 
@@ -135,7 +138,7 @@ class Run:
     with a warning and moved to damaged_checkpoints/ (`checkpointing.restore_intact`).
     """
     self.step, state, skipped = checkpointing.restore_intact(
-        self.manager, checkpointing.abstract_state(LearnSettings.from_config(self.config)), usable)
+        self.manager, checkpointing.abstract_state(self.plan.learn), usable)
     checkpointing.set_aside(self.workdir, self.manager, skipped)
     if state is not None:
       # Uncommitted, as a fresh state is (orbax restores arrays committed to their device, which
@@ -191,15 +194,14 @@ class Run:
                     missing_since: Optional[int] = None) -> Optional[Dict[str, Any]]:
     """The planner on `eval.periodic_episodes` held-out episodes (none when eval.episodes = 0);
     with `missing_since`, only if eval.csv has no row from that step on (`loop`'s catch-up)."""
-    c = self.config
-    if c.eval.episodes <= 0:
+    e = self.plan.evals
+    if e.episodes <= 0:
       return None
     if missing_since is not None and self.last_eval_step() >= missing_since:
       return None
-    stage(f'evaluating at step {step}: the planner on {c.eval.periodic_episodes} held-out '
-          'episodes')
-    result = run_evaluation(EvalSpec.from_config(c), params, 'plan', c.eval.periodic_episodes,
-                            c.eval.seeds[0], split='held_out')
+    stage(f'evaluating at step {step}: the planner on {e.periodic_episodes} held-out episodes')
+    result = run_evaluation(self.plan.eval, params, 'plan', e.periodic_episodes, e.seeds[0],
+                            split='held_out')
     self.log_eval(step, result)
     return result
 
@@ -214,22 +216,21 @@ class Run:
     `final` and `baselines` are the first split's (held-out goals by default) planner and other
     policies; the records go to episodes.csv.
     """
-    c = self.config
-    if c.eval.episodes <= 0:  # eval.episodes = 0: train and checkpoint only.
+    e = self.plan.evals
+    if e.episodes <= 0:  # eval.episodes = 0: train and checkpoint only.
       final = dict.fromkeys(('success_rate', 'success_ci95', 'mean_return', 'mean_length',
                              'decisions_per_s'))
       return final, {}, {}, []
-    modes = ('plan',) + tuple(m for m in c.eval.baselines if m != 'plan')
-    spec = EvalSpec.from_config(c)
-    splits, evaluate = multitask_eval.grid(spec, c.eval.splits)
+    modes = ('plan',) + tuple(m for m in e.baselines if m != 'plan')
+    splits, evaluate = multitask_eval.grid(self.plan.eval, e.splits)
     stage(f'final evaluation at step {step} ({self.workdir}): {", ".join(modes)} on '
-          f'{c.eval.episodes} episode{"s" * (c.eval.episodes != 1)} per goal split '
-          f'({", ".join(splits)}) and evaluation seed (seeds {", ".join(map(str, c.eval.seeds))})')
-    if splits != tuple(c.eval.splits):
+          f'{e.episodes} episode{"s" * (e.episodes != 1)} per goal split '
+          f'({", ".join(splits)}) and evaluation seed (seeds {", ".join(map(str, e.seeds))})')
+    if splits != e.splits:
       tqdm.tqdm.write(f'goal splits {list(splits)} only: the data were not collected on MT1 '
                       'goals, so there is no train split')
-    records = evaluate(spec, params, self.workdir, step, modes, splits, c.eval.seeds,
-                       c.eval.episodes, run=c.seed, log=tqdm.tqdm.write)
+    records = evaluate(self.plan.eval, params, self.workdir, step, modes, splits, e.seeds,
+                       e.episodes, run=self.plan.seed, log=tqdm.tqdm.write)
     summary = evaluation_suite.summarize(records)
     if run_files.primary():
       run_files.write_records(os.path.join(self.workdir, 'episodes.csv'), records)
@@ -283,31 +284,6 @@ class Job(Protocol):
 def crossed(before: int, after: int, every: int) -> bool:
   """Whether a multiple of `every` lies in (before, after]."""
   return after // every > before // every
-
-
-def seed_configs(config: ml_collections.ConfigDict, workdir: str):
-  """[(config, workdir)] of each training seed of a run (online or offline): the run itself with one seed; with
-  `train.num_seeds` = N > 1, seeds config.seed + i in <workdir>/seed<seed>, each config as a
-  separate run of that seed would save it (num_seeds = 1)."""
-  n = config.train.num_seeds
-  if n == 1:
-    return [(config, workdir)]
-  out = []
-  for i in range(n):
-    c = with_overrides(config, {'seed': config.seed + i, 'train.num_seeds': 1})
-    if 'online' in c and c.online.init_from:  # Each seed fine-tunes from its own offline seed.
-      c.online.init_from = seed_source(c.online.init_from, c.seed)
-    out.append((c, os.path.join(workdir, f'seed{c.seed}')))
-  return out
-
-
-def seed_source(path: str, seed: int) -> str:
-  """The offline run a training seed fine-tunes from: <path>/seed<seed> when `path` is a run of
-  several seeds (no config of its own, a folder per seed), else `path` itself."""
-  own = os.path.join(path, f'seed{seed}')
-  if not os.path.exists(os.path.join(path, checkpointing.CONFIG_FILE)) and os.path.isdir(own):
-    return own
-  return path
 
 
 def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:

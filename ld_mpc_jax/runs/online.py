@@ -1,6 +1,6 @@
 """Online and offline-to-online training: the planner acts, its episodes feed the replay buffer.
 
-`train_online(config, workdir)` is the main job's online mode (`config.online.enabled`;
+`train_online(plans, workdir)` is the main job's online mode (`config.online.enabled`;
 ld_mpc_jax/configs/door_open_online.py). N = `online.num_envs` environments run one episode each
 in lockstep (a wave); episodes run their full `online.episode_steps` environment steps, as the
 scripted data do, and start from the goals of MT1 seed `config.data.seed` (or, with
@@ -34,7 +34,7 @@ import json
 import os
 import sys
 import time
-from typing import Any, Dict, Optional
+from typing import Any, Dict, Optional, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -42,18 +42,15 @@ import ml_collections
 import numpy as np
 
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax import data, envs
+from ld_mpc_jax import data
 from ld_mpc_jax.runs import loop as runs, online_report
 from ld_mpc_jax.runs.progress import progress_bar
-from ld_mpc_jax.runs.checks import validate_config
+from ld_mpc_jax.runs.seed_plan import SeedPlan, seed_source
 from ld_mpc_jax.model.models import set_obs_normalization
 from ld_mpc_jax.learn.train_state import (LearnSettings, create_train_state, make_seeds_update,
                                           stack_states)
-from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.online.schedule import ActingSchedule
-from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.ops.seed_groups import SeedGroups
-from ld_mpc_jax.plan.agent import ActSettings
 
 from ld_mpc_jax.data.demos import sparse_dataset
 from ld_mpc_jax.data.online_buffer import BUFFER_DIR, buffer_path
@@ -61,46 +58,47 @@ from ld_mpc_jax.online.seats import Seat, SeatRuns, SeatWave, WavePolicy, WaveSc
 
 
 
-def check_init_from(config: ml_collections.ConfigDict) -> Optional[ml_collections.ConfigDict]:
-  """The config of the offline run `online.init_from` (None: from scratch).
+def check_init_from(plans: Sequence[SeedPlan]) -> Optional[ml_collections.ConfigDict]:
+  """The config of the offline run `online.init_from` of the training seeds' `plans`
+  (runs.seed_plan.seed_plans; None: from scratch).
 
   A run of several offline seeds (`train.num_seeds`: a folder per seed) gives each training seed
-  its own: seed s fine-tunes from <init_from>/seed<s> (`runs.seed_source`); every one is checked,
-  and they must share their data. Raises a one-line ValueError when one is not a training workdir
-  with a checkpoint, when it was trained on another task, or when its networks differ from
-  config's (the parameters would not fit).
+  its own: seed s fine-tunes from <init_from>/seed<s> (`seed_plan.seed_source`); every one is
+  checked, and they must share their data. Raises a one-line ValueError when one is not a
+  training workdir with a checkpoint, when it was trained on another task, or when its networks
+  differ from the plan's (the parameters would not fit).
   """
-  if not config.online.init_from:
+  if not plans[0].online.init_from:
     return None
-  seeds = [c for c, _ in runs.seed_configs(config, '')]
-  sources = [_check_source(c) for c in seeds]
-  for c, source in zip(seeds[1:], sources[1:]):
+  sources = [_check_source(p) for p in plans]
+  for p, source in zip(plans[1:], sources[1:]):
     if source.data.to_dict() != sources[0].data.to_dict():
-      raise ValueError(f'config.online.init_from: {c.online.init_from!r} was trained on other '
-                       f'data than {seeds[0].online.init_from!r}')
+      raise ValueError(f'config.online.init_from: {p.online.init_from!r} was trained on other '
+                       f'data than {plans[0].online.init_from!r}')
   return sources[0]
 
 
-def _check_source(config: ml_collections.ConfigDict) -> ml_collections.ConfigDict:
-  path = runs.seed_source(config.online.init_from, config.seed)
+def _check_source(plan: SeedPlan) -> ml_collections.ConfigDict:
+  path = seed_source(plan.online.init_from, plan.seed)
   try:
     source = checkpointing.load_config(path)
   except FileNotFoundError as err:
     if os.path.isdir(path) and any(n.startswith('seed') for n in os.listdir(path)):
       raise ValueError(f'config.online.init_from={path!r} is a run of several seeds without '
-                       f'seed{config.seed}/, which training seed {config.seed} starts from') from None
+                       f'seed{plan.seed}/, which training seed {plan.seed} starts from') from None
     raise ValueError(f'config.online.init_from: {err}') from None
-  if source.task != config.task:  # Its dataset would be collected again on the wrong task.
+  if source.task != plan.task:  # Its dataset would be collected again on the wrong task.
     raise ValueError(f'config.online.init_from={path!r} was trained on {source.task}, not '
-                     f'{config.task}: pass --config.task={source.task}')
+                     f'{plan.task}: pass --config.task={source.task}')
   if checkpointing.checkpoint_manager(path).latest_step() is None:
     raise ValueError(f'config.online.init_from={path!r} has no checkpoint')
-  shapes = lambda c: jax.tree_util.tree_map(
-      lambda x: x.shape, checkpointing.abstract_state(LearnSettings.from_config(c)))
-  if shapes(source) != shapes(config):
-    fields = [f'model.{k}' for k in config.model if k != 'dropout' and  # JSON: lists = tuples.
+  shapes = lambda learn: jax.tree_util.tree_map(
+      lambda x: x.shape, checkpointing.abstract_state(learn))
+  if shapes(LearnSettings.from_config(source)) != shapes(plan.learn):
+    model = plan.fields()['model']
+    fields = [f'model.{k}' for k in sorted(model) if k != 'dropout' and  # JSON: lists = tuples.
               json.dumps(source.model[k] if k in source.model else None)
-              != json.dumps(config.model[k])]
+              != json.dumps(model[k])]
     raise ValueError(f'config.online.init_from={path!r} has other networks than this config '
                      f'(differs in {", ".join(fields) or "critic/horizon"})')
   return source
@@ -117,44 +115,46 @@ class OnlineJob:
   (`train_state.make_seeds_update`), so each seed's run is the one it would make alone.
   """
 
-  def __init__(self, config, workdir: str, source, offline: Optional[data.Dataset]):
-    self.config, self.source, o = config, source, config.online
-    model = ModelSettings.from_config(config)  # The seeds' configs differ in their seeds only.
-    self.seats = [Seat(runs.Run(c, w), OnlineSettings.from_config(c), model, offline, i)
-                  for i, (c, w) in enumerate(runs.seed_configs(config, workdir))]
+  def __init__(self, plans: Sequence[SeedPlan], offline: Optional[data.Dataset]):
+    """`plans`: each training seed's (runs.seed_plan.seed_plans), which differ in their seeds
+    (and sources) only; `offline`: the dataset of the run fine-tuned (None from scratch)."""
+    first = plans[0]
+    self.plans, self.model, self.online = plans, first.learn.model, first.online
+    self.fine_tune = bool(self.online.init_from)  # online.init_from: checked (check_init_from).
+    self.seats = [Seat(runs.Run(p), p.online, self.model, offline, i)
+                  for i, p in enumerate(plans)]
     self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
                          pretrain_updates=0)
     states = self._restore()
-    learn = LearnSettings.from_config(config)  # The seeds' configs differ in their seeds only.
-    if states is None and source is not None:
+    if states is None and self.fine_tune:
       states = [checkpointing.restore_latest(checkpointing.checkpoint_manager(
-          runs.seed_source(seat.online.init_from, seat.online.seed)),
-          checkpointing.abstract_state(learn))
+          seed_source(seat.online.init_from, seat.online.seed)),
+          checkpointing.abstract_state(first.learn))
                 for seat in self.seats]
     elif states is None:  # From scratch; observation statistics come with the seed data.
-      states = [create_train_state(learn, jax.random.key(seat.online.seed))
+      states = [create_train_state(first.learn, jax.random.key(seat.online.seed))
                 for seat in self.seats]
-      self.counters['normalized'] = not config.model.normalize_obs
-    self.groups = SeedGroups(len(self.seats), config.train.seed_devices)
+      self.counters['normalized'] = not self.model.normalize_obs
+    self.groups = SeedGroups(len(self.seats), first.loop.seed_devices)
     self.states = self.groups.split(stack_states(states))  # One stack per device.
     self._views = None
     # Fine-tuning, and runs with demonstrations (MoDem's seeding phase acts with the policy
     # pretrained on them, plus the executed-action noise), learn from the start.
-    self.learn_start = 0 if source is not None or o.demos else o.seed_steps
-    self.online = OnlineSettings.from_config(config)
+    self.learn_start = 0 if self.fine_tune or self.online.demos else self.online.seed_steps
     self.acting_schedule = ActingSchedule(self.online, self.learn_start)  # Annealed.
-    self.per_call = o.updates_per_call
-    self.update = {n: make_seeds_update(learn, n, self.per_call) for n in set(self.groups.sizes)}
+    self.per_call = self.online.updates_per_call
+    self.update = {n: make_seeds_update(first.learn, n, self.per_call)
+                   for n in set(self.groups.sizes)}
     self.keys = self.groups.split(jnp.stack([seat.update_key for seat in self.seats]))
     # Each seed's update key at an update count: one jitted call, not one per seed.
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     # The acting policy's settings: the evaluation's, with the acting planner's.
-    self.acting = dataclasses.replace(
-        ActSettings.from_config(config),
-        plan=self.online.acting_plan(PlanSettings.from_config(config)))
+    act = first.eval.act
+    self.acting = dataclasses.replace(act, plan=self.online.acting_plan(act.plan))
     self.metrics, self.last = [], None  # `last`: (mode, seconds, WaveRecords) of the last wave.
     self.runs = SeatRuns(self.seats)
-    self.bar = progress_bar(o.env_steps, self.counters['env_steps'], 'online', unit='env step')
+    self.bar = progress_bar(self.online.env_steps, self.counters['env_steps'], 'online',
+                            unit='env step')
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, with its buffer
@@ -220,18 +220,18 @@ class OnlineJob:
     the `online.demo_pretrain_updates` updates on the demonstrations alone (MoDem's BC
     pretraining; not counted in the update ratio).
     """
-    c, o = self.counters, self.config.online
+    c, o = self.counters, self.online
     if not c.get('normalized', True):  # Counters; fine-tuning starts normalized (no key).
       params = stack_states([set_obs_normalization(
           p, np.concatenate([ep['obs'] for ep in s.buffer.episodes + s.buffer.demos]),
-          self.config.model.obs_mask_constant)
+          self.model.obs_mask_constant)
                              for s, p in zip(self.seats, self.groups.per_seed(
                                  [g.params for g in self.states]))])
       self.states = [state.replace(  # Copies: the update donates both trees.
           params=p, ema_params=jax.tree_util.tree_map(jnp.copy, p))
                      for state, p in zip(self.states, self.groups.split(params))]
       c['normalized'], self._views = True, None
-    if self.config.online.demos and c['pretrain_updates'] < o.demo_pretrain_updates:
+    if o.demos and c['pretrain_updates'] < o.demo_pretrain_updates:
       self._updates(o.demo_pretrain_updates, 'pretrain_updates', share=1.0)
     steps = c['env_steps'] + ahead
     self._updates(int(o.update_ratio * steps), 'updates', share=self.online.demo_share(steps))
@@ -239,7 +239,7 @@ class OnlineJob:
   def _updates(self, target: int, counter: str, share: float) -> None:
     """Updates until counters[counter] reaches `target`, `online.updates_per_call` per jitted
     call, a `share` of each batch from the demonstrations (`Buffer.sample`)."""
-    c, batch, n = self.counters, self.config.train.batch_size, self.per_call
+    c, batch, n = self.counters, self.plans[0].loop.batch_size, self.per_call
     while c[counter] + n <= target:
       per_seat = [seat.buffer.sample(batch, n, share) for seat in self.seats]
       shape = (n, batch) if n > 1 else (batch,)
@@ -268,7 +268,7 @@ class OnlineJob:
     """Who acts in the next wave: 'random' (seed waves from scratch), 'actor' (seed waves with
     demonstrations and `online.demo_seed_actor`: the actor prior pretrained on them), else
     `online.act_mode` ('plan' or 'actor')."""
-    o = self.config.online
+    o = self.online
     if not self.learning():
       return 'random'
     if o.demos and o.demo_seed_actor and self.counters['env_steps'] < o.seed_steps:
@@ -286,7 +286,7 @@ class OnlineJob:
   def wave(self, schedule: WaveSchedule) -> list:
     """One episode per environment of every seed, in lockstep, as `schedule` says; returns each
     seat's `WaveRecord`."""
-    o, first = self.config.online, self.counters['episodes']
+    o, first = self.online, self.counters['episodes']
     planner = schedule.mode != 'random'
     if planner:
       self.catch_up()
@@ -334,39 +334,33 @@ class OnlineJob:
         [e['success'].any() for record in records for e in record.episodes]))
 
 
-def train_online(config: ml_collections.ConfigDict, workdir: str,
-                 continue_with_changes: bool = False) -> Dict[str, Any]:
-  """Online (or offline-to-online) training and evaluation; returns the report.
+def train_online(plans: Sequence[SeedPlan], workdir: str) -> Dict[str, Any]:
+  """Online (or offline-to-online) training and evaluation of the training seeds' `plans`
+  (runs.seed_plan.seed_plans of the run in `workdir`); returns the report.
 
-  Resumes from the latest checkpoint in <workdir>/checkpoints. Writes config.json, online.csv
-  (one row per wave: environment steps, updates, training episodes' return and success),
-  losses.csv (the wave's last update's losses),
-  eval.csv (held-out success every `online.eval_every` environment steps), tb/, online.png,
-  episodes.csv, report.json and report.md, like the offline job. With `train.num_seeds` = N > 1
-  each seed writes these in <workdir>/seed<seed> (`loop.seed_configs`), and the run adds pooled.json
-  and pooled.md (online_report.write_pooled); the returned report is then the pooled one, with
-  each seed's report under 'seeds' A workdir of another config is
-  refused before anything is written to it, unless `continue_with_changes` (`train_and_evaluate`).
+  `train.train_and_evaluate`, the entry, has checked the config, `online.init_from`
+  (`check_init_from`, whose data the plans then hold) and each seed's workdir. Resumes from the
+  latest checkpoint in <workdir>/checkpoints. Writes config.json, online.csv (one row per wave:
+  environment steps, updates, training episodes' return and success), losses.csv (the wave's
+  last update's losses), eval.csv (held-out success every `online.eval_every` environment
+  steps), tb/, online.png, episodes.csv, report.json and report.md, like the offline job. With
+  `train.num_seeds` = N > 1 each seed writes these in <workdir>/seed<seed>, and the run adds
+  pooled.json and pooled.md (online_report.write_pooled); the returned report is then the
+  pooled one, with each seed's report under 'seeds'.
   """
-  validate_config(config)
-  envs.check_task(config.task)
-  source = check_init_from(config)
-  if source is not None:  # Fine-tuning trains on the offline run's data too.
-    config.data.update(source.data.to_dict())
-  for seat_config, seat_workdir in runs.seed_configs(config, workdir):  # As they will be saved.
-    checkpointing.check_workdir(seat_config, seat_workdir, continue_with_changes)
-  os.makedirs(workdir, exist_ok=True)
-  offline = data.load_dataset(data.DataSpec.from_config(config)) if source is not None else None
+  first = plans[0]  # The seeds' plans differ in their seeds (and sources) only.
+  fine_tune = bool(first.online.init_from)
+  offline = data.load_dataset(first.data) if fine_tune else None
   if offline is not None:
-    runs.check_data_fits(offline, ModelSettings.from_config(config), config.train.batch_size)
-    if config.online.reward == 'sparse':  # Its data with the reward the run records.
+    runs.check_data_fits(offline, first.learn.model, first.loop.batch_size)
+    if first.online.reward == 'sparse':  # Its data with the reward the run records.
       offline = sparse_dataset(offline)
-  if not config.online.update_ratio:  # Once, before any work.
+  if not first.online.update_ratio:  # Once, before any work.
     print('warning: config.online.update_ratio=0: no updates; the agent is evaluated as it '
-          f"starts ({'the offline run' if source is not None else 'untrained'})", file=sys.stderr)
-  job = OnlineJob(config, workdir, source, offline)
-  o, c = config.online, job.counters
-  if source is not None and c['env_steps'] == 0:  # Held-out success before fine-tuning.
+          f"starts ({'the offline run' if fine_tune else 'untrained'})", file=sys.stderr)
+  job = OnlineJob(plans, offline)
+  o, c = first.online, job.counters
+  if fine_tune and c['env_steps'] == 0:  # Held-out success before fine-tuning.
     job.runs.periodic_eval(job.eval_params(), 0)
   try:
     runs.loop(job.runs, job, o.env_steps, o.checkpoint_every, o.eval_every)

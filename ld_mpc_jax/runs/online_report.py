@@ -14,24 +14,24 @@ from ld_mpc_jax.eval.run_files import ONLINE_CSV
 
 def report(job, seat, final, summary) -> Dict[str, Any]:
   """report.json of one training seed (`seat`, an online.Seat) of `job` (an online.OnlineJob)."""
-  config, c, workdir, buffer = seat.run.config, job.counters, seat.run.workdir, seat.buffer
+  plan, c, workdir, buffer = seat.run.plan, job.counters, seat.run.workdir, seat.buffer
   curve = [dict(env_steps=int(r['step']), episodes=int(r['episodes']),
                 success_rate=float(r['success_rate']), ci95=[float(r['ci_lo']), float(r['ci_hi'])],
                 mean_return=float(r['mean_return']))
            for r in run_files.read_csv(os.path.join(workdir, runs.EVAL_CSV))]
   return {
-      'task': config.task, 'mode': 'fine-tune' if job.source is not None else 'from scratch',
-      'init_from': config.online.init_from or None,
+      'task': plan.task, 'mode': 'fine-tune' if job.fine_tune else 'from scratch',
+      'init_from': plan.online.init_from or None,
       'env_steps': c['env_steps'], 'updates': c['updates'], 'episodes': c['episodes'],
       'train_seconds': c['train_seconds'], 'seeds_in_run': len(job.seats),
       'env_steps_per_s': c['env_steps'] / c['train_seconds'],
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
-      'mean_return': final['mean_return'], 'eval_episodes': config.eval.episodes,
-      'eval_seeds': list(config.eval.seeds), 'evaluation': summary, 'curve': curve,
+      'mean_return': final['mean_return'], 'eval_episodes': plan.evals.episodes,
+      'eval_seeds': list(plan.evals.seeds), 'evaluation': summary, 'curve': curve,
       'num_params': count_params(seat.ema_params(job)),
-      'demos': len(buffer.demos), 'reward': config.online.reward,
+      'demos': len(buffer.demos), 'reward': plan.online.reward,
       'first_training_success': _first_success(workdir),
-      'acting': acting_summary(workdir, config.online.eval_every),
+      'acting': acting_summary(workdir, plan.online.eval_every),
       'buffer': {'online_episodes': len(buffer.episodes),
                  'offline_episodes': (buffer.offline.num_episodes
                                       if buffer.offline is not None else 0)},

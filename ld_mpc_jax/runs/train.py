@@ -1,33 +1,35 @@
-"""The main job, offline: the task's dataset, updates, then the final evaluation and report.
+"""The training entry, and the main job offline: the task's dataset, updates, then the final
+evaluation and report.
 
-The run directory, checkpoints, evaluations and report files are `ld_mpc_jax.runs.loop`'; with
-`config.online.enabled` the job is online (`ld_mpc_jax.runs.online`) instead.
+`train_and_evaluate(config, workdir)` is the one place in runs/ that reads the config: it checks
+it and the workdir, and builds each training seed's `runs.seed_plan.SeedPlan`, which the rest
+reads. The run directory, checkpoints, evaluations and report files are `ld_mpc_jax.runs.loop`'s;
+with `config.online.enabled` the job is online (`ld_mpc_jax.runs.online`) instead.
 """
 
 import json
 import os
 import sys
 import time
-from typing import Any, Dict, Optional
+from typing import Any, Dict, Optional, Sequence
 
 import jax
 import ml_collections
 import numpy as np
 
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax import data
+from ld_mpc_jax import data, envs
 from ld_mpc_jax.eval import multitask_eval, run_files
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs.lock import workdir_lock
 from ld_mpc_jax.runs.progress import progress_bar, stage
+from ld_mpc_jax.runs.seed_plan import SeedPlan, seed_plans
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.model import tasks
 from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.runs.checks import validate_config
 from ld_mpc_jax.model.models import count_params
-from ld_mpc_jax.learn.train_state import LearnSettings, create_train_state, make_update
-from ld_mpc_jax.model.settings import ModelSettings
-
+from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
 
 def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
@@ -39,6 +41,10 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   evaluation episode), report.json and report.md; a multi-task config (config.tasks) also
   tasks.png, and its report a per-task table ('per_task'). The returned report also holds the
   per-episode records under 'records'.
+
+  The one place in runs/ that reads the config: it checks it (`runs.checks.validate_config`, the
+  task names, `online.init_from`), then builds each training seed's plan with its workdir checked
+  (`runs.seed_plan.seed_plans`); the jobs read the plans.
 
   A workdir that holds a run of another config is refused (`checkpointing.WorkdirError`, before
   anything is written to it) unless `continue_with_changes`; its earlier config.json is then kept
@@ -58,27 +64,42 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   a WorkdirError) naming the checkpoint the same command resumes from once space is freed.
   """
   with workdir_lock(workdir), checkpointing.stop_when_disk_full(workdir):
-    finished = finished_report(config, workdir)
+    finished = finished_report(workdir, config.to_dict(), config.train.num_seeds)
     if finished is not None:  # Rerun of a finished run: nothing is appended or replaced.
       print(f'{workdir} holds this run, finished: nothing to do, nothing changed (to train it '
             'further, raise its step count and pass --continue_with_changes)', file=sys.stderr)
       return finished
-    return _train_and_evaluate(config, workdir, continue_with_changes)
+    validate_config(config)
+    online = online_enabled(config)
+    if online:
+      envs.check_task(config.task)
+      from ld_mpc_jax.runs import online as online_job  # pylint: disable=g-import-not-at-top
+      if config.online.init_from:  # Checked (each seed's source), and its data trained on too.
+        config.data.update(online_job.check_init_from(seed_plans(config, workdir)).data.to_dict())
+    else:
+      tasks.Tasks.from_config(config).check()
+    plans = seed_plans(config, workdir, continue_with_changes)  # Each seed's workdir checked.
+    os.makedirs(workdir, exist_ok=True)
+    if online:
+      return online_job.train_online(plans, workdir)
+    return _train_offline(plans, workdir)
 
 
-def finished_report(config: ml_collections.ConfigDict, workdir: str) -> Optional[Dict[str, Any]]:
-  """The report of the run in `workdir` when it has finished under this very config (its
-  report.json, or pooled.json for several seeds, is written last), else None."""
-  path = os.path.join(workdir, 'report.json' if config.train.num_seeds == 1 else 'pooled.json')
+def finished_report(workdir: str, fields: Dict[str, Any],
+                    num_seeds: int) -> Optional[Dict[str, Any]]:
+  """The report of the run in `workdir` when it has finished under this very config (`fields`:
+  its `to_dict()`, of `num_seeds` training seeds; its report.json, or pooled.json for several
+  seeds, is written last), else None."""
+  path = os.path.join(workdir, 'report.json' if num_seeds == 1 else 'pooled.json')
   if not os.path.exists(path) or not os.path.exists(
       os.path.join(workdir, checkpointing.CONFIG_FILE)):
     return None
-  if checkpointing.config_changes(checkpointing.load_config(workdir).to_dict(), config.to_dict()):
+  if checkpointing.config_changes(checkpointing.load_config(workdir).to_dict(), fields):
     return None  # Another config (refused later) or one continued with changes.
   try:
     with open(path) as f:
       report = json.load(f)
-    if config.train.num_seeds == 1:  # As a run returns it: with its per-episode records.
+    if num_seeds == 1:  # As a run returns it: with its per-episode records.
       episodes = os.path.join(workdir, 'episodes.csv')
       return dict(report, records=run_files.read_records(episodes)
                   if os.path.exists(episodes) else [])
@@ -87,32 +108,24 @@ def finished_report(config: ml_collections.ConfigDict, workdir: str) -> Optional
     return None  # A damaged report: the run finishes again and rewrites it.
 
 
-def _train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
-                        continue_with_changes: bool) -> Dict[str, Any]:
-  if online_enabled(config):
-    from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (jax-free until asked)
-    return online.train_online(config, workdir, continue_with_changes)
-  validate_config(config)
-  tasks.Tasks.from_config(config).check()
-  for seed_config, seed_workdir in runs.seed_configs(config, workdir):  # Each seed's, as saved.
-    checkpointing.check_workdir(seed_config, seed_workdir, continue_with_changes)
-  os.makedirs(workdir, exist_ok=True)
+def _train_offline(plans: Sequence[SeedPlan], workdir: str) -> Dict[str, Any]:
+  """The offline job of the training seeds' `plans` (checked, their workdirs too)."""
+  first = plans[0]  # The seeds' plans differ in their seeds only.
   # config.data.source: scripted or TD-MPC2 chunks.
-  dataset = data.load_dataset(data.DataSpec.from_config(config))
+  dataset = data.load_dataset(first.data)
   stage(f'data: {dataset.num_episodes:,} episodes, {dataset.num_transitions:,} transitions '
-             f'({config.data.source}, {config.task})')
-  runs.check_data_fits(dataset, ModelSettings.from_config(config), config.train.batch_size)
-  if not config.train.data_parallel:  # N >= 1 seeds on the seed axis (runs.train_seeds).
+        f'({first.data.source}, {first.task})')
+  runs.check_data_fits(dataset, first.learn.model, first.loop.batch_size)
+  if not first.loop.data_parallel:  # N >= 1 seeds on the seed axis (runs.train_seeds).
     from ld_mpc_jax.runs import train_seeds  # pylint: disable=g-import-not-at-top
-    return train_seeds.train_seeds(config, workdir, dataset, _report, _summary_md)
+    return train_seeds.train_seeds(plans, workdir, dataset, _report, _summary_md)
   # One seed, its batch split over every device (and process): the data-parallel job.
-  run = runs.Run(config, workdir)
+  run = runs.Run(first)
   state = run.restore()
   if state is None:
-    state = create_train_state(LearnSettings.from_config(config), jax.random.key(config.seed),
-                               dataset.observations)
-  job = OfflineJob(config, run, dataset, state)
-  t = config.train
+    state = create_train_state(first.learn, jax.random.key(first.seed), dataset.observations)
+  job = OfflineJob(run, dataset, state)
+  t = first.loop
   try:
     runs.loop(run, job, t.num_steps, t.checkpoint_every, t.eval_every)
   finally:
@@ -148,13 +161,14 @@ class OfflineJob:
   advance is one update on dataset windows, the batch split over the devices. Without it,
   offline training is runs.train_seeds.OfflineSeedsJob for any number of seeds."""
 
-  def __init__(self, config, run: runs.Run, dataset: data.Dataset, state):
-    t = config.train
-    self.config, self.run, self.progress = config, run, int(state.step)
+  def __init__(self, run: runs.Run, dataset: data.Dataset, state):
+    plan = run.plan
+    t = self.loop = plan.loop
+    self.run, self.progress = run, int(state.step)
     self.start = self.progress  # Resumed at (0 from scratch).
     self.prior_seconds = run.prior_seconds() if self.progress else 0.0
     mesh = sharding.make_mesh() if t.data_parallel else None
-    self.update = make_update(LearnSettings.from_config(config), mesh)
+    self.update = make_update(plan.learn, mesh)
     self.batch_size, self.put = t.batch_size, lambda batch: batch
     if mesh is not None:  # Each process samples its share; the state lives on every device.
       self.batch_size = sharding.local_batch_size(t.batch_size, mesh)
@@ -165,11 +179,11 @@ class OfflineJob:
     # checkpoint, so it trains on the windows an uninterrupted run trains on (and ends on its
     # parameters, bit for bit: benchmarks/fault_injection.py). Every process of a
     # multi-process run draws its own windows (process 0 draws what a single-process run draws).
-    seed = config.seed * 1_000_003 + 999_983 * jax.process_index()
-    self.buffer = data.make_buffer(dataset, data.window_length(config.horizon),
-                                   ModelSettings.from_config(config).num_tasks, seed=seed)
+    seed = plan.seed * 1_000_003 + 999_983 * jax.process_index()
+    self.buffer = data.make_buffer(dataset, data.window_length(plan.learn.model.horizon),
+                                   plan.learn.model.num_tasks, seed=seed)
     self.buffer.skip(self.progress, self.batch_size)
-    self.key = jax.random.key(config.seed + 1)
+    self.key = jax.random.key(plan.seed + 1)
     self.timer = _Timer(self.progress)
     self.bar = progress_bar(t.num_steps, self.progress, 'train')
 
@@ -181,7 +195,7 @@ class OfflineJob:
 
   def log(self, before: int) -> None:
     """metrics.csv and TensorBoard every `train.log_every` steps, at checkpoints and the end."""
-    done, t = self.progress, self.config.train
+    done, t = self.progress, self.loop
     if done % t.log_every and done % t.checkpoint_every and done != t.num_steps:
       return
     self.timer.tick(done)
@@ -201,23 +215,23 @@ class OfflineJob:
 
 
 def _report(run: runs.Run, dataset, job, final, baselines, summary, records):
-  config = run.config
-  trained = tasks.Tasks.from_config(config)
+  plan = run.plan
+  trained = plan.tasks
   return {
-      'task': config.task, 'tasks': list(trained.names),
+      'task': plan.task, 'tasks': list(trained.names),
       'per_task': (multitask_eval.per_task(records, trained.names)
                    if trained.multitask and records else None),
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
       'mean_return': final['mean_return'], 'mean_length': final['mean_length'],
       'decisions_per_s': final['decisions_per_s'],
-      'eval_episodes': config.eval.episodes, 'eval_seeds': list(config.eval.seeds),
+      'eval_episodes': plan.evals.episodes, 'eval_seeds': list(plan.evals.seeds),
       'baselines': baselines, 'evaluation': summary,
       'train_seconds': job.prior_seconds + job.timer.seconds, 'steps': int(job.state.step),
       'steps_this_run': job.progress - job.start,
       'steps_per_s': job.timer.steps_per_s,
       'num_params': count_params(job.state.ema_params),
-      'dataset': {'source': config.data.source, 'preset': config.data.preset,
-                  'path': config.data.path, 'episodes': dataset.num_episodes,
+      'dataset': {'source': plan.data.source, 'preset': plan.data.preset,
+                  'path': plan.data.path, 'episodes': dataset.num_episodes,
                   'transitions': dataset.num_transitions},
       **run.provenance(),
   }

@@ -2,10 +2,10 @@
 N = 1 of the same path, written into the workdir itself; `train.data_parallel` runs
 train.OfflineJob instead).
 
-With N > 1 each seed is the run it would make alone: its own config (seed config.seed + i, saved
-as a run of one seed), run directory <workdir>/seed<seed>, data order and update keys; their
-TrainStates are stacked on a leading seed axis, one stack per device (`train.seed_devices`,
-`ops.seed_groups`), and the update is vmapped over each device's seeds
+With N > 1 each seed is the run it would make alone: its own plan (runs.seed_plan.SeedPlan: seed
+config.seed + i, its config saved as a run of one seed), run directory <workdir>/seed<seed>, data
+order and update keys; their TrainStates are stacked on a leading seed axis, one stack per device
+(`train.seed_devices`, `ops.seed_groups`), and the update is vmapped over each device's seeds
 (`train_state.make_seeds_update`; with one seed, the unbatched update on the squeezed stack), one
 jitted call per device, dispatched without waiting. Checkpoints, logs, periodic and final
 evaluations and reports are each seed's own; N > 1 adds pooled.json and pooled.md.
@@ -15,20 +15,19 @@ import json
 import os
 import time
 import types
-from typing import Any, Dict, List
+from typing import Any, Dict, List, Sequence
 
 import jax
-import ml_collections
 import numpy as np
 
 from ld_mpc_jax import data
 from ld_mpc_jax.eval import run_files
-from ld_mpc_jax.learn.train_state import (LearnSettings, create_train_state, make_seeds_update,
-                                          stack_states)
+from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, stack_states
 from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
 from ld_mpc_jax.runs.progress import progress_bar
+from ld_mpc_jax.runs.seed_plan import SeedPlan
 
 
 class _SeedRuns:
@@ -45,37 +44,37 @@ class _SeedRuns:
 class OfflineSeedsJob:
   """Offline training of N seeds as one `runs.Job`: each advance is one vmapped update."""
 
-  def __init__(self, config: ml_collections.ConfigDict, workdir: str, dataset: data.Dataset):
-    self.config, t = config, config.train
-    pairs = runs.seed_configs(config, workdir)
-    self.configs = [c for c, _ in pairs]
-    self.seed_runs = [runs.Run(c, w) for c, w in pairs]
+  def __init__(self, plans: Sequence[SeedPlan], dataset: data.Dataset):
+    """`plans`: each training seed's (runs.seed_plan.seed_plans)."""
+    self.plans, self.loop = plans, plans[0].loop
+    t = self.loop
+    self.seed_runs = [runs.Run(p) for p in plans]
     self.runs = _SeedRuns(self.seed_runs)
     states = self._restore()
     self.progress = self.start = 0 if states is None else self.seed_runs[0].step
-    learn = LearnSettings.from_config(self.configs[0])  # The seeds' configs differ in seed only.
+    learn = plans[0].learn  # The seeds' plans differ in their seeds only.
     if states is None:
-      states = [create_train_state(learn, jax.random.key(c.seed), dataset.observations)
-                for c in self.configs]
+      states = [create_train_state(learn, jax.random.key(p.seed), dataset.observations)
+                for p in plans]
     self.prior_seconds = self.seed_runs[0].prior_seconds() if self.progress else 0.0
-    self.groups = SeedGroups(len(self.configs), t.seed_devices)
+    self.groups = SeedGroups(len(plans), t.seed_devices)
     self.states, self.metrics = self.groups.split(stack_states(states)), None
     self.update = {n: make_seeds_update(learn, n) for n in set(self.groups.sizes)}
     self.batch_size = t.batch_size
     # Each seed's sampler as its run alone seeds it (`train.OfflineJob`), continued on resume.
-    self.buffers = [data.make_buffer(dataset, data.window_length(c.horizon),
+    self.buffers = [data.make_buffer(dataset, data.window_length(p.learn.model.horizon),
                                      learn.model.num_tasks,
-                                     seed=c.seed * 1_000_003 + 999_983 * jax.process_index())
-                    for c in self.configs]
+                                     seed=p.seed * 1_000_003 + 999_983 * jax.process_index())
+                    for p in plans]
     for buffer in self.buffers:
       buffer.skip(self.progress, self.batch_size)
     self.keys = self.groups.split(
-        jax.numpy.stack([jax.random.key(c.seed + 1) for c in self.configs]))
+        jax.numpy.stack([jax.random.key(p.seed + 1) for p in plans]))
     self._fold = jax.jit(jax.vmap(jax.random.fold_in, in_axes=(0, None)))
     self.seconds, self._last = 0.0, None  # Timed from the second logged interval.
     self._timed_steps = 0
     self.bar = progress_bar(t.num_steps, self.progress,
-                            'train' if len(pairs) == 1 else f'train x{len(pairs)}')
+                            'train' if len(plans) == 1 else f'train x{len(plans)}')
 
   def _restore(self):
     """Each seed's TrainState at the newest step that every seed has intact, or None."""
@@ -104,7 +103,7 @@ class OfflineSeedsJob:
   def log(self, before: int) -> None:
     """Each seed's metrics.csv and TensorBoard, as `train.OfflineJob.log` writes them."""
     del before
-    done, t = self.progress, self.config.train
+    done, t = self.progress, self.loop
     if done % t.log_every and done % t.checkpoint_every and done != t.num_steps:
       return
     now = time.perf_counter()
@@ -115,7 +114,7 @@ class OfflineSeedsJob:
     rate = self._timed_steps / self.seconds if self.seconds else float('nan')
     metrics = self.groups.join_host(self.metrics)
     for i, run in enumerate(self.seed_runs):
-      run.check_loss(metrics['loss'][i], f'step {done} (seed {self.configs[i].seed})')
+      run.check_loss(metrics['loss'][i], f'step {done} (seed {self.plans[i].seed})')
       row = {'step': done, **{k: float(v[i]) for k, v in sorted(metrics.items())},
              'steps_per_s': rate}
       run_files.append_csv(os.path.join(run.workdir, run_files.METRICS_CSV), row)
@@ -138,11 +137,12 @@ class OfflineSeedsJob:
                                  start=self.start)
 
 
-def train_seeds(config: ml_collections.ConfigDict, workdir: str, dataset: data.Dataset,
+def train_seeds(plans: Sequence[SeedPlan], workdir: str, dataset: data.Dataset,
                 report_fn, summary_fn) -> Dict[str, Any]:
-  """Trains and evaluates every seed; writes each seed's report and the pooled one."""
-  job = OfflineSeedsJob(config, workdir, dataset)
-  t = config.train
+  """Trains and evaluates every seed of `plans` (runs.seed_plan.seed_plans of the run in
+  `workdir`); writes each seed's report and the pooled one."""
+  job = OfflineSeedsJob(plans, dataset)
+  t = job.loop
   try:
     runs.loop(job.runs, job, t.num_steps, t.checkpoint_every, t.eval_every)
   finally:
@@ -157,9 +157,9 @@ def train_seeds(config: ml_collections.ConfigDict, workdir: str, dataset: data.D
     records.append(recs)
   if len(reports) == 1:  # One seed: its run is the workdir, its report the run's.
     return reports[0]
-  seeds = [c.seed for c in job.configs]
+  seeds = [p.seed for p in plans]
   table = online_report.pool_seeds(seeds, records)
-  out = dict(task=config.task, steps=job.progress, seeds=seeds, policies=table,
+  out = dict(task=plans[0].task, steps=job.progress, seeds=seeds, policies=table,
              split=records[0][0]['split'] if records and records[0] else None,
              train_seconds=job.prior_seconds + job.seconds)
   lines = [f"# {out['task']}: {len(seeds)} training seeds in one run, {out['steps']:,} update "
