@@ -20,7 +20,6 @@ decision (the call plans for every active environment of every seed at once).
 """
 
 import contextlib
-import os
 import statistics
 import tempfile
 import time
@@ -36,8 +35,7 @@ PARTS = ('environments', 'plan', 'update', 'buffer sampling', 'host, other')
 def _timed(totals: Dict[str, float], counts: Dict[str, int]):
   """Wraps the online loop's methods so that each part's seconds add into `totals`."""
   from ld_mpc_jax.data.online_buffer import Buffer  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.online import seats as online_seats  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.online import job as online_job, seats as online_seats  # pylint: disable=g-import-not-at-top
 
   def block_states(job, _):
     jax.block_until_ready(job.states)
@@ -48,7 +46,7 @@ def _timed(totals: Dict[str, float], counts: Dict[str, int]):
   wrapped = [(online_seats.SeatWave, 'step', 'environments', None),
              (online_seats.SeatWave, '__init__', 'environments', None),  # The resets.
              (online_seats.WavePolicy, '__call__', 'plan', count_decisions),
-             (online.OnlineJob, '_updates', 'update', block_states),
+             (online_job.OnlineJob, '_updates', 'update', block_states),
              (Buffer, 'sample', 'buffer sampling', None)]
   originals = [(cls, name, getattr(cls, name)) for cls, name, _, _ in wrapped]
 
@@ -99,7 +97,7 @@ def breakdown(config: ml_collections.ConfigDict, num_seeds: int, waves: int) -> 
   totals = {p: 0.0 for p in PARTS}
   counts = {'decisions': 0}
   with tempfile.TemporaryDirectory() as workdir:
-    job = online.OnlineJob(seed_plans(c, workdir), None)
+    job = online.online_job(seed_plans(c, workdir), None)
     job.bar.disable = True
     with _timed(totals, counts):
       while job.progress < untimed:

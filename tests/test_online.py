@@ -21,8 +21,9 @@ from ld_mpc_jax.eval import evaluation_suite, run_files
 from ld_mpc_jax.eval.spec import GoalSource
 from ld_mpc_jax.plan.search import CANDIDATE_KINDS
 from ld_mpc_jax.runs import online, train
+from ld_mpc_jax.data import online_buffer
 from ld_mpc_jax.runs.seed_plan import seed_plans
-from ld_mpc_jax.online import seats as online_seats
+from ld_mpc_jax.online import job as online_job, seats as online_seats
 from ld_mpc_jax.model.models import init_params
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.online.settings import OnlineSettings
@@ -50,7 +51,7 @@ def _record_policies(config, workdir, monkeypatch):
   monkeypatch.setattr(evaluation_suite, 'BatchAgentPolicy',
                       recording('eval', evaluation_suite.BatchAgentPolicy))
   # No learning needed here: an update that only counts (and compiles in no time).
-  monkeypatch.setattr(online, 'make_seeds_update', lambda learn, n, per_call: (
+  monkeypatch.setattr(online_job, 'make_seeds_update', lambda learn, n, per_call: (
       lambda state, batch, keys: (state.replace(step=state.step + 1),
                                   {'loss': jnp.ones(n, jnp.float32)})))
   train.train_and_evaluate(config, workdir)
@@ -71,7 +72,7 @@ def test_actor_prior_acts_alone_and_the_planner_still_evaluates(tmp_path, monkey
   # Every stored episode starts at its own reset observation (not at a later one written into
   # the same array), in the random wave and the acting wave alike.
   from ld_mpc_jax import data, envs  # pylint: disable=g-import-not-at-top
-  buffer = data.load(online.buffer_path(str(tmp_path / 'run'), 80))
+  buffer = data.load(online_buffer.buffer_path(str(tmp_path / 'run'), 80))
   seeds = envs.episode_seeds(config.seed, buffer.num_episodes, 'online')
   assert buffer.num_episodes == 4
   env = envs.make_env(config.task, seed=config.data.seed,
@@ -119,7 +120,7 @@ def test_any_task_by_flag_explores_only_while_acting(tmp_path, monkeypatch):
   with open(tmp_path / 'run' / 'report.json') as f:
     assert '"task": "push-v3"' in f.read()
   from ld_mpc_jax import data  # pylint: disable=g-import-not-at-top
-  buffer = data.load(online.buffer_path(str(tmp_path / 'run'), 80))
+  buffer = data.load(online_buffer.buffer_path(str(tmp_path / 'run'), 80))
   starts = np.stack([envs.metaworld_env.goal_vector(buffer.episode(i)['obs'][0])
                      for i in range(buffer.num_episodes)])
   _, mt1 = envs.goals.mt1_goals('push-v3', config.data.seed)

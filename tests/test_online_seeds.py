@@ -12,7 +12,8 @@ from ld_mpc_jax.configs import door_open_online
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.learn.train_state import LearnSettings
 from ld_mpc_jax import data
-from ld_mpc_jax.runs import online, train
+from ld_mpc_jax.data import online_buffer
+from ld_mpc_jax.runs import train
 
 
 def _config(seed, num_seeds):
@@ -29,7 +30,7 @@ def _params(workdir, config):
 
 
 def _episodes(workdir):
-  ds = data.load(online.buffer_path(workdir, 80))
+  ds = data.load(online_buffer.buffer_path(workdir, 80))
   return [ds.episode(e) for e in range(ds.num_episodes)]
 
 

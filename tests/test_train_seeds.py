@@ -111,7 +111,7 @@ def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(r
   config.train.num_seeds, config.online.init_from = 2, str(runs / 'both')
   source = online.check_init_from(seed_plans(config, ''))
   config.data.update(source.data.to_dict())
-  job = online.OnlineJob(seed_plans(config, str(tmp_path / 'ft')), data.load_dataset(data.DataSpec.from_config(config)))
+  job = online.online_job(seed_plans(config, str(tmp_path / 'ft')), data.load_dataset(data.DataSpec.from_config(config)))
   job.bar.close()
   assert [seat.run.plan.fields()['online']['init_from'] for seat in job.seats] == [
       str(runs / 'both' / f'seed{s}') for s in (0, 1)]

@@ -1,4 +1,4 @@
-"""The training seeds of an online run (ld_mpc_jax.runs.online, `train.num_seeds`): each seed's
+"""The training seeds of an online run (ld_mpc_jax.online.job, `train.num_seeds`): each seed's
 run directory, settings, buffer and environments (`Seat`), its episodes of a wave while they run
 (`SeatWave`) and what the wave left (`WaveRecord`). What a wave acts with is fixed at its start
 (`WaveSchedule`) and passed in: nothing of the job, a seat or a policy is set during a wave. The

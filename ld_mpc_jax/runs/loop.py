@@ -5,7 +5,7 @@ A run directory holds config.json, checkpoints/ (orbax, with progress.json besid
 episodes), the plots (`run_files.write_plots`), report.json and report.md. `Run` writes all of
 them, one method per file, for every job; `loop` drives a `Job` (`train_seeds.OfflineSeedsJob`:
 one update of every seed per advance, N >= 1 seeds; `train.OfflineJob`: the data-parallel one
-seed; `online.OnlineJob`: one wave of episodes and its updates) to its end, checkpointing and
+seed; `online.job.OnlineJob`: one wave of episodes and its updates) to its end, checkpointing and
 evaluating at the same crossings for all.
 """
 

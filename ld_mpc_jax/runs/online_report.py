@@ -13,7 +13,7 @@ from ld_mpc_jax.eval.run_files import ONLINE_CSV
 
 
 def report(job, seat, final, summary) -> Dict[str, Any]:
-  """report.json of one training seed (`seat`, an online.Seat) of `job` (an online.OnlineJob)."""
+  """report.json of one training seed (`seat`, an online.Seat) of `job` (an online.job.OnlineJob)."""
   plan, c, workdir, buffer = seat.run.plan, job.counters, seat.run.workdir, seat.buffer
   curve = [dict(env_steps=int(r['step']), episodes=int(r['episodes']),
                 success_rate=float(r['success_rate']), ci95=[float(r['ci_lo']), float(r['ci_hi'])],

@@ -16,7 +16,7 @@ import pytest
 
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax import data
-from ld_mpc_jax.runs import online
+from ld_mpc_jax.data import online_buffer
 from ld_mpc_jax.eval import run_files
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -50,7 +50,7 @@ def finished(launch, tmp_path_factory):
 
 
 def _buffer(workdir, step):
-  return data.load(online.buffer_path(workdir, step))
+  return data.load(online_buffer.buffer_path(workdir, step))
 
 
 @pytest.mark.long  # Its fixture runs the smoke job.
@@ -68,7 +68,7 @@ def test_smoke_run_acts_fills_the_buffer_updates_and_checkpoints(finished):
   assert np.all(np.abs(ds.actions) <= 1.0) and np.all(np.isfinite(ds.observations))
   manager = checkpointing.checkpoint_manager(finished)
   assert manager.all_steps() == [120, 160, 200]  # train.max_checkpoints = 3, at environment steps.
-  assert sorted(os.listdir(os.path.join(finished, online.BUFFER_DIR))) == [
+  assert sorted(os.listdir(os.path.join(finished, online_buffer.BUFFER_DIR))) == [
       'buffer_120.npz', 'buffer_160.npz', 'buffer_200.npz']  # Each beside its orbax step.
   config, _, step = checkpointing.load_for_evaluation(finished)
   assert step == 20 and config.online.enabled  # TrainState.step counts updates.
