@@ -202,3 +202,20 @@ def test_the_builders_check_their_own_settings_and_a_hand_edit_is_blamed(tmp_pat
     checks.load_for_evaluation(str(tmp_path))
   with pytest.raises(FileNotFoundError, match='no checkpoint'):  # check_config alone passes it.
     checkpointing.load_for_evaluation(str(tmp_path))
+
+
+@pytest.mark.parametrize('field,value,words', [
+    ('eval.splits', ('held_out', 'valid'), r'^config.eval.splits must name held_out and/or train'),
+    ('eval.episodes', -1, r'^config.eval.episodes must be >= 0'),
+    ('eval.obs_noise_dims', 'some', r"^config.eval.obs_noise_dims must be 'all' or 'informative'"),
+    ('data.source', 'tdmpc2', r'^config.data.source=tdmpc2 needs config.data.path'),
+])
+def test_eval_and_data_sections_are_checked_beside_their_settings(field, value, words):
+  """EvalRounds.check, EvalSettings.check and DataSpec.check, through the run's validate_config;
+  check_config (what the model's builders run) leaves these sections to them."""
+  config = door_open.get_config('smoke')
+  section, name = field.split('.')
+  config[section][name] = value
+  config_checks.check_config(config)
+  with pytest.raises(ValueError, match=words):
+    validate_config(config)

@@ -19,10 +19,10 @@ def test_data_sources_are_a_registry_with_one_line_errors():
   c.data.source = 'nosuch'
   with pytest.raises(ValueError, match=r"^config.data.source must be one of 'metaworld', "
                                        r"'tdmpc2', got 'nosuch'$"):
-    sources.check_source(sources.DataSpec.from_config(c))
+    sources.DataSpec.from_config(c).check()
   c.data.source = 'tdmpc2'
   with pytest.raises(ValueError, match='needs config.data.path'):
-    sources.check_source(sources.DataSpec.from_config(c))
+    sources.DataSpec.from_config(c).check()
 
 
 def test_tdmpc2_source_config_errors(fake_torch, tmp_path, smoke_config):

@@ -30,7 +30,7 @@ def main(argv):
     config_tasks = tasks.Tasks.from_config(config)
     config_tasks.check()
     spec = sources.DataSpec.from_config(config)
-    sources.check_source(spec)
+    spec.check()
   except ValueError as err:
     print(f'error: {err}', file=sys.stderr)
     sys.exit(2)

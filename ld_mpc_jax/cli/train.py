@@ -82,7 +82,7 @@ def main(argv):
     cli.check_workdir(_WORKDIR.value)
     validate_config(_CONFIG.value)
     Tasks.from_config(_CONFIG.value).check()  # config.task, or every name of config.tasks.
-    sources.check_source(sources.DataSpec.from_config(_CONFIG.value))
+    sources.DataSpec.from_config(_CONFIG.value).check()
     SeedGroups(t.num_seeds, devices)  # Enough devices for train.seed_devices (e.g. one GPU).
     if ModelSettings.from_config(_CONFIG.value).images:  # Frames are rendered: can they be?
       check_rendering()

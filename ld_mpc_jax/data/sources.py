@@ -58,6 +58,11 @@ class DataSpec:
                action_dim=config.action_dim, image_size=m.image_size,
                frames=m.image_channels // 3 if images else 0)
 
+  def check(self) -> None:
+    """One-line ValueErrors for the source, its preset or path (no file access: its loader
+    checks the files): the source's own check (`SOURCES`)."""
+    SOURCES.get(self.source).check(self)
+
   def for_task(self, task: str) -> 'DataSpec':
     """The single-task spec of one task of a multi-task spec."""
     return dataclasses.replace(self, task=task, tasks=())
@@ -119,9 +124,6 @@ SOURCES.register(SCRIPTED, Source(_check_scripted, _load_scripted))
 SOURCES.register('tdmpc2', Source(_check_tdmpc2, _load_tdmpc2))
 
 
-def check_source(spec: DataSpec) -> None:
-  """Raises a one-line ValueError if the spec's source or path cannot work (no file access)."""
-  SOURCES.get(spec.source).check(spec)
 
 
 def load_dataset(spec: DataSpec, progress: bool = True) -> dataset_lib.Dataset:
@@ -136,7 +138,7 @@ def load_dataset(spec: DataSpec, progress: bool = True) -> dataset_lib.Dataset:
     DatasetError (a ValueError): files missing or unreadable, no episodes of the task in them, or
       sizes other than config.obs_dim / action_dim.
   """
-  check_source(spec)
+  spec.check()
   if spec.tasks:
     return load_multitask(spec, progress=progress)
   ds = SOURCES.get(spec.source).load(spec, progress)

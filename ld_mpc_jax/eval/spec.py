@@ -85,6 +85,23 @@ class EvalSettings:
   def from_config(cls, config: ml_collections.ConfigDict) -> 'EvalSettings':
     return cls(**{f: config.eval[f] for f in _EVAL_FIELDS})
 
+  def check(self, images: bool) -> None:
+    """One-line ValueErrors for the batching, draws and noise of an evaluation of a model of
+    images (`images`: ModelSettings.images) or of states."""
+    for name, least in (('batch_size', 1), ('plan_chunk', 0), ('key_seed', -1)):
+      v = getattr(self, name)
+      if not isinstance(v, int) or isinstance(v, bool) or v < least:
+        raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {v!r}')
+    for name in ('action_noise', 'obs_noise'):
+      if not 0.0 <= float(getattr(self, name)) < float('inf'):
+        raise ValueError(f'config.eval.{name} must be a std >= 0, got {getattr(self, name)!r}')
+    if self.obs_noise_dims not in ('all', 'informative'):
+      raise ValueError(f"config.eval.obs_noise_dims must be 'all' or 'informative', "
+                       f'got {self.obs_noise_dims!r}')
+    if self.obs_noise > 0 and images:
+      raise ValueError('config.eval.obs_noise is noise on the state, and image observations are '
+                       'rendered without it: set config.eval.obs_noise=0')
+
 
 @dataclasses.dataclass(frozen=True)
 class CacheKey:

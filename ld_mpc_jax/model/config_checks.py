@@ -1,12 +1,13 @@
 """Checks that a config makes sense, so bad values fail with a message naming the field: every
-section but `online` (ld_mpc_jax.online.settings checks it) and the training seeds' and the
-optimiser's settings (ld_mpc_jax.runs.checks, above the learn layer that holds them).
+section but `online` (ld_mpc_jax.online.settings checks it), `eval` and `data` (EvalSettings.check,
+EvalRounds.check, DataSpec.check, beside those settings) and the training seeds' and the optimiser's
+settings (ld_mpc_jax.runs.checks, above the layers that hold them).
 
 `check_config(config)` is the one entry: it builds the settings once and takes the config as a
 plain nested dict (`config.to_dict()`) once. The checks of values are the settings' own
 (ld_mpc_jax.model.settings) and, where they need the model's registries, the functions here that
 take settings; what must read the config's fields themselves (their presence and types, NaN
-anywhere, renamed sections, `eval` and `data`, which no settings of this layer hold) reads that
+anywhere, renamed sections, the batch size and data source that the task checks need) reads that
 plain dict: `fields_checked` and `check_sections`.
 """
 
@@ -36,7 +37,7 @@ _POSITIVE_INTS = (
 
 def check_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work, in every section but
-  `online`, the training seeds', the optimiser's (OptimSettings.check) and the planner's search
+  `online`, `eval`, `data`, the training seeds', the optimiser's (OptimSettings.check) and the planner's search
   (plan.search.validate_plan): ld_mpc_jax.runs.checks.validate_config, what a run calls, checks
   them all; elsewhere the settings' builders check the rest: build_plan (under make_plan) the
   search, LearnSettings.from_config (what make_update and create_train_state take) the
@@ -81,61 +82,19 @@ def _leaves(tree: Dict[str, Any], prefix: str = ''):
 
 def check_sections(fields: Dict[str, Any], model: ModelSettings, plan: PlanSettings,
                    losses: LossSettings) -> None:
-  """Each section's values (the settings' checks, in their order) but `online`'s, the seeds',
-  the optimiser's and the planner's search (ld_mpc_jax.plan.search.validate_plan, which the
-  planner's builders and runs.checks.validate_config run). `fields`: config.to_dict(), for the
-  sections no settings here hold (`eval`, `data`) and the batch size; the settings: the
-  config's (`.from_config`)."""
+  """Each section's values (the settings' checks, in their order) but `online`'s, `eval`'s,
+  `data`'s, the seeds', the optimiser's and the planner's search (ld_mpc_jax.plan.search.validate_plan,
+  which the planner's builders and runs.checks.validate_config run). `fields`: config.to_dict(),
+  for the batch size and the data source; the settings: the config's (`.from_config`)."""
   model.check_sizes()
   model.check(plan.latent_filter)
   model.check_latent_norm(plan.latent_filter)
   model.check_targets()
   losses.check_weights()
-  _check_eval(fields.get('eval'), model.images)
-  _check_data(fields.get('data'))
   check_kinds(model, plan)  # The kinds; what the planner asks of them: plan.search.validate_plan.
   check_critic(model, losses, plan)
   check_tasks(model, fields['train']['batch_size'],
               fields['data']['source'] if 'data' in fields else None)
-
-
-def _check_eval(e: Optional[Dict[str, Any]], images: bool) -> None:
-  """config.eval (policies, episodes, splits, batching, noise; `e`: the section as a dict, None
-  without one), for a model of images (`images`: ModelSettings.images) or of states."""
-  if e is None:
-    return
-  if not all(isinstance(m, str) for m in e['baselines']):
-    raise ValueError(f'config.eval.baselines must name policy modes, got '
-                     f"{e['baselines']}")  # runs.Run checks them: agent.POLICY_MODES
-  if e['episodes'] < 0:
-    raise ValueError(f'config.eval.episodes must be >= 0 (0 skips evaluation), '
-                     f"got {e['episodes']}")
-  bad = set(e['splits']) - {'held_out', 'train'}
-  if bad or not e['splits']:
-    raise ValueError(f"config.eval.splits must name held_out and/or train, got {e['splits']}")
-  for name, least in (('batch_size', 1), ('plan_chunk', 0), ('key_seed', -1)):
-    if name in e and (not isinstance(e[name], int) or e[name] < least):
-      raise ValueError(f'config.eval.{name} must be an integer >= {least}, got {e[name]!r}')
-  for name in ('action_noise', 'obs_noise'):
-    if name in e and not 0.0 <= float(e[name]) < float('inf'):
-      raise ValueError(f'config.eval.{name} must be a std >= 0, got {e[name]!r}')
-  if 'obs_noise_dims' in e and e['obs_noise_dims'] not in ('all', 'informative'):
-    raise ValueError(f"config.eval.obs_noise_dims must be 'all' or 'informative', "
-                     f"got {e['obs_noise_dims']!r}")
-  if 'obs_noise' in e and e['obs_noise'] > 0 and images:
-    raise ValueError('config.eval.obs_noise is noise on the state, and image observations are '
-                     'rendered without it: set config.eval.obs_noise=0')
-
-
-def _check_data(d: Optional[Dict[str, Any]]) -> None:
-  """config.data's source (`d`: the section as a dict, None without one)."""
-  if d is None:
-    return
-  from ld_mpc_jax.data import sources  # pylint: disable=g-import-not-at-top (environments)
-  sources.SOURCES.check(d['source'])
-  if d['source'] == 'tdmpc2' and not d['path']:
-    raise ValueError('config.data.source=tdmpc2 needs config.data.path (chunk file, glob '
-                     'pattern or directory)')
 
 
 def check_kinds(model: ModelSettings, plan: PlanSettings) -> None:

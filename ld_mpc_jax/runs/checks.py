@@ -5,21 +5,29 @@ import ml_collections
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.learn.train_state import OptimSettings
 from ld_mpc_jax.configs import online_enabled
+from ld_mpc_jax.data.sources import DataSpec
+from ld_mpc_jax.eval.spec import EvalSettings
 from ld_mpc_jax.model.config_checks import check_sections, fields_checked
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.plan.search import validate_plan
+from ld_mpc_jax.runs.seed_plan import EvalRounds
 
 
 def validate_config(config: ml_collections.ConfigDict) -> None:
   """Raises ValueError naming the first field whose value cannot work: every section
-  (model.config_checks.check_config's checks, then the training seeds' and the update's), then
-  online training's (OnlineSettings.check) where it is on."""
+  (model.config_checks.check_config's checks, `eval`'s and `data`'s, then the training seeds' and
+  the update's), then online training's (OnlineSettings.check) where it is on."""
   fields = config.to_dict()
   with fields_checked(fields):  # Its NaN check after the sections'.
     model, plan = ModelSettings.from_config(config), PlanSettings.from_config(config)
     losses = LossSettings.from_config(config)
     check_sections(fields, model, plan, losses)
+    if 'eval' in config:  # Each section's checks beside its settings.
+      EvalSettings.from_config(config).check(model.images)
+      EvalRounds.from_fields(fields['eval']).check()
+      if 'data' in config:
+        DataSpec.from_config(config).check()
     validate_plan(plan, model)
     t = config.train
     check_seeds(t.num_seeds, t.get('seed_devices', 1),

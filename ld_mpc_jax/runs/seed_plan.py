@@ -55,6 +55,25 @@ class EvalRounds:
   splits: Tuple[str, ...]
   baselines: Tuple[str, ...]
 
+  @classmethod
+  def from_fields(cls, e: Dict[str, Any]) -> 'EvalRounds':
+    """From `config.eval` as a plain dict (its `to_dict()`)."""
+    return cls(e['episodes'], e['periodic_episodes'], tuple(e['seeds']), tuple(e['splits']),
+               tuple(e['baselines']))
+
+  def check(self) -> None:
+    """One-line ValueErrors for the policies, episodes and goal splits (the policies' names are
+    checked against agent.POLICY_MODES by runs.Run)."""
+    if not all(isinstance(m, str) for m in self.baselines):
+      raise ValueError('config.eval.baselines must name policy modes, got '
+                       f'{list(self.baselines)}')
+    if self.episodes < 0:
+      raise ValueError('config.eval.episodes must be >= 0 (0 skips evaluation), got '
+                       f'{self.episodes}')
+    if set(self.splits) - {'held_out', 'train'} or not self.splits:
+      raise ValueError('config.eval.splits must name held_out and/or train, got '
+                       f'{list(self.splits)}')
+
 
 _LOOP_FIELDS = tuple(f.name for f in dataclasses.fields(LoopSettings) if f.name != 'seed')
 
@@ -110,8 +129,7 @@ def seed_plans(config: ml_collections.ConfigDict, workdir: str,
       workdir=w, config_json=c.to_json_best_effort(indent=2), learn=LearnSettings.from_config(c),
       eval=EvalSpec.from_config(c), data=DataSpec.from_config(c), tasks=Tasks.from_config(c),
       loop=LoopSettings(seed=c.seed, **{f: c.train[f] for f in _LOOP_FIELDS}),
-      evals=EvalRounds(c.eval.episodes, c.eval.periodic_episodes, tuple(c.eval.seeds),
-                       tuple(c.eval.splits), tuple(c.eval.baselines)),
+      evals=EvalRounds.from_fields(c.eval.to_dict()),
       online=OnlineSettings.from_config(c) if online_enabled(c) else None) for c, w in seeds)
 
 
