@@ -319,3 +319,49 @@ def test_act_weighting_refuses_unknown_kinds_and_a_model_without_critics(smoke_c
   m = ModelSettings.from_config(c)
   with pytest.raises(ValueError, match='has none'):
     losses.make_loss_fn(m, LossSettings.from_config(c), models.build_networks(m))
+
+
+def test_proposal_targets_take_the_planned_sequences_where_a_window_has_one():
+  """loss.act_target='planned': a window's first H actions become its planned sequence where
+  has_plan is 1, its executed ones elsewhere; the last action stays; no plans: the actions."""
+  rng = np.random.default_rng(0)
+  h, b = 3, 4
+  action = jnp.asarray(rng.uniform(-1, 1, (b, h + 1, 2)), jnp.float32)
+  plan = jnp.asarray(rng.uniform(-1, 1, (b, h, 2)), jnp.float32)
+  has_plan = jnp.asarray([1.0, 0.0, 1.0, 0.0])
+  out = np.asarray(losses.proposal_targets({'plan': plan, 'has_plan': has_plan}, action, h))
+  expected = np.array(action)
+  expected[[0, 2], :h] = np.asarray(plan)[[0, 2]]
+  np.testing.assert_array_equal(out, expected)
+  assert losses.proposal_targets({}, action, h) is action
+
+
+def test_planned_targets_move_only_the_proposal_loss(smoke_config):
+  """Through the loss: with plans on every window the proposal's loss differs from the executed
+  actions' and no other term moves; with has_plan 0 everywhere it is the executed actions' loss."""
+  from ld_mpc_jax.configs.overrides import with_overrides
+  rng = np.random.default_rng(0)
+  h = smoke_config.horizon
+  batch = {'obs': jnp.asarray(rng.normal(size=(4, h + 2, 39)), jnp.float32),
+           'action': jnp.asarray(rng.uniform(-1, 1, (4, h + 1, 4)), jnp.float32),
+           'reward': jnp.asarray(rng.uniform(0, 1, (4, h + 1)), jnp.float32),
+           'plan': jnp.asarray(rng.uniform(-1, 1, (4, h, 4)), jnp.float32)}
+  executed = _loss_metrics(smoke_config, batch)
+  planned_config = with_overrides(smoke_config, {'loss.act_target': 'planned'})
+  planned = _loss_metrics(planned_config, dict(batch, has_plan=jnp.ones(4)))
+  none = _loss_metrics(planned_config, dict(batch, has_plan=jnp.zeros(4)))
+  assert float(planned['loss_act']) != pytest.approx(float(executed['loss_act']), rel=1e-3)
+  np.testing.assert_allclose(float(none['loss_act']), float(executed['loss_act']), rtol=1e-6)
+  for k in executed:
+    if k not in ('loss', 'loss_act'):
+      np.testing.assert_allclose(float(planned[k]), float(executed[k]), rtol=1e-5, err_msg=k)
+
+
+def test_planned_targets_need_a_sequence_proposal(smoke_config):
+  from ld_mpc_jax.configs.overrides import with_overrides
+  from ld_mpc_jax.model import config_checks
+  with pytest.raises(ValueError, match='act_target must be one of'):
+    config_checks.check_config(with_overrides(smoke_config, {'loss.act_target': 'best'}))
+  with pytest.raises(ValueError, match=r"^config.loss.act_target='planned' trains a sequence"):
+    config_checks.check_config(with_overrides(smoke_config, {'loss.act_target': 'planned',
+                                                             'model.proposal_type': 'mlp'}))

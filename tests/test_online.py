@@ -240,3 +240,33 @@ def test_acting_summary_weights_each_wave_by_its_planned_decisions(tmp_path):
   lines = online_report.acting_md(acting)
   assert '| to 1,600 | 10 | 20% | 80% | 50% | 0.400 | 0.100 |' in lines
   assert '| whole run | 40 | 50% | 50% | 80% | 0.250 | 0.100 |' in lines
+
+
+def test_planned_targets_keep_the_planners_sequences_with_the_planner_waves(tmp_path,
+                                                                           monkeypatch):
+  """loss.act_target='planned': the planner wave's episodes carry the planner's chosen
+  sequences [L, H, A] into the buffer file (the random wave's none), each executed action is the
+  first of its sequence where no noise is added, and every update's batch has plan and has_plan."""
+  config = door_open_online.get_config('smoke')
+  config.loss.act_target = 'planned'
+  config.online.exec_noise_start = config.online.exec_noise_end = 0.0
+  batches = []
+  original = online_job.make_seeds_update
+
+  def recording(learn, n, per_call):
+    update = original(learn, n, per_call)
+    return lambda state, batch, keys: batches.append(sorted(batch)) or update(state, batch, keys)
+  monkeypatch.setattr(online_job, 'make_seeds_update', recording)
+  config.online.env_steps, config.online.eval_every = 80, 80
+  config.eval.splits, config.eval.baselines, config.eval.episodes = ('held_out',), (), 1
+  train.train_and_evaluate(config, str(tmp_path / 'run'))
+  from ld_mpc_jax import data  # pylint: disable=g-import-not-at-top
+  buffer = data.load(online_buffer.buffer_path(str(tmp_path / 'run'), 80))
+  assert buffer.episode_data['planned'].tolist() == [False, False, True, True]
+  h, a = config.horizon, config.action_dim
+  for e in (2, 3):
+    plan = buffer.episode_data['plan'][e]
+    assert plan.shape == (10, h, a) and np.abs(plan).max() <= 1.0 and np.abs(plan).max() > 0
+    np.testing.assert_allclose(buffer.episode(e)['action'], plan[:, 0], atol=1e-6)
+  assert not buffer.episode_data['plan'][:2].any()
+  assert batches and all({'plan', 'has_plan'} <= set(keys) for keys in batches)

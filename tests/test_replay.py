@@ -93,3 +93,37 @@ def test_errors():
   buf = ReplayBuffer(ds, seq_len=2, seed=0)
   with pytest.raises(ValueError, match='batch_size'):
     buf.sample(0)
+
+
+def test_online_buffer_keeps_planned_sequences_and_windows_carry_their_first_rows(tmp_path):
+  """Buffer(plan_shape=(H, A)): an episode's plans [L, H, A] survive a save and a load, each
+  window carries its first row's plan (has_plan 1) or zeros (has_plan 0: an episode without
+  plans), and the windows drawn are the ones a buffer without plans draws."""
+  from ld_mpc_jax.data.online_buffer import Buffer  # pylint: disable=g-import-not-at-top
+  rng = np.random.default_rng(0)
+  n, h = 5, 2
+
+  def episode(e, planned):
+    ep = dict(obs=np.stack([np.full(n + 1, e), np.arange(n + 1)], -1).astype(np.float32),
+              action=rng.uniform(-1, 1, (n, 2)).astype(np.float32),
+              reward=np.zeros(n, np.float32), success=np.zeros(n, bool))
+    if planned:  # plan[t] = t + 10 e everywhere: the row is readable from the plan.
+      ep['plan'] = np.broadcast_to((np.arange(n) + 10 * e)[:, None, None], (n, h, 2)).astype(
+          np.float32)
+    return ep
+  episodes = [episode(0, True), episode(1, False), episode(2, True)]
+  buffer, plain = Buffer(4, None, seed=3, plan_shape=(h, 2)), Buffer(4, None, seed=3)
+  buffer.add(episodes)
+  plain.add([{k: v for k, v in ep.items() if k != 'plan'} for ep in episodes])
+  buffer.save(str(tmp_path / 'b.npz'), {'env_steps': 15})
+  loaded = Buffer(4, None, seed=3, plan_shape=(h, 2))
+  assert loaded.load(str(tmp_path / 'b.npz')) == {'env_steps': 15}
+  assert ['plan' in ep for ep in loaded.episodes] == [True, False, True]
+  np.testing.assert_array_equal(loaded.episodes[2]['plan'], episodes[2]['plan'])
+  batch, same = loaded.sample(64), plain.sample(64)
+  np.testing.assert_array_equal(batch['obs'], same['obs'])
+  e, t = batch['obs'][:, 0, 0].astype(int), batch['obs'][:, 0, 1]
+  np.testing.assert_array_equal(batch['has_plan'], (e != 1).astype(np.float32))
+  expected = np.where(e != 1, t + 10 * e, 0.0)
+  np.testing.assert_array_equal(batch['plan'], np.broadcast_to(expected[:, None, None],
+                                                               (64, h, 2)))

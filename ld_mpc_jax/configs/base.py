@@ -249,6 +249,11 @@ def get_config() -> ml_collections.ConfigDict:
   # advantage over V at critic.awr_temperature, capped at critic.awr_max_weight, scaled to mean 1 over
   # the batch: it imitates what did better than the value expected; needs critics).
   l.act_weighting = 'uniform'
+  # What the proposal denoises: 'executed' (the window's executed actions) or 'planned' (online,
+  # the planner's chosen sequence at the window's first decision where the planner acted then,
+  # before the executed action's noise, as search targets train MuZero's policy; other windows
+  # keep their executed actions; the diffusion_seq proposal only).
+  l.act_target = 'executed'
   # Two-hot cross-entropies start near log(101) = 4.6; TD-MPC2 weights them 0.1 against its
   # consistency loss; 0.5 keeps them from dominating the two MSE-scale diffusion losses.
   l.w_rew = 0.5

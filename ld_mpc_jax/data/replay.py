@@ -28,7 +28,10 @@ class ReplayBuffer:
   """
 
   def __init__(self, dataset: dataset_lib.Dataset, seq_len: int, seed: int = 0,
-               progress: bool = False):
+               progress: bool = False, plans=None):
+    """`plans`: optionally (plan float32 [N, H, A], planned bool [N]), each row's planned
+    sequence (online.seats: the planner's at that decision) and whether it has one; windows then
+    carry their first row's (`sample`)."""
     if not isinstance(seq_len, (int, np.integer)) or seq_len < 2:
       raise ValueError(
           f'seq_len must be an integer >= 2 (T observations with at '
@@ -55,6 +58,7 @@ class ReplayBuffer:
     self._act = np.asarray(dataset.actions, np.float32)
     self._rew = np.asarray(dataset.rewards, np.float32)
     self._progress = progress_targets(dataset) if progress else None
+    self._plans = plans
 
   def window_starts(self, flat: np.ndarray) -> np.ndarray:
     """Maps window indices [B] in [0, num_windows) to first rows [B]."""
@@ -69,7 +73,8 @@ class ReplayBuffer:
       dict(obs float32 [B, T, obs_dim], action float32 [B, T-1, act_dim],
       reward float32 [B, T-1]); obs[:, t] is seen before action[:, t], and
       reward[:, t] follows action[:, t]. With `progress`, also progress float32 [B, T]: each
-      observation's `progress_targets`.
+      observation's `progress_targets`. With `plans`, also plan float32 [B, H, A] and has_plan
+      float32 [B] (1.0 where the window's first row has a planned sequence) of its first row.
     """
     if not isinstance(batch_size, (int, np.integer)) or batch_size < 1:
       raise ValueError(f'batch_size must be a positive integer, got '
@@ -80,6 +85,9 @@ class ReplayBuffer:
                reward=self._rew[rows[:, :-1]])
     if self._progress is not None:  # The learned progress reward's targets (loss.w_progress).
       out['progress'] = self._progress[rows]
+    if self._plans is not None:  # The planner's sequences (loss.act_target='planned').
+      out['plan'] = self._plans[0][rows[:, 0]]
+      out['has_plan'] = self._plans[1][rows[:, 0]].astype(np.float32)
     return out
 
   def skip(self, batches: int, batch_size: int) -> None:

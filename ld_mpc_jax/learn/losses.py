@@ -11,7 +11,9 @@ like every other position.
   L_dyn    the dynamics kind's loss (ld_mpc_jax.model.dynamics; z_{i+1} = sg(enc(o_{i+1})));
            like L_act, left out (not computed) where its weight is 0;
   L_act    the proposal kind's loss (ld_mpc_jax.model.proposals), each window alike or, with
-           `loss.act_weighting='advantage'`, by the critics' weight of its first action;
+           `loss.act_weighting='advantage'`, by the critics' weight of its first action; on the
+           executed actions or, with `loss.act_target='planned'`, on the planner's sequences
+           where the window has one (`proposal_targets`);
   L_rew    two-hot cross-entropy of r_i, i < H, read at the a_i tokens (`reward_loss`);
   L_val    the value kind's loss on the objective's value head ('behaviour', ld_mpc_jax.model.objective;
            0 for 'expectile', whose values are the critics');
@@ -160,6 +162,17 @@ def _weighs_act(losses: LossSettings, has_critics: bool) -> bool:
   return losses.act_weighting == 'advantage'
 
 
+def proposal_targets(batch: Dict[str, jnp.ndarray], action: jnp.ndarray, h: int) -> jnp.ndarray:
+  """The actions [B, H+1, A] the proposal denoises under `loss.act_target='planned'`: each
+  window's first H replaced by the planner's chosen sequence at its first decision
+  (batch['plan'] [B, H, A], from online acting) where it has one (batch['has_plan'] [B], 1.0),
+  else the executed ones; `action` itself for a batch without plans."""
+  if 'plan' not in batch:  # Structure, not value: known when tracing.
+    return action
+  planned = jnp.where(batch['has_plan'][:, None, None] > 0, batch['plan'], action[:, :h])
+  return jnp.concatenate([planned, action[:, h:]], axis=1)
+
+
 def _critic_terms(critic_loss, terms, metrics, params, target_params, z, z_ema, z_sets, action,
                   reward, key):
   """The critics' terms and metrics added to `terms` and `metrics` (in place); returns their
@@ -186,6 +199,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
   model_rollout = make_model_rollout(m, losses, nets) if losses.latent_rollout else None
   objective_terms = make_objective_terms(m, losses, nets)
   weigh_act = _weighs_act(losses, critic_loss is not None)
+  planned = losses.act_target == 'planned'
 
   def loss_fn(params, target_params, batch, key):
     obs, action, reward = batch['obs'], batch['action'], batch['reward']
@@ -204,8 +218,9 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
     # A term of weight 0 is left out, not computed (the TD-MPC2 control trains neither).
     if losses.w_dyn:
       terms['dyn'] = dyn.loss(m, nets.dynamics, params, z, action, k_dyn, drop(0))
+    act_seq = proposal_targets(batch, action, h) if planned else action
     if losses.w_act and not weigh_act:
-      terms['act'] = proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1))
+      terms['act'] = proposal.loss(m, nets.proposal, params, z, act_seq, k_act, drop(1))
     z_sets = (z,)
     if model_rollout is not None:  # The objective also learns on the latents it scores.
       z_roll = model_rollout(params, z[:, 0], action[:, :h], k_roll)
@@ -217,7 +232,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
     weights = _critic_terms(critic_loss, terms, metrics, params, target_params, z, z_ema, z_sets,
                             action, reward, jax.random.fold_in(key, 103))
     if losses.w_act and weigh_act:  # By the critics' weights, scaled to mean 1 over the batch.
-      terms['act'] = proposal.loss(m, nets.proposal, params, z, action, k_act, drop(1),
+      terms['act'] = proposal.loss(m, nets.proposal, params, z, act_seq, k_act, drop(1),
                                    weights=weights / jnp.maximum(jnp.mean(weights), 1e-8))
     terms['actor'] = actor.loss(losses, nets, params, z, action, weights, k_pi)
     if 'demo' in batch:  # Structure, not value: known when tracing.

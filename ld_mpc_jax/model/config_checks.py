@@ -91,6 +91,7 @@ def check_sections(fields: Dict[str, Any], model: ModelSettings, plan: PlanSetti
   model.check_latent_norm(plan.latent_filter)
   model.check_targets()
   losses.check_weights()
+  losses.check_act_target(model)
   check_kinds(model, plan)  # The kinds; what the planner asks of them: plan.search.validate_plan.
   check_critic(model, losses, plan)
   check_tasks(model, fields['train']['batch_size'],

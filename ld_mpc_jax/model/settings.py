@@ -256,9 +256,10 @@ class PlanSettings(_Hashable):
 
 _LOSS_FIELDS = ('w_dyn', 'w_act', 'w_rew', 'w_val', 'w_actor', 'w_consistency', 'w_q', 'w_v',
                 'w_demo_bc', 'w_noise_inv', 'w_progress', 'w_novelty', 'reward_balance',
-                'act_weighting')
-# How the proposal's loss weights the data's sequences (ld_mpc_jax.learn.losses).
+                'act_weighting', 'act_target')
+# How the proposal's loss weights the data's sequences, and which it denoises (learn.losses).
 ACT_WEIGHTINGS = ('uniform', 'advantage')
+ACT_TARGETS = ('executed', 'planned')
 _CRITIC_LOSS_FIELDS = ('expectile', 'awr_temperature', 'awr_max_weight', 'td_target',
                        'entropy_coef', 'latent_rollout', 'rollout_steps', 'rollout_unroll')
 
@@ -283,6 +284,7 @@ class LossSettings:
   w_novelty: float
   reward_balance: float
   act_weighting: str
+  act_target: str
   # config.critic
   expectile: float
   awr_temperature: float
@@ -308,6 +310,16 @@ class LossSettings:
     if self.act_weighting not in ACT_WEIGHTINGS:
       raise ValueError(f'config.loss.act_weighting must be one of {list(ACT_WEIGHTINGS)}, got '
                        f'{self.act_weighting!r}')
+    if self.act_target not in ACT_TARGETS:
+      raise ValueError(f'config.loss.act_target must be one of {list(ACT_TARGETS)}, got '
+                       f'{self.act_target!r}')
+
+  def check_act_target(self, model: 'ModelSettings') -> None:
+    """One-line ValueError for planned targets of a proposal that denoises single actions."""
+    if self.act_target == 'planned' and model.proposal_type != 'diffusion_seq':
+      raise ValueError("config.loss.act_target='planned' trains a sequence proposal on the "
+                       f"planner's sequences: set config.model.proposal_type='diffusion_seq' "
+                       f'(got {model.proposal_type!r})')
 
   def check_batch(self) -> None:
     """One-line ValueErrors for how the loss weights and noises a batch: the reward loss's

@@ -45,7 +45,8 @@ class OnlineJob:
     first = plans[0]
     self.plans, self.model, self.online = plans, first.learn.model, first.online
     self.fine_tune = sources is not None
-    self.seats = [Seat(run, p.online, self.model, offline, i)
+    keep_plans = first.learn.losses.act_target == 'planned'
+    self.seats = [Seat(run, p.online, self.model, offline, i, keep_plans)
                   for i, (p, run) in enumerate(zip(plans, seed_runs))]
     self.counters = dict(env_steps=0, updates=0, episodes=0, train_seconds=0.0,
                          pretrain_updates=0)
@@ -216,11 +217,11 @@ class OnlineJob:
     policy = WavePolicy(self, schedule, acting) if planner else None
     t, none = 0, [None] * len(acting)
     while acting[0].active.any():  # The seeds' episodes have the same lengths.
-      actions, infos = (policy([w.obs for w in acting], t, acting[0].active) if planner
-                        else (none, none))
+      actions, infos, sequences = (policy([w.obs for w in acting], t, acting[0].active)
+                                   if planner else (none, none, none))
       if planner:  # The updates these steps call for, dispatched to run while they step.
         self.catch_up(ahead=acting[0].upcoming())
-      steps = [w.step(a, i) for w, a, i in zip(acting, actions, infos)]
+      steps = [w.step(a, i, s) for w, a, i, s in zip(acting, actions, infos, sequences)]
       self.counters['env_steps'] += steps[0]
       self.bar.update(steps[0])
       t += 1

@@ -52,15 +52,17 @@ class Seat:
   what its last wave did; the parameters live in the job's stacked TrainState."""
 
   def __init__(self, run, online: OnlineSettings, model: ModelSettings,
-               offline: Optional[data.Dataset], index: int):
+               offline: Optional[data.Dataset], index: int, keep_plans: bool = False):
     """`run`: the seed's run directory (runs.loop.Run of the seed's plan, whose config it saves);
     `online`: the seed's settings (OnlineSettings.from_config of its config: its seed, task and
     training goals); `model`: the run's (whether the progress reward and the exploration value
-    exist)."""
+    exist); `keep_plans`: the planner's chosen sequences go into the buffer with its episodes
+    (`loss.act_target='planned'`)."""
     self.run, self.online, self.index = run, online, index
     self.novelty = model.novelty  # config.loss.w_novelty > 0: the act_novelty column.
     self.buffer = Buffer(window_length(online.horizon), offline, online.seed,
-                         online.demonstrations(), progress=model.progress)
+                         online.demonstrations(), progress=model.progress,
+                         plan_shape=(model.horizon, model.action_dim) if keep_plans else None)
     self.envs = [envs.make_env(online.task, seed=online.goal_seed,
                                action_repeat=online.action_repeat,
                                max_episode_steps=online.episode_steps,
@@ -138,8 +140,10 @@ class WavePolicy:
     o, self.job = job.online, job
     self.single = len(job.seats) == 1
     # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
+    keep = schedule.mode == 'plan' and job.seats[0].buffer.plan_shape is not None
     knobs = dict(action_noise=0.0 if o.exec_noise_corr > 0 else schedule.noise_std,
-                 intrinsic=schedule.intrinsic)  # The planner's intrinsic term's weights.
+                 intrinsic=schedule.intrinsic,  # The planner's intrinsic term's weights.
+                 keep_sequences=keep)  # The planner's sequences, for the proposal's targets.
     if self.single:
       mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
               if job.plans[0].eval.eval.data_parallel else None)
@@ -154,12 +158,15 @@ class WavePolicy:
       self.inner.start([w.episodes for w in waves])
 
   def __call__(self, obs, t: int, active: np.ndarray):
-    """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 6] or None)."""
+    """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 6], planned
+    sequences [N, H, A] or None)."""
     if self.single:
       actions = self.inner(obs[0], t, active)
-      return [actions], [self.inner.last_info]
+      return [actions], [self.inner.last_info], [self.inner.last_sequences]
     actions = self.inner(np.stack(obs), t, active)
-    return list(actions), list(self.inner.last_info)
+    sequences = self.inner.last_sequences
+    return (list(actions), list(self.inner.last_info),
+            list(sequences) if sequences is not None else [None] * len(actions))
 
   def refresh(self) -> None:
     """The job's current EMA parameters (after its updates)."""
@@ -180,6 +187,7 @@ class SeatWave:
     self.obs = np.stack([e.reset(seed=int(s))[0] for e, s in zip(seat.envs, seeds)])
     # Copies: `obs` rows are overwritten in place by every step below.
     self.eps = [dict(obs=[np.copy(x)], action=[], reward=[], success=[]) for x in self.obs]
+    self.plans = [[] for _ in self.obs]  # The planner's sequences, where they are kept.
     self.active = np.ones(n, bool)
     self.noise = np.zeros((n, job.model.action_dim))
     self.noise_rng = np.random.default_rng([seed, first, 29])
@@ -194,10 +202,12 @@ class SeatWave:
       return 0
     return sum(e.next_substeps() for e in envs_)
 
-  def step(self, actions: Optional[np.ndarray], infos: Optional[np.ndarray]) -> int:
+  def step(self, actions: Optional[np.ndarray], infos: Optional[np.ndarray],
+           sequences: Optional[np.ndarray] = None) -> int:
     """One decision in each active environment, with the policy's `actions` [N, A] and
-    `infos` [N, 6] (None: uniform random actions); returns the environment steps taken, summed
-    over the environments (`info['substeps']`)."""
+    `infos` [N, 6] (None: uniform random actions) and the planner's chosen `sequences`
+    [N, H, A] where they are kept; returns the environment steps taken, summed over the
+    environments (`info['substeps']`)."""
     o, seat, n = self.job.online, self.seat, len(self.seat.envs)
     if actions is not None:
       self._count_winners(infos)
@@ -216,6 +226,8 @@ class SeatWave:
       for name, value in (('obs', self.obs[i]), ('action', actions[i]), ('reward', reward),
                           ('success', info['success'])):
         self.eps[i][name].append(np.copy(value))
+      if sequences is not None:
+        self.plans[i].append(np.asarray(sequences[i], np.float32))
       substeps += info['substeps']
       self.active[i] = not (terminated or truncated)
     return substeps
@@ -236,5 +248,8 @@ class SeatWave:
                      action=np.asarray(e['action'], np.float32),
                      reward=np.asarray(e['reward'], np.float32),
                      success=np.asarray(e['success'], bool)) for e in self.eps]
+    for episode, plans in zip(episodes, self.plans):
+      if plans:  # Every decision of a planner wave was planned.
+        episode['plan'] = np.stack(plans)
     return WaveRecord(episodes, self.winners.copy(),
                       np.asarray(self.spreads, np.float64).reshape(-1, 2), self.dense_max)

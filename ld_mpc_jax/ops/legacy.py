@@ -53,7 +53,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 9
+CONFIG_VERSION = 10
 
 
 def _online_fields(saved: dict) -> dict:
@@ -169,9 +169,21 @@ def to_v9(saved: dict) -> None:
       fill(saved, section, fields)
 
 
+# Field added in version 10, with the value that changes nothing: the proposal denoises the
+# executed actions.
+V10_FIELDS = {'loss': dict(act_target='executed')}
+
+
+def to_v10(saved: dict) -> None:
+  """Version 9 -> 10 (in place): `loss.act_target` 'executed'."""
+  for section, fields in V10_FIELDS.items():
+    if section in saved:
+      fill(saved, section, fields)
+
+
 # version -> the step that brings a config of version - 1 to it.
 STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7, 8: to_v8,
-         9: to_v9}
+         9: to_v9, 10: to_v10}
 
 
 def migrate(saved: dict) -> dict:

@@ -20,7 +20,8 @@ import numpy as np
 
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.plan.modes import (  # noqa: F401 (the modes' names, re-exported)
-    MODES, NO_PLAN_INFO, POLICY_MODES, ActSettings, PolicyMode, make_act_fn, uses_prev)
+    MODES, NO_PLAN_INFO, POLICY_MODES, ActSettings, PolicyMode, carried_sequence, make_act_fn,
+    uses_prev)
 
 def make_act(settings: ActSettings, mode: str = 'plan') -> Callable:
   """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0, intrinsic=None) ->
@@ -130,19 +131,25 @@ class BatchAgentPolicy:
   `chunk` = 0 instead calls the single-environment act once per active environment (the
   fastest for the planner on a 2-core CPU, where a K = 64 plan already fills the cores). With a
   `mesh`, the environments are split over its devices (`make_batch_act`), and `chunk` = 0 maps
-  one environment at a time on each device.
+  one environment at a time on each device. With `keep_sequences` (the 'plan' mode), each call
+  also leaves the planner's chosen sequences in `last_sequences` [N, H, A] (online acting under
+  `loss.act_target='planned'`).
   """
 
   def __init__(self, settings: ActSettings, params, mode: str = 'plan', seed: int = 0,
                chunk: Optional[int] = None, mesh: Optional[Mesh] = None,
-               action_noise: float = 0.0, intrinsic=None):
+               action_noise: float = 0.0, intrinsic=None, keep_sequences: bool = False):
     self.seed, self.mesh = seed, mesh
+    self.sequence_of = (lambda carry: carried_sequence(settings.plan, carry)) if (
+        keep_sequences) else None
+    self.last_sequences = None
     self.set_params(params)
     if mesh is not None:
       chunk = 1 if chunk == 0 else chunk
     self.warm = uses_prev(settings.plan, mode)
     self.per_env = chunk == 0  # One jitted call per environment (the single-env act).
     self.action_dim = settings.model.action_dim
+    self.prev_shape = (settings.model.horizon, self.action_dim)  # A planned sequence [H, A].
     # One jitted function per setting, compiled once per process; the task name is no setting,
     # so the tasks of a multi-task agent (tasks.bind) share it.
     key = (settings, mode, chunk, mesh)
@@ -189,6 +196,8 @@ class BatchAgentPolicy:
     if self.warm:
       self.prev = sequences
     self.last_info = np.asarray(infos)
+    if self.sequence_of is not None:
+      self.last_sequences = np.asarray(self.sequence_of(sequences))
     return np.asarray(actions)
 
   def _per_env(self, obs, t, active):
@@ -196,6 +205,8 @@ class BatchAgentPolicy:
       self.prev = [None] * obs.shape[0]
     actions = np.zeros((obs.shape[0], self.action_dim), np.float32)
     infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (obs.shape[0], 1))
+    if self.sequence_of is not None:
+      self.last_sequences = np.zeros((obs.shape[0],) + self.prev_shape, np.float32)
     if getattr(self, '_sliced', (None,))[0] is not self.keys:  # Once per wave: slicing here
       # would be an eager operation, waiting behind the updates dispatched to the device.
       self._sliced = (self.keys, [self.keys[i] for i in range(self.keys.shape[0])])
@@ -206,6 +217,8 @@ class BatchAgentPolicy:
       if self.warm:
         self.prev[i] = sequence
       actions[i], infos[i] = np.asarray(action), np.asarray(info)
+      if self.sequence_of is not None:
+        self.last_sequences[i] = np.asarray(self.sequence_of(sequence))
     self.last_info = infos
     return actions
 

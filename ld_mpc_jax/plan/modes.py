@@ -175,6 +175,14 @@ def _filtered(s: ActSettings, nets, inner: Callable, inner_prev: bool) -> Callab
   return act
 
 
+def carried_sequence(plan: PlanSettings, carry):
+  """The planner's chosen sequence [..., H, A] in the carry of the 'plan' mode's act (inside
+  the latent filter's carry, beside the fallback's Guard: `_plan_act`, `_filtered`)."""
+  if plan.latent_filter > 0:
+    carry = carry[0]
+  return carry[0] if plan.gates[1] else carry
+
+
 def uses_prev(plan: PlanSettings, mode: str) -> bool:
   """Whether `mode` acts on the previous decision's carry (warm-started planner, MPPI; every
   mode with `plan.latent_filter`)."""

@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ld_mpc_jax.ops.seed_groups import SeedGroups
-from ld_mpc_jax.plan.agent import (NO_PLAN_INFO, ActSettings, episode_keys, float32,
-                                   float32_tree, make_act_fn, uses_prev)
+from ld_mpc_jax.plan.agent import (NO_PLAN_INFO, ActSettings, carried_sequence, episode_keys,
+                                   float32, float32_tree, make_act_fn, uses_prev)
 
 _SEEDS_ACTS = {}  # One jitted function per setting, compiled once per process.
 
@@ -34,10 +34,12 @@ class SeedsAgentPolicy:
   parameters, `ops.seed_groups`; all calls of a decision are dispatched before any is waited
   for, so the devices plan at the same time); each agent's episodes keep the key schedule of
   `agent.BatchAgentPolicy` with its own seed, so an agent acts as it would alone (to float
-  tolerance: the vmapped plan may round differently)."""
+  tolerance: the vmapped plan may round differently). `keep_sequences`: as BatchAgentPolicy's
+  (`last_sequences` [S, N, H, A])."""
 
   def __init__(self, settings: ActSettings, params, mode: str, seeds: Sequence[int],
-               groups: Optional[SeedGroups] = None, action_noise: float = 0.0, intrinsic=None):
+               groups: Optional[SeedGroups] = None, action_noise: float = 0.0, intrinsic=None,
+               keep_sequences: bool = False):
     """params: the agents' parameters stacked [S, ...], or one stack per group of `groups`."""
     self.seeds = list(seeds)
     self.groups = groups or SeedGroups(len(self.seeds))
@@ -51,6 +53,10 @@ class SeedsAgentPolicy:
     self.keys = self.prev = None
     self.action_noise, self.intrinsic = action_noise, intrinsic  # As agent.BatchAgentPolicy's.
     self.last_info = None  # [S, N, 6] float32 of the last decision.
+    self.sequence_shape = (settings.model.horizon, settings.model.action_dim)
+    self.sequence_of = (lambda carry: carried_sequence(settings.plan, carry)) if (
+        keep_sequences) else None
+    self.last_sequences = None
 
   def set_params(self, params) -> None:
     self.params = list(params) if isinstance(params, (list, tuple)) else self.groups.split(params)
@@ -79,8 +85,12 @@ class SeedsAgentPolicy:
                                        self.action_noise, self.intrinsic)
         if self.warm:
           self.prev[g][i] = carry
-        pending.append((a, b, i, action, info))
-    for a, b, i, action, info in pending:
+        pending.append((a, b, i, action, info, carry))
+    sequences = (np.zeros((s, n) + self.sequence_shape, np.float32)
+                 if self.sequence_of is not None else None)
+    for a, b, i, action, info, carry in pending:
       actions[a:b, i], infos[a:b, i] = np.asarray(action), np.asarray(info)
-    self.last_info = infos
+      if sequences is not None:
+        sequences[a:b, i] = np.asarray(self.sequence_of(carry))
+    self.last_info, self.last_sequences = infos, sequences
     return actions
