@@ -129,3 +129,39 @@ def test_mppi_settings_are_checked_by_the_mppi_mode_alone(smoke_config):
   make_act(ActSettings.from_config(c), 'plan')
   with pytest.raises(ValueError, match='^config.mppi: num_prior must be in'):
     make_act(ActSettings.from_config(c), 'mppi')
+
+
+@pytest.mark.parametrize('fallback', [0.0, 0.5])
+def test_kept_sequences_are_the_planners_and_lead_with_its_action(smoke_config, smoke_params,
+                                                                  fallback):
+  """keep_sequences: BatchAgentPolicy (batched, and one call per environment) and
+  SeedsAgentPolicy leave the planner's chosen sequences [.., H, A], whose first action is the
+  executed one (no noise), the same for one seed of several as for that seed alone; with the
+  fallback's Guard in the carry as without it."""
+  from ld_mpc_jax.plan.agent import BatchAgentPolicy  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.envs.goals import Episode  # pylint: disable=g-import-not-at-top
+  smoke_config.plan.fallback_drop = fallback
+  if fallback:  # The fallback gates safe selection, which keeps the actor prior's sequence.
+    smoke_config.plan.safe_selection = True
+    smoke_config.plan.num_prior_candidates = max(1, smoke_config.plan.num_prior_candidates)
+  settings = ActSettings.from_config(smoke_config)
+  obs = np.random.default_rng(0).normal(size=(2, 39)).astype(np.float32)
+  episodes = [Episode('held_out', i, 0, 10 + i, '', None) for i in range(2)]
+  active = np.ones(2, bool)
+  kept = []
+  for chunk in (None, 0):
+    policy = BatchAgentPolicy(settings, smoke_params, 'plan', seed=1, chunk=chunk,
+                              keep_sequences=True)
+    policy.start(episodes)
+    actions = policy(obs, 0, active)
+    assert policy.last_sequences.shape == (2, smoke_config.horizon, smoke_config.action_dim)
+    np.testing.assert_allclose(policy.last_sequences[:, 0], actions, atol=1e-6)
+    kept.append(policy.last_sequences)
+  np.testing.assert_allclose(kept[0], kept[1], atol=1e-5)
+  stacked = jax.tree_util.tree_map(lambda x: np.stack([x, x]), smoke_params)
+  seeds = SeedsAgentPolicy(settings, stacked, 'plan', [1, 2], keep_sequences=True)
+  seeds.start([episodes, episodes])
+  seeds(np.stack([obs, obs]), 0, active)
+  assert seeds.last_sequences.shape == (2, 2, smoke_config.horizon, smoke_config.action_dim)
+  np.testing.assert_allclose(seeds.last_sequences[0], kept[0], atol=1e-5)
