@@ -7,15 +7,16 @@
   python -m experiments.report behind sel.json ...                 # settings behind the anchor
   python -m experiments.report pack --out=DIR --workdir=RUN        # runs packed for transfer
   python -m experiments.report records --workdir=RUN --out=results/X  # a run's records, gzipped
+  python -m experiments.report acting RUN/online.csv --every=40000    # who won the acting decisions
 
-Modes: (none) pool record files; `curves`; `sweeps`; `behind`; `pack`; `records`. `--help` lists the chosen
+Modes: (none) pool record files; `curves`; `sweeps`; `behind`; `pack`; `records`; `acting`. `--help` lists the chosen
 mode's flags.
 """
 
 from ld_mpc_jax.cli import dispatch
 
 MODES = {'curves': 'plot_online', 'sweeps': 'compare_sweeps', 'behind': 'where_behind', 'pack': 'pack_runs',
-         'records': 'records'}  # mode word -> module of ld_mpc_jax.cli
+         'records': 'records', 'acting': 'acting'}  # mode word -> module of ld_mpc_jax.cli
 DEFAULT = 'pool'
 BY_FLAG = {}  # a flag that selects a mode by itself
 

@@ -240,6 +240,15 @@ def test_acting_summary_weights_each_wave_by_its_planned_decisions(tmp_path):
   lines = online_report.acting_md(acting)
   assert '| to 1,600 | 10 | 20% | 80% | 50% | 0.400 | 0.100 |' in lines
   assert '| whole run | 40 | 50% | 50% | 80% | 0.250 | 0.100 |' in lines
+  # The same table from a gzipped record by `experiments.report acting`.
+  import gzip, shutil  # pylint: disable=g-import-not-at-top,multiple-imports
+  with open(tmp_path / 'online.csv', 'rb') as f, gzip.open(tmp_path / 'online.csv.gz', 'wb') as g:
+    shutil.copyfileobj(f, g)
+  out = subprocess.run([sys.executable, '-m', 'experiments.report', 'acting',
+                        str(tmp_path / 'online.csv.gz'), '--every=2000'], cwd=REPO,
+                       capture_output=True, text=True, check=True).stdout
+  assert '| to 1,600 | 10 | 20% | 80% | 50% | 0.400 | 0.100 |' in out
+  assert '| whole run | 40 | 50% | 50% | 80% | 0.250 | 0.100 |' in out
 
 
 def test_planned_targets_keep_the_planners_sequences_with_the_planner_waves(tmp_path,

@@ -117,13 +117,17 @@ def _weighted(rows: List[dict], column: str) -> Optional[float]:
 
 
 def acting_summary(workdir: str, every: int) -> Dict[str, Any]:
-  """How the planner acted, from online.csv: the share of planned decisions won by each kind of
-  candidate (`won_<kind>`) and that departed from the actor prior, and the mean spread of the
-  candidates' first actions (of the first round's, and of the proposal's), over the whole run
+  """How the planner acted, from the run's online.csv (`acting_rows_summary`)."""
+  return acting_rows_summary(run_files.read_csv(os.path.join(workdir, ONLINE_CSV)), every)
+
+
+def acting_rows_summary(rows: List[Dict[str, str]], every: int) -> Dict[str, Any]:
+  """How the planner acted, from online.csv's `rows`: the share of planned decisions won by each
+  kind of candidate (`won_<kind>`) and that departed from the actor prior, and the mean spread of
+  the candidates' first actions (of the first round's, and of the proposal's), over the whole run
   and per `every` environment steps (the held-out evaluations' spacing), weighted by each wave's
   planned decisions. Waves logged before online.csv had a `planned` column are left out."""
-  rows = [r for r in run_files.read_csv(os.path.join(workdir, ONLINE_CSV))
-          if r.get('planned') not in (None, '')]
+  rows = [r for r in rows if r.get('planned') not in (None, '')]
   columns = [k for k in (rows[0] if rows else {})
              if k.startswith('won_') or k in ('departed', 'spread_first', 'spread_proposal')]
   def summary(part, env_steps):

@@ -9,3 +9,6 @@ python -m experiments.report records --workdir=runs/door_plan_s0 --out=results/o
 # Paired with seed 0 of the run without it (the same preset and steps, commit 83ada3e) on the same 50 held-out episodes:
 python -m experiments.report \
   'results/online_door/dense_3seeds_83ada3e/seed0_episodes.csv.gz+results/online_door/plan_seed0_b229cd4/episodes.csv.gz#planned'
+# Who won the acting decisions, per 40k simulator steps, with and without it:
+python -m experiments.report acting results/online_door/plan_seed0_b229cd4/online.csv.gz \
+  results/online_door/dense_3seeds_83ada3e/seed0_online.csv --every=40000
