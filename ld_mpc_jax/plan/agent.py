@@ -149,7 +149,7 @@ class BatchAgentPolicy:
     self.warm = uses_prev(settings.plan, mode)
     self.per_env = chunk == 0  # One jitted call per environment (the single-env act).
     self.action_dim = settings.model.action_dim
-    self.prev_shape = (settings.model.horizon, self.action_dim)  # A planned sequence [H, A].
+    self.sequence_shape = (settings.model.horizon, self.action_dim)  # A planned sequence [H, A].
     # One jitted function per setting, compiled once per process; the task name is no setting,
     # so the tasks of a multi-task agent (tasks.bind) share it.
     key = (settings, mode, chunk, mesh)
@@ -206,7 +206,7 @@ class BatchAgentPolicy:
     actions = np.zeros((obs.shape[0], self.action_dim), np.float32)
     infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (obs.shape[0], 1))
     if self.sequence_of is not None:
-      self.last_sequences = np.zeros((obs.shape[0],) + self.prev_shape, np.float32)
+      self.last_sequences = np.zeros((obs.shape[0],) + self.sequence_shape, np.float32)
     if getattr(self, '_sliced', (None,))[0] is not self.keys:  # Once per wave: slicing here
       # would be an eager operation, waiting behind the updates dispatched to the device.
       self._sliced = (self.keys, [self.keys[i] for i in range(self.keys.shape[0])])

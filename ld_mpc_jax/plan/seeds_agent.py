@@ -9,8 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ld_mpc_jax.ops.seed_groups import SeedGroups
-from ld_mpc_jax.plan.agent import (NO_PLAN_INFO, ActSettings, carried_sequence, episode_keys,
-                                   float32, float32_tree, make_act_fn, uses_prev)
+from ld_mpc_jax.plan.agent import (NO_PLAN_INFO, ActSettings, episode_keys, float32,
+                                   float32_tree, make_act_fn, uses_prev)
+from ld_mpc_jax.plan.modes import carried_sequence
 
 _SEEDS_ACTS = {}  # One jitted function per setting, compiled once per process.
 
