@@ -9,22 +9,13 @@ departed from the actor prior, and the candidates' spreads, per `--every` simula
 the whole run, each wave weighted by its planned decisions (runs.online_report.acting_summary).
 """
 
-import csv
-import gzip
-
 from absl import flags
 
 from ld_mpc_jax.cli import errors as cli
+from ld_mpc_jax.cli.plot_online import read_csv
 from ld_mpc_jax.runs import online_report
 
 _EVERY = flags.DEFINE_integer('every', 10_000, 'Simulator steps per row of each table.')
-
-
-def read_rows(path: str):
-  """online.csv's rows as dicts of strings (a .gz file unzipped)."""
-  opener = gzip.open if path.endswith('.gz') else open
-  with opener(path, 'rt') as f:
-    return list(csv.DictReader(f))
 
 
 def main(argv):
@@ -36,7 +27,7 @@ def main(argv):
     if _EVERY.value < 1:
       raise ValueError(f'--every must be >= 1 simulator steps, got {_EVERY.value}')
     for path in paths:
-      acting = online_report.acting_rows_summary(read_rows(path), _EVERY.value)
+      acting = online_report.acting_rows_summary(read_csv(path), _EVERY.value)
       table = online_report.acting_table(
           [(f"to {r['env_steps']:,}", r) for r in acting['spans']]
           + [('whole run', acting['whole'])], 'simulator steps')
