@@ -15,9 +15,11 @@ import os
 import statistics
 import tempfile
 import time
-from typing import Dict, List, Sequence
+from typing import Dict, List, Sequence, Tuple
 
 import ml_collections
+
+from ld_mpc_jax.configs.overrides import with_overrides
 
 
 def _wave_rates(workdir: str, skip: int) -> List[float]:
@@ -47,43 +49,52 @@ def _run(c: ml_collections.ConfigDict, overlap: bool, skip: int):
 
 def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env_steps: int,
                     skip: int = 1, overlaps: Sequence[bool] = (True,),
-                    seed_devices: Sequence[int] = (1,)) -> List[Dict[str, float]]:
+                    seed_devices: Sequence[int] = (1,),
+                    variants: Sequence[Tuple[str, dict]] = ()) -> List[Dict[str, float]]:
   """One entry per N in `seeds` (and per setting of `overlaps`, updates dispatched ahead of the
   steps or not, and per number of devices the seeds are spread over, `train.seed_devices`,
   skipped where it exceeds N unless N is 1; 0: one device per seed, as runs train by default):
   wall seconds of the whole run (compilation included), the median environment steps per second of one seed over its acting waves after
-  `skip`, the updates per second that implies (`online.update_ratio` x that, per seed), and both summed over the N seeds."""
+  `skip`, the updates per second that implies (`online.update_ratio` x that, per seed), and both summed over the N seeds.
+
+  `variants` ((name, {field: value}), ...): each setting also runs with each variant's fields
+  set, right after the config as given (variant 'base'), so that their ratio is measured in one
+  process under the same load."""
   out = []
   settings = [(n, overlap, d) for n in seeds for overlap in overlaps for d in seed_devices
               if d <= n or d == min(seed_devices)]
-  for n, overlap, devices in settings:
-    c = ml_collections.ConfigDict(config.to_dict())
+  runs = [(s, v) for s in settings for v in [('base', {})] + list(variants)]
+  for (n, overlap, devices), (variant, fields) in runs:
+    c = with_overrides(config, fields)
     c.train.num_seeds, c.online.env_steps = n, env_steps
     c.train.seed_devices = min(devices, n) or n
     c.online.eval_every = c.online.checkpoint_every = env_steps
     c.eval.episodes = 0
     wall, rates = _run(c, overlap, skip)
     rate = statistics.median(rates) if rates else float('nan')
-    out.append(dict(num_seeds=n, overlap=overlap, seed_devices=c.train.seed_devices,
+    out.append(dict(variant=variant, num_seeds=n, overlap=overlap, seed_devices=c.train.seed_devices,
                     wall_s=wall, waves_timed=len(rates), env_steps_per_s_per_seed=rate,
                     updates_per_s_per_seed=rate * c.online.update_ratio,
                     env_steps_per_s_all_seeds=rate * n))
   base = out[0]['env_steps_per_s_per_seed']
-  for e in out:  # Time of N seeds' steps against one seed's, from the steady rates.
+  for i, e in enumerate(out):  # Time of N seeds' steps against one seed's, from the steady rates.
     e['time_ratio_vs_first'] = base / e['env_steps_per_s_per_seed']
+    own_base = out[i - i % (len(variants) + 1)]  # The config as given, same setting.
+    e['rate_vs_base'] = e['env_steps_per_s_per_seed'] / own_base['env_steps_per_s_per_seed']
   return out
 
 
 def markdown(entries: List[Dict[str, float]], spec: str, env_steps: int, device: str) -> str:
   lines = [f'Online training, {spec}, {env_steps:,} environment steps per seed (simulator steps), '
            f'on {device}; median over acting waves after the first.', '',
-           '| seeds in one run | devices they are spread over | updates dispatched ahead of the '
+           '| variant | seeds in one run | devices they are spread over | updates dispatched ahead of the '
            'steps | env steps/s per seed | updates/s per seed | env steps/s, all seeds | time of '
-           'the run per env step vs the first row | wall s (with compile) |',
-           '| --- | --- | --- | --- | --- | --- | --- | --- |']
-  lines += [f"| {e['num_seeds']} | {e.get('seed_devices', 1)} | "
+           'the run per env step vs the first row | steps/s vs base | wall s (with compile) |',
+           '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
+  lines += [f"| {e.get('variant', 'base')} | {e['num_seeds']} | {e.get('seed_devices', 1)} | "
             f"{'yes' if e.get('overlap', True) else 'no'} | "
             f"{e['env_steps_per_s_per_seed']:.1f} | "
             f"{e['updates_per_s_per_seed']:.1f} | {e['env_steps_per_s_all_seeds']:.1f} | "
-            f"{e['time_ratio_vs_first']:.2f} | {e['wall_s']:.0f} |" for e in entries]
+            f"{e['time_ratio_vs_first']:.2f} | {e.get('rate_vs_base', 1.0):.2f} | "
+            f"{e['wall_s']:.0f} |" for e in entries]
   return '\n'.join(lines) + '\n'

@@ -81,3 +81,28 @@ def test_online_breakdown_parts_add_up_to_the_timed_waves():
   assert all(ms[p] > 0 for p in ('environments', 'plan', 'update', 'buffer sampling'))
   np.testing.assert_allclose(sum(ms.values()) * e['sim_steps'] / 1e3, e['wall_s'], rtol=1e-6)
   assert 0 < e['share']['update'] < 1
+
+
+def test_online_seeds_variants_run_after_the_base_with_their_fields(monkeypatch):
+  """--online_variant: each setting runs as given ('base'), then with each variant's fields;
+  the rate against the base is taken within the same setting."""
+  from benchmarks import online_seeds
+  from ld_mpc_jax.configs import door_open_online
+  seen = []
+
+  def fake_run(c, overlap, skip):  # Steps/s that halve per seed and double with half the updates.
+    seen.append((c.train.num_seeds, c.online.update_ratio))
+    return 1.0, [40.0 / c.train.num_seeds * (0.5 / c.online.update_ratio)] * 3
+  monkeypatch.setattr(online_seeds, '_run', fake_run)
+  config = door_open_online.get_config('smoke')
+  out = online_seeds.benchmark_seeds(config, [1, 3], 100,
+                                     variants=[('half', {'online.update_ratio': 0.25})])
+  r = config.online.update_ratio
+  assert seen == [(1, r), (1, 0.25), (3, r), (3, 0.25)]
+  assert [e['variant'] for e in out] == ['base', 'half', 'base', 'half']
+  speed = (0.5 / 0.25) / (0.5 / r)
+  np.testing.assert_allclose([e['rate_vs_base'] for e in out], [1, speed, 1, speed])
+  np.testing.assert_allclose(out[3]['env_steps_per_s_all_seeds'], 40 * 0.5 / 0.25)
+  assert config.online.update_ratio == r  # The given config is not changed.
+  md = online_seeds.markdown(out, 'door_open_online.py:smoke', 100, 'cpu')
+  assert md.splitlines()[-1].startswith('| half | 3 |')

@@ -8,6 +8,8 @@ r"""Training benchmark: time and FLOPs of one update step, and the bound ratio a
       --configs=door_open_online.py:cpu --online_env_steps=4000  # seeds in one online run
   python -m experiments.benchmark_training --online_seeds=1,3 --online_seed_devices=1,2 \
       --configs=door_open_online.py:cpu    # and spread over 2 devices (train.seed_devices)
+  python -m experiments.benchmark_training --online_seeds=3 --configs=door_open_online.py:cpu \
+      --online_variant=half:online.update_ratio=0.25   # and a variant, in the same process
 
 Each --configs entry is a config file with an optional :preset, as for experiments.train.
 Parameters are random and batches synthetic. Writes a JSON list, one entry per config (name,
@@ -52,6 +54,9 @@ _ONLINE_DEVICES = flags.DEFINE_list('online_seed_devices', ['1'], 'With --online
                                      'N also with its seeds spread over each of these numbers '
                                      'of devices (train.seed_devices; on a CPU, virtual '
                                      'devices made before JAX starts); 0: one per seed.')
+_VARIANT = flags.DEFINE_multi_string('online_variant', [], 'With --online_seeds: NAME:field=value,'
+                                      '... also run with these fields set, after the config '
+                                      'as given, in this process (repeatable).')
 _BREAKDOWN = flags.DEFINE_list('online_breakdown', [], 'Numbers of training seeds in one online '
                                 'run whose time per simulator step to break down, e.g. 1,3.')
 _WAVES = flags.DEFINE_integer('online_waves', 3, 'With --online_breakdown: timed waves per run '
@@ -70,6 +75,8 @@ def _check_flags():
   seeds = cli.int_list('--online_seeds', _ONLINE_SEEDS.value, least=1)
   breakdown = cli.int_list('--online_breakdown', _BREAKDOWN.value, least=1)
   devices = cli.int_list('--online_seed_devices', _ONLINE_DEVICES.value, least=0)
+  if _VARIANT.value and not seeds:
+    raise ValueError('--online_variant needs --online_seeds')
   cli.check_new_output(_OUT.value, overwrite=True)  # A benchmark replaces its last result.
   return seeds, breakdown, max(devices or [1])
 
@@ -141,9 +148,16 @@ def main(argv):
     from benchmarks import online_seeds
     spec = _CONFIGS.value[0]
     overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
+    from ld_mpc_jax.configs.overrides import parse_variant, with_overrides
+    from ld_mpc_jax.runs.checks import validate_config
+    with cli.one_line_errors():
+      variants = [parse_variant(v) for v in _VARIANT.value]
+      for _, fields in variants:  # An unknown field or a bad value before anything runs.
+        validate_config(with_overrides(configs[spec], fields))
     entries = online_seeds.benchmark_seeds(configs[spec], seeds,
                                            _ONLINE_STEPS.value, overlaps=overlaps,
-                                           seed_devices=[int(d) for d in _ONLINE_DEVICES.value])
+                                           seed_devices=[int(d) for d in _ONLINE_DEVICES.value],
+                                           variants=variants)
     table = online_seeds.markdown(entries, spec, _ONLINE_STEPS.value, device['name'])
     print(table)
     bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)
