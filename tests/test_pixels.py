@@ -5,6 +5,7 @@ images and smoke widths."""
 import ctypes.util
 import os
 
+import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -31,6 +32,25 @@ def test_random_shift_crops_the_edge_padded_image_at_an_offset_of_its_own():
     assert found, 'not a crop of the padded image'
     offsets.append(found[0])
   assert len(set(offsets)) > 4  # Each image its own offset.
+
+
+@pytest.mark.parametrize('kernel, stride, size', [(7, 2, 13), (5, 2, 12), (3, 1, 5)])
+def test_patch_conv_is_nn_conv_with_its_parameters(kernel, stride, size):
+  """PatchConv: nn.Conv's parameter tree and initial values (the same names and keys) and its
+  outputs and gradients to float rounding, odd and even sizes, over leading batch axes."""
+  x = jnp.asarray(np.random.default_rng(0).normal(size=(2, 3, size, size, 4)), jnp.float32)
+  conv = nn.Conv(6, (kernel, kernel), (stride, stride), padding='VALID')
+  patch = pixels.PatchConv(6, kernel, stride)
+  p_conv, p_patch = conv.init(jax.random.key(3), x), patch.init(jax.random.key(3), x)
+  assert jax.tree.structure(p_conv) == jax.tree.structure(p_patch)
+  for a, b in zip(jax.tree.leaves(p_conv), jax.tree.leaves(p_patch)):
+    assert np.array_equal(a, b)
+  p = jax.tree.map(lambda a: a + 0.1, p_conv)  # A bias that is not zero.
+  np.testing.assert_allclose(patch.apply(p, x), conv.apply(p, x), rtol=1e-5, atol=1e-5)
+  loss = lambda m: lambda p, x: jnp.sum(jnp.sin(m.apply(p, x)))
+  for a, b in zip(jax.tree.leaves(jax.grad(loss(patch), argnums=(0, 1))(p, x)),
+                  jax.tree.leaves(jax.grad(loss(conv), argnums=(0, 1))(p, x))):
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
 
 
 @pytest.fixture(scope='module')

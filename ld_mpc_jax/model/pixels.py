@@ -7,7 +7,7 @@ An image observation is flat, [..., S * S * C] with S = `model.image_size` and C
 through datasets, buffers and `plan` as a state observation does.
 
 - `ConvEncoder`: TD-MPC2's pixel encoder (four 32-channel convolutions: 7x7 and 5x5 and 3x3 with
-  stride 2, then 3x3; ReLU), flattened, a dense layer to the latent, RMS-normalised like the MLP
+  stride 2, then 3x3; ReLU; each as one matmul over patches, `PatchConv`), flattened, a dense layer to the latent, RMS-normalised like the MLP
   encoder's latent.
 - `random_shift`: DrQ (Kostrikov et al. 2021): each image padded by `pad` pixels (edge values)
   and cropped back at a random offset, a different one per image.
@@ -48,11 +48,30 @@ class ConvEncoder(nn.Module):
     batch = x.shape[:-3]
     x = x.reshape((-1,) + x.shape[-3:])
     for i, (kernel, stride) in enumerate(((7, 2), (5, 2), (3, 2), (3, 1))):
-      x = nn.Conv(self.features, (kernel, kernel), (stride, stride), padding='VALID',
-                  name=f'conv_{i}')(x)
+      x = PatchConv(self.features, kernel, stride, name=f'conv_{i}')(x)
       x = nn.relu(x) if i < 3 else x
     x = x.reshape(batch + (-1,))
     return rms_normalize(nn.Dense(self.latent_dim, name='out')(x))
+
+
+class PatchConv(nn.Module):
+  """nn.Conv with a square kernel, a stride and VALID padding, computed as one matmul over the
+  image's patches (im2col): nn.Conv's parameters (kernel [k, k, C, F], bias [F], the same
+  initialisation) and values to float rounding, and about twice as fast forward and backward for
+  `ConvEncoder` on XLA:CPU, whose convolutions are slow for few channels."""
+  features: int
+  kernel: int
+  stride: int
+
+  @nn.compact
+  def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
+    k, s, c = self.kernel, self.stride, x.shape[-1]
+    kernel = self.param('kernel', nn.initializers.lecun_normal(), (k, k, c, self.features))
+    bias = self.param('bias', nn.initializers.zeros_init(), (self.features,))
+    rows, cols = ((x.shape[axis] - k) // s + 1 for axis in (-3, -2))
+    patches = [x[..., i:i + s * (rows - 1) + 1:s, j:j + s * (cols - 1) + 1:s, :]
+               for i in range(k) for j in range(k)]  # Kernel order (i, j, c).
+    return jnp.concatenate(patches, -1) @ kernel.reshape(k * k * c, self.features) + bias
 
 
 def random_shift(obs: jnp.ndarray, key: jax.Array, size: int, channels: int,
