@@ -19,7 +19,7 @@ from typing import Dict, List, Sequence, Tuple
 
 import ml_collections
 
-from ld_mpc_jax.configs.overrides import with_overrides
+from ld_mpc_jax.configs.overrides import parse_variant, with_overrides
 
 
 def _wave_rates(workdir: str, skip: int) -> List[float]:
@@ -45,6 +45,16 @@ def _run(c: ml_collections.ConfigDict, overlap: bool, skip: int):
       return wall, _wave_rates(first, skip)
   finally:
     online_seats.SeatWave.upcoming = upcoming
+
+
+def parse_variants(config: ml_collections.ConfigDict, texts: Sequence[str]):
+  """[(name, {field: value})] of --online_variant texts (NAME:field=value,...), each checked
+  on `config` (a one-line ValueError for an unknown field or a bad value) before anything runs."""
+  from ld_mpc_jax.runs.checks import validate_config  # pylint: disable=g-import-not-at-top
+  variants = [parse_variant(text) for text in texts]
+  for _, fields in variants:
+    validate_config(with_overrides(config, fields))
+  return variants
 
 
 def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env_steps: int,

@@ -147,13 +147,9 @@ def main(argv):
   if _ONLINE_SEEDS.value:
     from benchmarks import online_seeds
     spec = _CONFIGS.value[0]
-    overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
-    from ld_mpc_jax.configs.overrides import parse_variant, with_overrides
-    from ld_mpc_jax.runs.checks import validate_config
     with cli.one_line_errors():
-      variants = [parse_variant(v) for v in _VARIANT.value]
-      for _, fields in variants:  # An unknown field or a bad value before anything runs.
-        validate_config(with_overrides(configs[spec], fields))
+      variants = online_seeds.parse_variants(configs[spec], _VARIANT.value)
+    overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
     entries = online_seeds.benchmark_seeds(configs[spec], seeds,
                                            _ONLINE_STEPS.value, overlaps=overlaps,
                                            seed_devices=[int(d) for d in _ONLINE_DEVICES.value],
@@ -176,3 +172,4 @@ def main(argv):
   table = training.markdown(entries)
   print(table)
   bench.write_results(_OUT.value, entries, table)
+
