@@ -12,3 +12,8 @@ python -m experiments.report results/online_door/dense200k_3seeds_7d733ad/seed{0
 python -m experiments.report curves --workdir=runs/door200k/run/seed0 --workdir=runs/door200k/run/seed1 \
   --workdir=runs/door200k/run/seed2 --anchor=docs/anchors/tdmpc2_mw-door-open.csv --max_steps=200000 \
   --out=docs/dense_door_curves.png
+# Issue 100: the same checkpoints with safe selection (the named variant 'safe'), argmax and the actor prior on the same 50
+# held-out episodes a seed, from a worktree at commit 8ded009: 100/150 each (every seed solves all or none of its episodes).
+python -m experiments.evaluate selection --workdir=runs/door200k/run/seed0,runs/door200k/run/seed1,runs/door200k/run/seed2 \
+  --variant=argmax: --variant=safe --baselines=actor --episodes=50 --out=runs/door200k/selection_safe.json
+python -m experiments.report results/online_door/dense200k_3seeds_7d733ad/selection_safe.json.gz
