@@ -82,15 +82,15 @@ def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env
     c.eval.episodes = 0
     wall, rates = _run(c, overlap, skip)
     rate = statistics.median(rates) if rates else float('nan')
+    if variant == 'base':  # Runs first in its setting: the variants' rates are against it.
+      base_rate = rate
     out.append(dict(variant=variant, num_seeds=n, overlap=overlap, seed_devices=c.train.seed_devices,
                     wall_s=wall, waves_timed=len(rates), env_steps_per_s_per_seed=rate,
                     updates_per_s_per_seed=rate * c.online.update_ratio,
-                    env_steps_per_s_all_seeds=rate * n))
+                    env_steps_per_s_all_seeds=rate * n, rate_vs_base=rate / base_rate))
   base = out[0]['env_steps_per_s_per_seed']
-  for i, e in enumerate(out):  # Time of N seeds' steps against one seed's, from the steady rates.
+  for e in out:  # Time of N seeds' steps against one seed's, from the steady rates.
     e['time_ratio_vs_first'] = base / e['env_steps_per_s_per_seed']
-    own_base = out[i - i % (len(variants) + 1)]  # The config as given, same setting.
-    e['rate_vs_base'] = e['env_steps_per_s_per_seed'] / own_base['env_steps_per_s_per_seed']
   return out
 
 

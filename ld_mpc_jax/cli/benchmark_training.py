@@ -172,4 +172,3 @@ def main(argv):
   table = training.markdown(entries)
   print(table)
   bench.write_results(_OUT.value, entries, table)
-

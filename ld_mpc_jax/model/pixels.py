@@ -7,8 +7,8 @@ An image observation is flat, [..., S * S * C] with S = `model.image_size` and C
 through datasets, buffers and `plan` as a state observation does.
 
 - `ConvEncoder`: TD-MPC2's pixel encoder (four 32-channel convolutions: 7x7 and 5x5 and 3x3 with
-  stride 2, then 3x3; ReLU; each as one matmul over patches, `PatchConv`), flattened, a dense layer to the latent, RMS-normalised like the MLP
-  encoder's latent.
+  stride 2, then 3x3; ReLU; each one matmul over patches, `PatchConv`), flattened, a dense layer
+  to the latent, RMS-normalised like the MLP encoder's latent.
 - `random_shift`: DrQ (Kostrikov et al. 2021): each image padded by `pad` pixels (edge values)
   and cropped back at a random offset, a different one per image.
 - `FrameDynamics` (the dynamics kind 'conv_frames' of ld_mpc_jax.model.dynamics): the next
@@ -57,8 +57,9 @@ class ConvEncoder(nn.Module):
 class PatchConv(nn.Module):
   """nn.Conv with a square kernel, a stride and VALID padding, computed as one matmul over the
   image's patches (im2col): nn.Conv's parameters (kernel [k, k, C, F], bias [F], the same
-  initialisation) and values to float rounding, and about twice as fast forward and backward for
-  `ConvEncoder` on XLA:CPU, whose convolutions are slow for few channels."""
+  initialisation) and values to float rounding; XLA:CPU's convolutions are slow for few
+  channels, and with it a `:cpu_pixels` update takes 0.62x the time
+  (results/benchmarks/training_pixels_patchconv_cpu.txt)."""
   features: int
   kernel: int
   stride: int
