@@ -4,6 +4,7 @@ tests/e2e/test_bench_launchers.py.)"""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from benchmarks import training
 
@@ -106,3 +107,25 @@ def test_online_seeds_variants_run_after_the_base_with_their_fields(monkeypatch)
   assert config.online.update_ratio == r  # The given config is not changed.
   md = online_seeds.markdown(out, 'door_open_online.py:smoke', 100, 'cpu')
   assert md.splitlines()[-1].startswith('| half | 3 |')
+
+
+def test_update_split_takes_each_part_against_the_update_as_configured():
+  """Each part's saving is the base count minus the count with its fields set (a stub count
+  that reads the fields: every part leaves out a known amount)."""
+  from benchmarks import update_split
+  from ld_mpc_jax.configs import door_open_online
+  config = door_open_online.get_config('smoke')
+
+  def gflop(c):
+    return (10.0 - 4.0 * (not c.critic.latent_rollout) - 2.0 * (c.loss.w_dyn == 0)
+            - 1.0 * (c.loss.w_act == 0) - 0.5 * (c.critic.num_values == 2)
+            - 5.0 * (c.train.batch_size < config.train.batch_size))
+  entries = update_split.split(config, gflop)
+  saved = {e['part']: e['saved_gflop'] for e in entries}
+  assert saved == dict(all=0.0, latent_rollout=4.0, dynamics_loss=2.0, proposal_loss=1.0,
+                       values_3_to_5=0.5, half_batch=5.0)
+  assert entries[1]['share'] == pytest.approx(0.4)
+  assert entries[-1]['fields'] == {'train.batch_size': config.train.batch_size // 2}
+  assert '| latent_rollout (' in update_split.markdown(entries, 'x.py:smoke')
+  with pytest.raises(ValueError, match='unknown update parts'):
+    update_split.split(config, gflop, parts=('nothing',))

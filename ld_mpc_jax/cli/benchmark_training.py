@@ -25,6 +25,10 @@ first config (environments, plan, update, buffer sampling, host), for each N see
 
   python -m experiments.benchmark_training --configs=door_open_online.py:cpu \
       --online_breakdown=1,3 --repeats=3 --out=runs/bench/online_breakdown.json
+
+With --update_split instead: XLA's FLOPs of one update of the first config, and with each part
+left out in turn (the latent rollout, the dynamics' and the proposal's losses, value members,
+half the batch; counts only, nothing is timed; benchmarks/update_split.py).
 """
 
 import importlib.util
@@ -61,6 +65,8 @@ _BREAKDOWN = flags.DEFINE_list('online_breakdown', [], 'Numbers of training seed
                                 'run whose time per simulator step to break down, e.g. 1,3.')
 _WAVES = flags.DEFINE_integer('online_waves', 3, 'With --online_breakdown: timed waves per run '
                               '(after the seed waves and the compiling wave).')
+_SPLIT = flags.DEFINE_bool('update_split', False, "FLOPs of the first config's update with each "
+                           'part left out in turn (counts, no timing).')
 _ONLINE_STEPS = flags.DEFINE_integer('online_env_steps', 4000, 'Environment steps (simulator '
                                      'steps) of each timed online run, seed waves included.')
 
@@ -112,6 +118,17 @@ def load_config(spec: str):
   return module.get_config(preset or None)
 
 
+def _update_split(configs: dict, device: dict) -> None:
+  """--update_split: the first config's update FLOPs with each part left out, written to --out."""
+  import benchmarks as bench
+  from benchmarks import update_split
+  spec = _CONFIGS.value[0]
+  entries = update_split.split(configs[spec], update_split.update_gflop)
+  table = update_split.markdown(entries, spec)
+  print(table)
+  bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)
+
+
 OVERRIDES = []  # 'field=value' items of --config.field=value, for every config.
 
 
@@ -132,6 +149,9 @@ def main(argv):
   with cli.one_line_errors():
     configs = _load_configs(online=bool(seeds or breakdown))
   device = hardware.device_info()
+  if _SPLIT.value:
+    _update_split(configs, device)
+    return
   print(f"device: {device['name']} x {device['device_count']}; load average "
         f"{device['loadavg_1min_at_start']:.2f}")
   if _BREAKDOWN.value:
