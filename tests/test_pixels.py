@@ -190,3 +190,32 @@ def test_an_image_dataset_replays_the_collected_episodes(tmp_path, monkeypatch):
   monkeypatch.undo()
   with pytest.raises(dataset.DatasetError, match='replays to other states'):
     data_pixels.render_dataset(ds, 8, 1)
+
+
+@pytest.mark.skipif(
+    os.environ.get('MUJOCO_GL') != 'osmesa' or ctypes.util.find_library('OSMesa') is None,
+    reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the tests start and '
+    'libosmesa6 (apt-get install -y libosmesa6)')
+def test_an_interrupted_rendering_goes_on_where_it_stopped(tmp_path, monkeypatch):
+  from ld_mpc_jax.data import collection, pixels as data_pixels  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.envs.pixels import PixelObservations  # pylint: disable=g-import-not-at-top
+  ds = collection.collect('door-open-v3', 'medium', 3, seed=0, max_episode_steps=10,
+                          progress=False)
+  whole = data_pixels.render_dataset(ds, 8, 1)
+  partial, reset, resets = str(tmp_path / 'px.partial.npz'), PixelObservations.reset, []
+
+  def interrupted(self, **kw):
+    if len(resets) == 2:  # The third episode: after two were saved.
+      raise KeyboardInterrupt
+    resets.append(kw['seed'])
+    return reset(self, **kw)
+  monkeypatch.setattr(PixelObservations, 'reset', interrupted)
+  with pytest.raises(KeyboardInterrupt):
+    data_pixels.render_dataset(ds, 8, 1, partial=partial, save_every=1)
+  monkeypatch.setattr(PixelObservations, 'reset', lambda self, **kw: (resets.append(kw['seed']),
+                                                                    reset(self, **kw))[1])
+  resumed = data_pixels.render_dataset(ds, 8, 1, partial=partial, save_every=1)
+  assert len(resets) == 3  # Only the third episode was rendered again.
+  assert np.array_equal(resumed.observations, whole.observations)
+  other = data_pixels.render_dataset(ds, 8, 1, camera='corner', partial=partial)  # Other data.
+  assert len(resets) == 6 and other.observations.shape == whole.observations.shape
