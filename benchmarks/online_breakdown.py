@@ -35,10 +35,10 @@ PARTS = ('environments', 'plan', 'update', 'buffer sampling', 'host, other')
 def _timed(totals: Dict[str, float], counts: Dict[str, int]):
   """Wraps the online loop's methods so that each part's seconds add into `totals`."""
   from ld_mpc_jax.data.online_buffer import Buffer  # pylint: disable=g-import-not-at-top
-  from ld_mpc_jax.online import job as online_job, seats as online_seats  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.online import learner as online_learner, seats as online_seats  # pylint: disable=g-import-not-at-top
 
-  def block_states(job, _):
-    jax.block_until_ready(job.states)
+  def block_states(learner, _):
+    jax.block_until_ready(learner.states)
 
   def count_decisions(_, out):
     counts['decisions'] += sum(int(a.shape[0]) for a in out[0] if a is not None)
@@ -46,7 +46,7 @@ def _timed(totals: Dict[str, float], counts: Dict[str, int]):
   wrapped = [(online_seats.SeatWave, 'step', 'environments', None),
              (online_seats.SeatWave, '__init__', 'environments', None),  # The resets.
              (online_seats.WavePolicy, '__call__', 'plan', count_decisions),
-             (online_job.OnlineJob, '_updates', 'update', block_states),
+             (online_learner.Learner, '_updates', 'update', block_states),
              (Buffer, 'sample', 'buffer sampling', None)]
   originals = [(cls, name, getattr(cls, name)) for cls, name, _, _ in wrapped]
 

@@ -14,7 +14,7 @@ from ld_mpc_jax.data import demos
 from ld_mpc_jax.data.online_buffer import Buffer
 from ld_mpc_jax.model.settings import ModelSettings
 from ld_mpc_jax.online.settings import OnlineSettings
-from ld_mpc_jax.online import job as online_job
+from ld_mpc_jax.online import learner as online_learner
 
 DEMO_OBS = 5.0  # Observations of the fake demonstrations: every window from them is all 5.0.
 
@@ -101,7 +101,7 @@ def test_a_run_with_demos_pretrains_on_them_and_plans_from_the_first_wave(tmp_pa
       shares.append(float(np.mean(from_demos)))
       return state.replace(step=state.step + 1), {'loss': jnp.ones(n, jnp.float32)}
     return update
-  monkeypatch.setattr(online_job, 'make_seeds_update', counting)
+  monkeypatch.setattr(online_learner, 'make_seeds_update', counting)
   report = train.train_and_evaluate(config, str(tmp_path / 'run'))
   assert report['demos'] == 2 and report['updates'] == 8  # 0.1 x 80 environment steps.
   # The pretraining (demos alone), then the updates during the first wave: its episodes join the

@@ -23,7 +23,7 @@ from ld_mpc_jax.plan.search import CANDIDATE_KINDS
 from ld_mpc_jax.runs import online, train
 from ld_mpc_jax.data import online_buffer
 from ld_mpc_jax.runs.seed_plan import seed_plans
-from ld_mpc_jax.online import job as online_job, seats as online_seats
+from ld_mpc_jax.online import learner as online_learner, seats as online_seats
 from ld_mpc_jax.model.models import init_params
 from ld_mpc_jax.model.settings import ModelSettings, PlanSettings
 from ld_mpc_jax.online.settings import OnlineSettings
@@ -51,7 +51,7 @@ def _record_policies(config, workdir, monkeypatch):
   monkeypatch.setattr(evaluation_suite, 'BatchAgentPolicy',
                       recording('eval', evaluation_suite.BatchAgentPolicy))
   # No learning needed here: an update that only counts (and compiles in no time).
-  monkeypatch.setattr(online_job, 'make_seeds_update', lambda learn, n, per_call: (
+  monkeypatch.setattr(online_learner, 'make_seeds_update', lambda learn, n, per_call: (
       lambda state, batch, keys: (state.replace(step=state.step + 1),
                                   {'loss': jnp.ones(n, jnp.float32)})))
   train.train_and_evaluate(config, workdir)
@@ -260,12 +260,12 @@ def test_planned_targets_keep_the_planners_sequences_with_the_planner_waves(tmp_
   config.loss.act_target = 'planned'
   config.online.exec_noise_start = config.online.exec_noise_end = 0.0
   batches = []
-  original = online_job.make_seeds_update
+  original = online_learner.make_seeds_update
 
   def recording(learn, n, per_call):
     update = original(learn, n, per_call)
     return lambda state, batch, keys: batches.append(sorted(batch)) or update(state, batch, keys)
-  monkeypatch.setattr(online_job, 'make_seeds_update', recording)
+  monkeypatch.setattr(online_learner, 'make_seeds_update', recording)
   config.online.env_steps, config.online.eval_every = 80, 80
   config.eval.splits, config.eval.baselines, config.eval.episodes = ('held_out',), (), 1
   train.train_and_evaluate(config, str(tmp_path / 'run'))

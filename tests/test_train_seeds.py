@@ -115,7 +115,7 @@ def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(r
   job.bar.close()
   assert [seat.run.plan.fields()['online']['init_from'] for seat in job.seats] == [
       str(runs / 'both' / f'seed{s}') for s in (0, 1)]
-  (stack,) = job.states  # One device: both seeds in one stack.
+  (stack,) = job.learner.states  # One device: both seeds in one stack.
   for s in (0, 1):
     ours = jax.tree_util.tree_map(lambda x, s=s: np.asarray(x)[s], stack.params)
     for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(_params(

@@ -1,12 +1,13 @@
 """The training seeds of an online run (ld_mpc_jax.online.job, `train.num_seeds`): each seed's
-run directory, settings, buffer and environments (`Seat`), its episodes of a wave while they run
-(`SeatWave`) and what the wave left (`WaveRecord`). What a wave acts with is fixed at its start
-(`WaveSchedule`) and passed in: nothing of the job, a seat or a policy is set during a wave. The
-seeds' parameters live stacked in the job's TrainState."""
+run directory, settings, buffer and environments (`Seat`), one wave of their episodes
+(`run_wave`), each seed's episodes while they run (`SeatWave`) and what the wave left
+(`WaveRecord`). What a wave acts with is fixed at its start (`WaveSchedule`) and passed in, and
+the job's counters change after it: during a wave only the learner's parameters advance
+(ld_mpc_jax.online.learner), and the policy acts with them."""
 
 import dataclasses
 import os
-from typing import Any, List, Optional
+from typing import Any, List, Optional, Sequence, Tuple
 
 import jax
 import numpy as np
@@ -49,7 +50,7 @@ class WaveRecord:
 
 class Seat:
   """One training seed of an online run: its run directory, settings, buffer, environments and
-  what its last wave did; the parameters live in the job's stacked TrainState."""
+  what its last wave did; the parameters live in the learner's stacked TrainStates."""
 
   def __init__(self, run, online: OnlineSettings, model: ModelSettings,
                offline: Optional[data.Dataset], index: int, keep_plans: bool = False):
@@ -130,30 +131,64 @@ class SeatRuns:
       seat.run.periodic_eval(p, step, missing_since)
 
 
+def run_wave(seats: Sequence[Seat], schedule: WaveSchedule, acting, online: OnlineSettings,
+             action_dim: int, counters: dict, learner, bar,
+             data_parallel: bool = False) -> Tuple[List[WaveRecord], int]:
+  """One episode per environment of every seed, in lockstep, acting as `schedule` says (with
+  the `acting` policy settings); returns each seat's `WaveRecord` and the environment steps of
+  one seed. `counters`: the run's environment steps and episodes before the wave; `learner`
+  (online.learner.Learner) makes the updates the steps call for, dispatched before each step
+  so that they run while MuJoCo steps, and the planner acts with its newest parameters; `bar`
+  counts the steps."""
+  planner, done = schedule.mode != 'random', counters['env_steps']
+  if planner:
+    learner.catch_up(done)
+  waves = [SeatWave(seat, online, action_dim, counters['episodes'], schedule) for seat in seats]
+  policy = (WavePolicy(acting, online, seats, learner, schedule, waves, data_parallel)
+            if planner else None)
+  t, steps, none = 0, 0, [None] * len(waves)
+  while waves[0].active.any():  # The seeds' episodes have the same lengths.
+    actions, infos, sequences = (policy([w.obs for w in waves], t, waves[0].active)
+                                 if planner else (none, none, none))
+    if planner:  # The updates these steps call for, dispatched to run while they step.
+      learner.catch_up(done + steps + waves[0].upcoming())
+    taken = [w.step(a, i, s) for w, a, i, s in zip(waves, actions, infos, sequences)]
+    steps += taken[0]
+    bar.update(taken[0])
+    t += 1
+    if planner:
+      learner.catch_up(done + steps)
+      policy.refresh(learner)
+  return [w.finish() for w in waves], steps
+
+
 class WavePolicy:
   """The policy acting for every seed's episodes of a wave (EMA parameters, exploration
   noise): one seed acts as a single run does (`BatchAgentPolicy`, `online.plan_chunk`); several
   act in one call per environment and device, vmapped over the device's seeds
   (`SeedsAgentPolicy`)."""
 
-  def __init__(self, job, schedule: WaveSchedule, waves):
-    o, self.job = job.online, job
-    self.single = len(job.seats) == 1
+  def __init__(self, acting, o: OnlineSettings, seats: Sequence[Seat], learner,
+               schedule: WaveSchedule, waves, data_parallel: bool = False):
+    """`acting`: the policy's settings (eval.spec.ActSettings, the acting planner's); `learner`:
+    whose EMA parameters it acts with; `data_parallel`: one seed's environments split over the
+    devices (`eval.data_parallel`)."""
+    self.single = len(seats) == 1
     # Correlated noise is added by `SeatWave.step` (ar1_noise); white noise inside the plan.
-    keep = schedule.mode == 'plan' and job.seats[0].buffer.plan_shape is not None
+    keep = schedule.mode == 'plan' and seats[0].buffer.plan_shape is not None
     knobs = dict(action_noise=0.0 if o.exec_noise_corr > 0 else schedule.noise_std,
                  intrinsic=schedule.intrinsic,  # The planner's intrinsic term's weights.
                  keep_sequences=keep)  # The planner's sequences, for the proposal's targets.
     if self.single:
       mesh = (sharding.make_mesh(jax.local_devices())  # Each process acts on its own.
-              if job.plans[0].eval.eval.data_parallel else None)
-      self.inner = BatchAgentPolicy(job.acting, job.views()[0], schedule.mode,
-                                    seed=job.seats[0].online.seed, chunk=o.plan_chunk,
+              if data_parallel else None)
+      self.inner = BatchAgentPolicy(acting, learner.views()[0], schedule.mode,
+                                    seed=seats[0].online.seed, chunk=o.plan_chunk,
                                     mesh=mesh, **knobs)
       self.inner.start(waves[0].episodes)
     else:
-      self.inner = SeedsAgentPolicy(job.acting, job.group_ema_params(), schedule.mode,
-                                    [seat.online.seed for seat in job.seats], job.groups,
+      self.inner = SeedsAgentPolicy(acting, learner.group_ema_params(), schedule.mode,
+                                    [seat.online.seed for seat in seats], learner.groups,
                                     **knobs)
       self.inner.start([w.episodes for w in waves])
 
@@ -168,18 +203,19 @@ class WavePolicy:
     return (list(actions), list(self.inner.last_info),
             list(sequences) if sequences is not None else [None] * len(actions))
 
-  def refresh(self) -> None:
-    """The job's current EMA parameters (after its updates)."""
-    self.inner.set_params(self.job.views()[0] if self.single else self.job.group_ema_params())
+  def refresh(self, learner) -> None:
+    """The learner's current EMA parameters (after its updates)."""
+    self.inner.set_params(learner.views()[0] if self.single else learner.group_ema_params())
 
 
 class SeatWave:
   """One seed's episodes of a wave while they run: its environments, observations, policy,
   noise and what each episode recorded."""
 
-  def __init__(self, job, seat: Seat, first: int, schedule: WaveSchedule):
+  def __init__(self, seat: Seat, online: OnlineSettings, action_dim: int, first: int,
+               schedule: WaveSchedule):
     n, seed = len(seat.envs), seat.online.seed
-    self.job, self.seat, self.schedule = job, seat, schedule
+    self.seat, self.online, self.schedule, self.action_dim = seat, online, schedule, action_dim
     seeds = envs.episode_seeds(seed, first + n, 'online')[first:]
     self.episodes = [goals.Episode('online', first + i, 0, int(s), '', None)
                      for i, s in enumerate(seeds)]
@@ -189,7 +225,7 @@ class SeatWave:
     self.eps = [dict(obs=[np.copy(x)], action=[], reward=[], success=[]) for x in self.obs]
     self.plans = [[] for _ in self.obs]  # The planner's sequences, where they are kept.
     self.active = np.ones(n, bool)
-    self.noise = np.zeros((n, job.model.action_dim))
+    self.noise = np.zeros((n, action_dim))
     self.noise_rng = np.random.default_rng([seed, first, 29])
     self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
     self.spreads, self.dense_max = [], 0.0  # Each planned decision's first-action spreads [2].
@@ -208,7 +244,7 @@ class SeatWave:
     `infos` [N, 6] (None: uniform random actions) and the planner's chosen `sequences`
     [N, H, A] where they are kept; returns the environment steps taken, summed over the
     environments (`info['substeps']`)."""
-    o, seat, n = self.job.online, self.seat, len(self.seat.envs)
+    o, seat, n = self.online, self.seat, len(self.seat.envs)
     if actions is not None:
       self._count_winners(infos)
       if o.exec_noise_corr > 0:
@@ -216,7 +252,7 @@ class SeatWave:
                                self.noise_rng)
         actions = np.clip(actions + self.noise, -1.0, 1.0).astype(np.float32)
     else:
-      actions = self.rng.uniform(-1.0, 1.0, (n, self.job.model.action_dim)).astype(np.float32)
+      actions = self.rng.uniform(-1.0, 1.0, (n, self.action_dim)).astype(np.float32)
     substeps = 0
     for i in np.flatnonzero(self.active):
       self.obs[i], reward, terminated, truncated, info = seat.envs[i].step(actions[i])
