@@ -57,6 +57,27 @@ def parse_variants(config: ml_collections.ConfigDict, texts: Sequence[str]):
   return variants
 
 
+def fields_differing(base: ml_collections.ConfigDict, other: ml_collections.ConfigDict,
+                     name: str = 'the config') -> dict:
+  """{dotted field: other's value} where `other` differs from `base`, so that
+  with_overrides(base, fields) is `other`: another preset timed as a variant of the first. A
+  ValueError names a field that `base` lacks (not a variant of it)."""
+  def flat(d, prefix=''):
+    out = {}
+    for k, v in d.items():
+      if isinstance(v, dict):
+        out.update(flat(v, f'{prefix}{k}.'))
+      else:
+        out[f'{prefix}{k}'] = v
+    return out
+  a, b = flat(base.to_dict()), flat(other.to_dict())
+  extra = sorted(set(b) - set(a))
+  if extra:
+    raise ValueError(f'{name} has fields the first --configs lacks ({", ".join(extra[:3])}): '
+                     'only presets of one config file time as variants of each other')
+  return {k: v for k, v in b.items() if a[k] != v}
+
+
 def benchmark_seeds(config: ml_collections.ConfigDict, seeds: Sequence[int], env_steps: int,
                     skip: int = 1, overlaps: Sequence[bool] = (True,),
                     seed_devices: Sequence[int] = (1,),

@@ -129,3 +129,20 @@ def test_update_split_takes_each_part_against_the_update_as_configured():
   assert '| latent_rollout (' in update_split.markdown(entries, 'x.py:smoke')
   with pytest.raises(ValueError, match='unknown update parts'):
     update_split.split(config, gflop, parts=('nothing',))
+
+
+def test_another_preset_of_the_same_file_is_a_variant_of_the_first():
+  """`--online_seeds --configs=A,B`: B's fields that differ from A's, set on A, give B."""
+  from benchmarks import online_seeds
+  from ld_mpc_jax.configs import door_open_online
+  from ld_mpc_jax.configs.overrides import with_overrides
+  cpu, control = (door_open_online.get_config(p) for p in ('cpu', 'tdmpc2_cpu'))
+  fields = online_seeds.fields_differing(cpu, control)
+  assert fields['model.dynamics_type'] == 'mlp' and 'online.num_envs' not in fields
+  assert with_overrides(cpu, fields).to_dict() == control.to_dict()
+  assert online_seeds.fields_differing(cpu, cpu) == {}
+  bigger = door_open_online.get_config('cpu')
+  with bigger.unlocked():
+    bigger.model.extra = 1
+  with pytest.raises(ValueError, match=r'fields the first --configs lacks \(model.extra\)'):
+    online_seeds.fields_differing(cpu, bigger, 'x')

@@ -17,7 +17,9 @@ step_ms {median, min, max, n} after compilation and warm-up, gflop per step from
 analysis with the scans unrolled, peak_gflops measured in this run, bound_ratio = measured time /
 FLOP-bound time, devices), and a markdown table next to it (.md). Method: docs/scaling.md.
 With --online_seeds, instead: online training of the first config with N training seeds in one
-run for each N, one after the other in this process (benchmarks/online_seeds.py).
+run for each N, one after the other in this process (benchmarks/online_seeds.py); each further
+config (a preset of the same file, e.g. door_open_online.py:tdmpc2_cpu) runs after it as a
+variant, with its rate against the first.
 With --online_breakdown=1,3 instead: where a simulator step's time goes in online training of the
 first config (environments, plan, update, buffer sampling, host), for each N seeds in one run,
 --repeats runs each, and the FLOPs of a decision and an update against the peak
@@ -168,7 +170,9 @@ def main(argv):
     from benchmarks import online_seeds
     spec = _CONFIGS.value[0]
     with cli.one_line_errors():
-      variants = online_seeds.parse_variants(configs[spec], _VARIANT.value)
+      variants = online_seeds.parse_variants(configs[spec], _VARIANT.value) + [
+          (other, online_seeds.fields_differing(configs[spec], configs[other], other))
+          for other in _CONFIGS.value[1:]]  # Each further config: a variant of the first.
     overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
     entries = online_seeds.benchmark_seeds(configs[spec], seeds,
                                            _ONLINE_STEPS.value, overlaps=overlaps,
