@@ -24,10 +24,6 @@ from ld_mpc_jax.online.schedule import ActingSchedule
 from ld_mpc_jax.online.seats import Seat, SeatRuns, WaveSchedule, run_wave
 
 
-# The counters in the order the buffer files have always had them.
-_ORDER = ('env_steps', 'updates', 'episodes', 'train_seconds', 'pretrain_updates', 'normalized')
-
-
 class OnlineJob:
   """An online run as a `runs.loop.Job`: each advance is one wave of episodes and its updates.
 
@@ -79,14 +75,13 @@ class OnlineJob:
   @property
   def counters(self) -> Dict[str, Any]:
     """The run's counters (a copy): environment steps, episodes, seconds, and the learner's."""
-    merged = {**self.steps, **self.learner.counters}
-    return {k: merged[k] for k in _ORDER if k in merged}
+    return {**self.steps, **self.learner.counters}
 
   def _restore(self):
     """(each seed's TrainState at the newest step that every seed has intact, with its buffer
-    file, and seed 0's counters), or (None, {}) without a checkpoint. Newer steps (damaged, without a
-    buffer file, or not saved by every seed: a run killed between two seeds' saves) are skipped
-    with a warning (`runs.Run.restore`)."""
+    file, and seed 0's counters), or (None, {}) without a checkpoint. Newer steps (damaged,
+    without a buffer file, or not saved by every seed: a run killed between two seeds' saves)
+    are skipped with a warning (`runs.Run.restore`)."""
     if not any(seat.run.manager.all_steps() for seat in self.seats):
       for seat in self.seats:  # From scratch: rows an earlier attempt logged go.
         seat.run.restore()
