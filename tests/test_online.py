@@ -279,3 +279,29 @@ def test_planned_targets_keep_the_planners_sequences_with_the_planner_waves(tmp_
     np.testing.assert_allclose(buffer.episode(e)['action'], plan[:, 0], atol=1e-6)
   assert not buffer.episode_data['plan'][:2].any()
   assert batches and all({'plan', 'has_plan'} <= set(keys) for keys in batches)
+
+
+def test_a_wave_returns_its_steps_and_leaves_the_counters_to_the_job(tmp_path):
+  """run_wave writes nothing of the job: the counters it is given stay as they were, a random
+  wave asks the learner for no update, and the job adds the steps and episodes after it."""
+  config = door_open_online.get_config('smoke')
+  config.train.num_seeds = 2
+  job = online.online_job(seed_plans(config, str(tmp_path)), None)
+  job.bar.close()
+  asked = []
+
+  class Learner:  # Would be asked to catch up by a planner wave only.
+    def catch_up(self, env_steps):
+      asked.append(env_steps)
+  counters = dict(job.steps)
+  schedule = online_seats.WaveSchedule('random', 0.0)
+  records, steps = online_seats.run_wave(job.seats, schedule, job.acting, job.online,
+                                         job.model.action_dim, counters, Learner(), job.bar)
+  o = config.online
+  assert counters == job.steps == dict(env_steps=0, episodes=0, train_seconds=0.0)
+  assert steps == o.num_envs * o.episode_steps and not asked
+  assert [len(r.episodes) for r in records] == [o.num_envs] * 2
+  assert all(len(e['action']) * job.online.action_repeat == o.episode_steps
+             for r in records for e in r.episodes)
+  job.advance()  # The job's own wave (the first is random too): the counters after it.
+  assert (job.progress, job.counters['episodes']) == (steps, o.num_envs)
