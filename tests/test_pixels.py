@@ -148,10 +148,14 @@ def test_bad_pixel_settings_fail_in_one_line(overrides, match):
     ldmpc.validate_config(with_overrides(door_open.get_config('smoke'), overrides))
 
 
-@pytest.mark.skipif(
+# Offscreen MuJoCo rendering: tests/conftest.py sets MUJOCO_GL=osmesa; .ci/run installs the library.
+NEEDS_RENDERING = pytest.mark.skipif(
     os.environ.get('MUJOCO_GL') != 'osmesa' or ctypes.util.find_library('OSMesa') is None,
     reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the tests start and '
     'libosmesa6 (apt-get install -y libosmesa6)')
+
+
+@NEEDS_RENDERING
 def test_pixel_observations_stack_the_last_frames_flat():
   from ld_mpc_jax.envs import metaworld_env  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.envs.pixels import PixelObservations  # pylint: disable=g-import-not-at-top
@@ -168,10 +172,7 @@ def test_pixel_observations_stack_the_last_frames_flat():
   env.close()
 
 
-@pytest.mark.skipif(
-    os.environ.get('MUJOCO_GL') != 'osmesa' or ctypes.util.find_library('OSMesa') is None,
-    reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the tests start and '
-    'libosmesa6 (apt-get install -y libosmesa6)')
+@NEEDS_RENDERING
 def test_an_image_dataset_replays_the_collected_episodes(tmp_path, monkeypatch):
   from ld_mpc_jax.data import collection, dataset, pixels as data_pixels, replay  # pylint: disable=g-import-not-at-top
   ds = collection.collect('door-open-v3', 'medium', 2, seed=0, max_episode_steps=20,
@@ -192,10 +193,7 @@ def test_an_image_dataset_replays_the_collected_episodes(tmp_path, monkeypatch):
     data_pixels.render_dataset(ds, 8, 1)
 
 
-@pytest.mark.skipif(
-    os.environ.get('MUJOCO_GL') != 'osmesa' or ctypes.util.find_library('OSMesa') is None,
-    reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the tests start and '
-    'libosmesa6 (apt-get install -y libosmesa6)')
+@NEEDS_RENDERING
 def test_an_interrupted_rendering_goes_on_where_it_stopped(tmp_path, monkeypatch):
   from ld_mpc_jax.data import collection, pixels as data_pixels  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.envs.pixels import PixelObservations  # pylint: disable=g-import-not-at-top
