@@ -13,6 +13,7 @@ from there.
 
 import hashlib
 import os
+import zipfile
 from typing import Optional
 
 import numpy as np
@@ -54,7 +55,7 @@ def _resume(path: Optional[str], key: str, obs: np.ndarray) -> int:
       if str(f['key']) != key or f['obs'].shape[1] != obs.shape[1]:
         return 0
       done, rows = int(f['episodes']), f['obs']
-  except (OSError, ValueError, KeyError):  # Cut off while written: start again.
+  except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):  # Unreadable: start again.
     return 0
   obs[:len(rows)] = rows
   return done
