@@ -120,6 +120,26 @@ def load_config(spec: str):
   return module.get_config(preset or None)
 
 
+def _online_seeds(configs: dict, seeds: list, device: dict) -> None:
+  """--online_seeds: online training of the first config (and its variants: --online_variant, the
+  further --configs) with each number of seeds, written to --out."""
+  import benchmarks as bench
+  from benchmarks import online_seeds
+  spec = _CONFIGS.value[0]
+  with cli.one_line_errors():
+    variants = online_seeds.parse_variants(configs[spec], _VARIANT.value) + [
+        (other, online_seeds.fields_differing(configs[spec], configs[other], other))
+        for other in _CONFIGS.value[1:]]  # Each further config: a variant of the first.
+  overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
+  entries = online_seeds.benchmark_seeds(configs[spec], seeds, _ONLINE_STEPS.value,
+                                         overlaps=overlaps,
+                                         seed_devices=[int(d) for d in _ONLINE_DEVICES.value],
+                                         variants=variants)
+  table = online_seeds.markdown(entries, spec, _ONLINE_STEPS.value, device['name'])
+  print(table)
+  bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)
+
+
 def _update_split(configs: dict, device: dict) -> None:
   """--update_split: the first config's update FLOPs with each part left out, written to --out."""
   import benchmarks as bench
@@ -167,20 +187,7 @@ def main(argv):
     bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)
     return
   if _ONLINE_SEEDS.value:
-    from benchmarks import online_seeds
-    spec = _CONFIGS.value[0]
-    with cli.one_line_errors():
-      variants = online_seeds.parse_variants(configs[spec], _VARIANT.value) + [
-          (other, online_seeds.fields_differing(configs[spec], configs[other], other))
-          for other in _CONFIGS.value[1:]]  # Each further config: a variant of the first.
-    overlaps = {'on': (True,), 'off': (False,), 'both': (True, False)}[_ONLINE_OVERLAP.value]
-    entries = online_seeds.benchmark_seeds(configs[spec], seeds,
-                                           _ONLINE_STEPS.value, overlaps=overlaps,
-                                           seed_devices=[int(d) for d in _ONLINE_DEVICES.value],
-                                           variants=variants)
-    table = online_seeds.markdown(entries, spec, _ONLINE_STEPS.value, device['name'])
-    print(table)
-    bench.write_results(_OUT.value, [dict(e, device=device) for e in entries], table)
+    _online_seeds(configs, seeds, device)
     return
   peak = hardware.measure_peak(_PEAK_SIZE.value, _PEAK_REPEATS.value)
   print(f'peak: {peak:.1f} GFLOP/s ({_PEAK_SIZE.value}^2 float32 matmul)', flush=True)
