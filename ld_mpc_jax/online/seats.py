@@ -147,9 +147,11 @@ def run_wave(seats: Sequence[Seat], schedule: WaveSchedule, acting, online: Onli
   policy = (WavePolicy(acting, online, seats, learner, schedule, waves, data_parallel)
             if planner else None)
   t, steps, none = 0, 0, [None] * len(waves)
+  acting_with, carry = (policy.params(learner), None) if planner else (None, None)
   while waves[0].active.any():  # The seeds' episodes have the same lengths.
-    actions, infos, sequences = (policy([w.obs for w in waves], t, waves[0].active)
-                                 if planner else (none, none, none))
+    actions, infos, sequences, carry = (policy(acting_with[1], [w.obs for w in waves], t,
+                                               waves[0].active, carry)
+                                        if planner else (none, none, none, None))
     if planner:  # The updates these steps call for, dispatched to run while they step.
       learner.catch_up(done + steps + waves[0].upcoming())
     taken = [w.step(a, i, s) for w, a, i, s in zip(waves, actions, infos, sequences)]
@@ -158,7 +160,7 @@ def run_wave(seats: Sequence[Seat], schedule: WaveSchedule, acting, online: Onli
     t += 1
     if planner:
       learner.catch_up(done + steps)
-      policy.refresh(learner)
+      acting_with = policy.params(learner, acting_with)
   return [w.finish() for w in waves], steps
 
 
@@ -192,20 +194,25 @@ class WavePolicy:
                                     **knobs)
       self.inner.start([w.episodes for w in waves])
 
-  def __call__(self, obs, t: int, active: np.ndarray):
+  def __call__(self, params, obs, t: int, active: np.ndarray, carry):
     """obs: each seed's [N, obs_dim] -> (each seed's actions [N, A], infos [N, 6], planned
-    sequences [N, H, A] or None)."""
+    sequences [N, H, A] or None; the warm-start carry for the next decision). `params` from
+    `params()`, `carry` None at the wave's first decision; nothing is written on the policy."""
     if self.single:
-      actions = self.inner(obs[0], t, active)
-      return [actions], [self.inner.last_info], [self.inner.last_sequences]
-    actions = self.inner(np.stack(obs), t, active)
-    sequences = self.inner.last_sequences
-    return (list(actions), list(self.inner.last_info),
-            list(sequences) if sequences is not None else [None] * len(actions))
+      actions, infos, sequences, carry = self.inner.decide(params, obs[0], t, active, carry)
+      return [actions], [infos], [sequences], carry
+    actions, infos, sequences, carry = self.inner.decide(params, np.stack(obs), t, active, carry)
+    return (list(actions), list(infos),
+            list(sequences) if sequences is not None else [None] * len(actions), carry)
 
-  def refresh(self, learner) -> None:
-    """The learner's current EMA parameters (after its updates)."""
-    self.inner.set_params(learner.views()[0] if self.single else learner.group_ema_params())
+  def params(self, learner, last=None) -> tuple:
+    """(the learner's current EMA parameters, those as the policy acts with them), prepared
+    again only when they changed since `last` (the pair this returned before): replicating
+    over a mesh copies them to every device."""
+    source = learner.views()[0] if self.single else learner.group_ema_params()
+    if last is not None and source is last[0]:
+      return last
+    return source, self.inner.prepare(source)
 
 
 class SeatWave:

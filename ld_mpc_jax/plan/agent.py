@@ -157,7 +157,7 @@ class BatchAgentPolicy:
       _BATCH_ACTS[key] = (make_act(settings, mode) if self.per_env
                           else make_batch_act(settings, mode, chunk, mesh))
     self.act = _BATCH_ACTS[key]
-    self.keys = self.prev = None
+    self.keys = self.prev = self._sliced = None
     # The executed action's noise std and the planner's objective.Intrinsic (acting only).
     self.action_noise, self.intrinsic = action_noise, intrinsic
     self.last_info = None  # [N, 6] float32 of the last decision (NO_PLAN_INFO's fields).
@@ -170,9 +170,17 @@ class BatchAgentPolicy:
     elif params is not getattr(self, '_source', None):
       self._source, self.params = params, sharding.replicate(params, self.mesh)
 
+  def prepare(self, params):
+    """`params` as `decide` takes them: replicated over the mesh, if any."""
+    return params if self.mesh is None else sharding.replicate(params, self.mesh)
+
   def start(self, episodes) -> None:
     self.keys = episode_keys(self.seed, [ep.reset_seed for ep in episodes])
     self.prev = None
+    # Each environment's keys, sliced once here: slicing at each decision would be an eager
+    # operation, waiting behind the updates dispatched to the device.
+    self._sliced = ([self.keys[i] for i in range(self.keys.shape[0])] if self.per_env
+                    else None)
 
   def warmup(self, obs: np.ndarray) -> None:
     """Compiles the first (cold) and later (warm) decisions for this batch size."""
@@ -188,39 +196,42 @@ class BatchAgentPolicy:
                                    *knobs))
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
-    if self.per_env:
-      return self._per_env(obs, t, active)
-    actions, sequences, infos = self.act(self.params, jnp.asarray(obs, jnp.float32), self.keys,
-                                         t, self.prev, jnp.asarray(active), self.action_noise,
-                                         self.intrinsic)
-    if self.warm:
-      self.prev = sequences
-    self.last_info = np.asarray(infos)
-    if self.sequence_of is not None:
-      self.last_sequences = np.asarray(self.sequence_of(sequences))
-    return np.asarray(actions)
+    actions, self.last_info, sequences, self.prev = self.decide(self.params, obs, t, active,
+                                                                self.prev)
+    if sequences is not None:
+      self.last_sequences = sequences
+    return actions
 
-  def _per_env(self, obs, t, active):
-    if self.prev is None:
-      self.prev = [None] * obs.shape[0]
+  def decide(self, params, obs: np.ndarray, t: int, active: np.ndarray, prev):
+    """One decision of the wave `start` began, writing nothing on the policy: (actions [N, A],
+    infos [N, 6], the planner's chosen sequences [N, H, A] or None, the warm-start carry to
+    pass to the next decision). `params` as `prepare` gives them; `prev`: None at a wave's
+    first decision."""
+    if self.per_env:
+      return self._per_env(params, obs, t, active, prev)
+    actions, sequences, infos = self.act(params, jnp.asarray(obs, jnp.float32), self.keys,
+                                         t, prev, jnp.asarray(active), self.action_noise,
+                                         self.intrinsic)
+    kept = (np.asarray(self.sequence_of(sequences)) if self.sequence_of is not None
+            else None)
+    return np.asarray(actions), np.asarray(infos), kept, sequences if self.warm else prev
+
+  def _per_env(self, params, obs, t, active, prev):
+    prev = [None] * obs.shape[0] if prev is None else list(prev)
     actions = np.zeros((obs.shape[0], self.action_dim), np.float32)
     infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (obs.shape[0], 1))
-    if self.sequence_of is not None:
-      self.last_sequences = np.zeros((obs.shape[0],) + self.sequence_shape, np.float32)
-    if getattr(self, '_sliced', (None,))[0] is not self.keys:  # Once per wave: slicing here
-      # would be an eager operation, waiting behind the updates dispatched to the device.
-      self._sliced = (self.keys, [self.keys[i] for i in range(self.keys.shape[0])])
+    kept = (np.zeros((obs.shape[0],) + self.sequence_shape, np.float32)
+            if self.sequence_of is not None else None)
     for i in np.flatnonzero(active):
-      action, sequence, info = self.act(self.params, np.asarray(obs[i], np.float32),
-                                        self._sliced[1][i], t, self.prev[i], self.action_noise,
+      action, sequence, info = self.act(params, np.asarray(obs[i], np.float32),
+                                        self._sliced[i], t, prev[i], self.action_noise,
                                         self.intrinsic)
       if self.warm:
-        self.prev[i] = sequence
+        prev[i] = sequence
       actions[i], infos[i] = np.asarray(action), np.asarray(info)
-      if self.sequence_of is not None:
-        self.last_sequences[i] = np.asarray(self.sequence_of(sequence))
-    self.last_info = infos
-    return actions
+      if kept is not None:
+        kept[i] = np.asarray(self.sequence_of(sequence))
+    return actions, infos, kept, prev
 
 
 def make_policy(settings: ActSettings, params, mode: str = 'plan', seed: int = 0

@@ -60,7 +60,11 @@ class SeedsAgentPolicy:
     self.last_sequences = None
 
   def set_params(self, params) -> None:
-    self.params = list(params) if isinstance(params, (list, tuple)) else self.groups.split(params)
+    self.params = self.prepare(params)
+
+  def prepare(self, params):
+    """`params` as `decide` takes them: one stack per group of `groups`."""
+    return list(params) if isinstance(params, (list, tuple)) else self.groups.split(params)
 
   def start(self, episodes) -> None:
     """episodes[s]: agent s's episodes of the wave (goals.Episode, one per environment)."""
@@ -73,19 +77,28 @@ class SeedsAgentPolicy:
 
   def __call__(self, obs: np.ndarray, t: int, active: np.ndarray) -> np.ndarray:
     """obs [S, N, obs_dim], active [N] -> actions [S, N, A] (zeros where inactive)."""
+    actions, self.last_info, self.last_sequences, self.prev = self.decide(
+        self.params, obs, t, active, self.prev)
+    return actions
+
+  def decide(self, params, obs: np.ndarray, t: int, active: np.ndarray, prev):
+    """One decision of the wave `start` began, writing nothing on the policy: (actions
+    [S, N, A], infos [S, N, 6], the planner's chosen sequences [S, N, H, A] or None, the
+    warm-start carry for the next decision). `params` as `prepare` gives them; `prev`: None
+    at a wave's first decision."""
     s, n = obs.shape[:2]
-    if self.prev is None:
-      self.prev = [[None] * n for _ in self.groups.bounds]
+    prev = ([[None] * n for _ in self.groups.bounds] if prev is None
+            else [list(p) for p in prev])
     actions = np.zeros((s, n, self.action_dim), np.float32)
     infos = np.tile(np.asarray(NO_PLAN_INFO, np.float32), (s, n, 1))
     pending = []  # Every call of this decision dispatched first, then read.
     for i in np.flatnonzero(active):
       for g, (a, b) in enumerate(self.groups.bounds):
-        action, carry, info = self.act(self.params[g], obs[a:b, i].astype(np.float32),
-                                       self.keys[g][i], t, self.prev[g][i],
+        action, carry, info = self.act(params[g], obs[a:b, i].astype(np.float32),
+                                       self.keys[g][i], t, prev[g][i],
                                        self.action_noise, self.intrinsic)
         if self.warm:
-          self.prev[g][i] = carry
+          prev[g][i] = carry
         pending.append((a, b, i, action, info, carry))
     sequences = (np.zeros((s, n) + self.sequence_shape, np.float32)
                  if self.sequence_of is not None else None)
@@ -93,5 +106,4 @@ class SeedsAgentPolicy:
       actions[a:b, i], infos[a:b, i] = np.asarray(action), np.asarray(info)
       if sequences is not None:
         sequences[a:b, i] = np.asarray(self.sequence_of(carry))
-    self.last_info, self.last_sequences = infos, sequences
-    return actions
+    return actions, infos, sequences, prev
