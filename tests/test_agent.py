@@ -165,3 +165,38 @@ def test_kept_sequences_are_the_planners_and_lead_with_its_action(smoke_config, 
   seeds(np.stack([obs, obs]), 0, active)
   assert seeds.last_sequences.shape == (2, 2, smoke_config.horizon, smoke_config.action_dim)
   np.testing.assert_allclose(seeds.last_sequences[0], kept[0], atol=1e-5)
+
+
+def test_decide_writes_nothing_on_the_policy_and_chains_its_carry_as_calls_do(smoke_config,
+                                                                               smoke_params):
+  """An acting wave's decisions (`decide`, ld_mpc_jax.online.seats.run_wave) leave every
+  attribute of the policy as it was, and passing each decision's carry to the next gives the
+  actions, infos and sequences of the stateful calls; for both batch policies."""
+  from ld_mpc_jax.plan.agent import BatchAgentPolicy  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.envs.goals import Episode  # pylint: disable=g-import-not-at-top
+  settings = ActSettings.from_config(smoke_config)
+  rng = np.random.default_rng(0)
+  episodes = [Episode('held_out', i, 0, 10 + i, '', None) for i in range(2)]
+  active = np.array([True, False])  # An inactive environment keeps its carry.
+  stacked = jax.tree_util.tree_map(lambda x: np.stack([x, x]), smoke_params)
+  makers = [(lambda: BatchAgentPolicy(settings, smoke_params, 'plan', seed=1, chunk=chunk,
+                                      keep_sequences=True), (2, 39)) for chunk in (None, 0)]
+  makers.append((lambda: SeedsAgentPolicy(settings, stacked, 'plan', [1, 2],
+                                          keep_sequences=True), (2, 2, 39)))
+  for make, shape in makers:
+    obs = [rng.normal(size=shape).astype(np.float32) for _ in range(3)]
+    eps = episodes if len(shape) == 2 else [episodes, episodes]
+    stateful, pure = make(), make()
+    stateful.start(eps)
+    pure.start(eps)
+    before = dict(vars(pure))
+    carry, params = None, pure.prepare(stacked if len(shape) == 3 else smoke_params)
+    for t, o in enumerate(obs):
+      actions, infos, sequences, carry = pure.decide(params, o, t, active, carry)
+      np.testing.assert_allclose(actions, stateful(o, t, active), atol=1e-5)
+      np.testing.assert_allclose(infos, stateful.last_info, atol=1e-5)
+      np.testing.assert_allclose(sequences, stateful.last_sequences, atol=1e-5)
+    assert vars(pure).keys() == before.keys()
+    assert all(vars(pure)[k] is v for k, v in before.items())
+    assert carry is not None and pure.prev is None
