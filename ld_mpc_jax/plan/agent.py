@@ -168,7 +168,7 @@ class BatchAgentPolicy:
     if self.mesh is None:
       self.params = params
     elif params is not getattr(self, '_source', None):
-      self._source, self.params = params, sharding.replicate(params, self.mesh)
+      self._source, self.params = params, self.prepare(params)
 
   def prepare(self, params):
     """`params` as `decide` takes them: replicated over the mesh, if any."""
