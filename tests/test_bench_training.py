@@ -66,6 +66,7 @@ def test_finish_bound_ratio():
   np.testing.assert_allclose(entry['achieved_gflops'], 100.0)
 
 
+@pytest.mark.long  # Benchmark tooling on a whole compiled online run (about 20-40 s).
 def test_online_breakdown_parts_add_up_to_the_timed_waves():
   """benchmarks.online_breakdown on the :smoke online preset, one timed wave: every part took
   time, the parts (host = the rest) add up to the wall time, and the counts are the wave's."""
