@@ -47,8 +47,12 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
     c.train.num_steps = 4_000
     c.train.eval_every = 2_000
     return c
-  if preset == 'cpu_pixels':  # :cpu from 64 x 64 RGB frames (issue 105; docs/data.md).
+  if preset == 'cpu_pixels':  # :cpu from 48 x 48 RGB frames (issue 105; docs/data.md).
     c = get_config('cpu')
+    # 64 x 64 frames at batch 128 made an update 2.10 s on the 2-core AMD EPYC, 48 x 48 at batch 64
+    # 0.53 s (results/benchmarks/training_pixels_epyc.md): three seeds in about two hours, not seven.
+    c.model.image_size = 48
+    c.train.batch_size = 64
     c.obs_dim = c.model.image_size ** 2 * c.model.image_channels
     c.model.encoder_type = 'conv'
     c.model.normalize_obs = False  # Pixels in [0, 255]: the encoder scales them itself.
