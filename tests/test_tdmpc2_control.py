@@ -6,7 +6,6 @@ members at (z', pi(z'))), and a smoke run of the preset, shrunk, end to end."""
 import csv
 import itertools
 import math
-import time
 
 import jax
 import jax.numpy as jnp
@@ -212,9 +211,7 @@ def _shrink(c) -> None:
 def test_a_tiny_tdmpc2_control_run_trains_and_evaluates(tmp_path):
   from ld_mpc_jax.runs import train  # pylint: disable=g-import-not-at-top (environments)
   c = _tdmpc2_config()
-  start = time.time()
   train.train_and_evaluate(c, str(tmp_path))
-  elapsed = time.time() - start
   with open(tmp_path / 'online.csv') as f:
     rows = list(csv.DictReader(f))
   planned = [r for r in rows if r['acting'] == 'planner']
@@ -226,4 +223,3 @@ def test_a_tiny_tdmpc2_control_run_trains_and_evaluates(tmp_path):
   assert 'loss_consistency' in header and 'loss_q' in header
   assert 'loss_act' not in header and 'loss_dyn' not in header  # Weight 0: left out.
   assert (tmp_path / 'eval.csv').exists() and (tmp_path / 'report.md').exists()
-  assert elapsed < 60, elapsed
