@@ -50,7 +50,7 @@ def get_config(preset: str | None = None) -> ml_collections.ConfigDict:
   if preset == 'cpu_pixels':  # :cpu from 48 x 48 RGB frames (issue 105; docs/data.md).
     c = get_config('cpu')
     # 64 x 64 frames at batch 128 made an update 2.10 s on the 2-core AMD EPYC, 48 x 48 at batch 64
-    # 0.53 s (results/benchmarks/training_pixels{,48}_epyc.md): three seeds in about two hours, not seven.
+    # 0.53 s (results/benchmarks/training_pixels{,48}_epyc.md): three seeds train in 95 min, not about 7 h.
     c.model.image_size = 48
     c.train.batch_size = 64
     c.obs_dim = c.model.image_size ** 2 * c.model.image_channels
