@@ -89,6 +89,43 @@ def test_training_from_pixels_reaches_the_convolutions(pixel_config):
   assert float(jnp.abs(grads['encoder']['conv_0']['kernel']).max()) > 0
 
 
+def test_the_robots_state_beside_the_pixels_reaches_the_latent_and_is_not_shifted(pixel_config):
+  """model.proprio: 8 floats after the pixels, through their own dense layer into the latent;
+  DrQ's shift moves the pixels only."""
+  config = with_overrides(pixel_config, {'model.proprio': True, 'obs_dim': 40 * 40 * 3 + 8})
+  ldmpc.validate_config(config)
+  params = ldmpc.init_params(config, jax.random.key(0))
+  assert params['encoder']['proprio']['kernel'].shape == (8, 64)
+  rng = np.random.default_rng(1)
+  obs = np.concatenate([rng.uniform(0, 255, (2, 40 * 40 * 3)), rng.normal(size=(2, 8))], -1)
+  obs = obs.astype(np.float32)
+  moved = obs.copy()
+  moved[:, -8:] += 0.5  # The same pictures, the hand elsewhere.
+  z, z_moved = np.asarray(ldmpc.encode(params, obs)), np.asarray(ldmpc.encode(params, moved))
+  assert z.shape == (2, config.model.latent_dim) and not np.allclose(z, z_moved, atol=1e-3)
+  shifted = np.asarray(pixels.random_shift(jnp.asarray(obs), jax.random.key(3), 40, 3, pad=4,
+                                            proprio=8))
+  assert np.array_equal(shifted[:, -8:], obs[:, -8:])
+  assert not np.array_equal(shifted[:, :-8], obs[:, :-8])
+  with pytest.raises(ValueError, match=r'\+ 8 \(model.proprio\) = 4808'):
+    ldmpc.validate_config(with_overrides(config, {'obs_dim': 40 * 40 * 3}))
+  with pytest.raises(ValueError, match="encoder_type='conv' only"):
+    ldmpc.validate_config(with_overrides(door_open_smoke(), {'model.proprio': True}))
+
+
+def door_open_smoke():
+  from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
+  return door_open.get_config('smoke')
+
+
+def test_the_proprio_indices_are_the_robots_state_the_model_counts():
+  from ld_mpc_jax.envs.pixels import PROPRIO_INDEX, proprio_of  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.model.settings import PROPRIO_DIM  # pylint: disable=g-import-not-at-top
+  assert len(PROPRIO_INDEX) == PROPRIO_DIM
+  state = np.arange(39, dtype=np.float32)
+  assert proprio_of(state).tolist() == [0, 1, 2, 3, 18, 19, 20, 21]
+
+
 @pytest.fixture(scope='module')
 def frames_config():
   from ld_mpc_jax.configs import door_open  # pylint: disable=g-import-not-at-top
@@ -170,6 +207,12 @@ def test_pixel_observations_stack_the_last_frames_flat():
   frames = obs.reshape(16, 16, 2, 3)
   assert not np.array_equal(frames[:, :, 0], frames[:, :, 1])  # The arm moved between them.
   env.close()
+  env = PixelObservations(metaworld_env.make_env('door-open-v3', seed=0), size=16, frames=1,
+                          proprio=True)
+  obs, info = env.reset(seed=1)
+  assert obs.shape == (env.obs_dim,) == (16 * 16 * 3 + 8,)
+  np.testing.assert_array_equal(obs[-8:], info['state'][[0, 1, 2, 3, 18, 19, 20, 21]].astype(np.float32))
+  env.close()
 
 
 @NEEDS_RENDERING
@@ -187,6 +230,10 @@ def test_an_image_dataset_replays_the_collected_episodes(tmp_path, monkeypatch):
   monkeypatch.setattr(data_pixels, 'render_dataset', lambda *a, **k: pytest.fail('rendered again'))
   assert np.array_equal(data_pixels.get_or_render(ds, path, 8, 1).observations,
                         images.observations)  # From the file beside the state dataset's.
+  both = data_pixels.with_proprio(images, ds)  # The robot's state after the frames, float32.
+  assert both.observations.shape == (images.observations.shape[0], 8 * 8 * 3 + 8)
+  assert np.array_equal(both.observations[:, :-8], images.observations)
+  assert np.array_equal(both.observations[:, -8:], ds.observations[:, [0, 1, 2, 3, 18, 19, 20, 21]])
   ds.actions[1] = -ds.actions[1]  # Other actions: the replay leaves the stored states.
   monkeypatch.undo()
   with pytest.raises(dataset.DatasetError, match='replays to other states'):

@@ -66,6 +66,10 @@ def get_config() -> ml_collections.ConfigDict:
   # TD-MPC2 render 84 and 64 pixels square.
   m.image_size = 64
   m.image_channels = 3
+  # With the 'conv' encoder: the robot's own state (8 floats: hand position and gripper opening,
+  # now and a simulator step before; envs.pixels.PROPRIO_INDEX) after the pixels, as MoDem has
+  # it; obs_dim then counts them too.
+  m.proprio = False
   # How the MLP encoder and the 'mlp' dynamics put a latent on its manifold: 'rms' (unit
   # root-mean-square, what diffusion over z assumes) or 'simnorm' (TD-MPC2's LayerNorm + SimNorm,
   # softmax over groups of 8: the TD-MPC2 control, door_open_online.py:tdmpc2_cpu).

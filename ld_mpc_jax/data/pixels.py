@@ -8,9 +8,12 @@ data), so that agents trained from states and from pixels learn from the same da
 evaluated on the same held-out goals. Its observations are the flat frame stacks, stored as
 uint8 (a quarter of float32's size; replay.ReplayBuffer turns the sampled windows to float32).
 Rendering saves what it has every few episodes (`partial_path`): an interrupted rendering goes on
-from there.
+from there. With the robot's state beside the pixels (`model.proprio`), `with_proprio` appends
+it from the state dataset's observations to the rendered frames (float32 then), so that one
+rendering serves both.
 """
 
+import dataclasses
 import hashlib
 import os
 import zipfile
@@ -20,7 +23,7 @@ import numpy as np
 
 from ld_mpc_jax import envs
 from ld_mpc_jax.data import dataset as dataset_lib
-from ld_mpc_jax.envs.pixels import PixelObservations
+from ld_mpc_jax.envs.pixels import PixelObservations, PROPRIO_INDEX, proprio_of
 
 # Largest difference allowed between a replayed state and the stored one (float32 storage).
 STATE_TOLERANCE = 1e-5
@@ -135,3 +138,18 @@ def get_or_render(ds: dataset_lib.Dataset, state_path: str, size: int, frames: i
   if os.path.exists(partial_path(path)):
     os.remove(partial_path(path))
   return out
+
+
+def with_proprio(images: dataset_lib.Dataset, states: dataset_lib.Dataset) -> dataset_lib.Dataset:
+  """The image dataset `images` with the robot's state (envs.pixels.PROPRIO_INDEX) of the same
+  episodes' state observations (`states`, which it was rendered from) after each frame stack:
+  float32 [N, pixels + 8], as PixelObservations(proprio=True) observes."""
+  if images.observations.shape[0] != states.observations.shape[0]:
+    raise dataset_lib.DatasetError(f'the image dataset has {images.observations.shape[0]} '
+                                   f'observations, its state dataset '
+                                   f'{states.observations.shape[0]}: not rendered from it')
+  obs = np.concatenate([images.observations.astype(np.float32),
+                        proprio_of(states.observations)], axis=-1)
+  meta = dict(images.metadata, obs_dim=int(obs.shape[1]),
+              pixels=dict(images.metadata['pixels'], proprio=list(PROPRIO_INDEX)))
+  return dataclasses.replace(images, observations=obs, metadata=meta).validate()

@@ -31,7 +31,8 @@ TDMPC2_TASK_SET = 'mt80'  # The only TD-MPC2 task set with Meta-World tasks.
 class DataSpec:
   """What training data a config names, built once (`from_config`): `config.data`, the task (or
   the tasks of a multi-task config), the action repeat and the sizes it must have, and for a model
-  of images the frames to render (`frames` stacked RGB frames of `image_size`; 0: states)."""
+  of images the frames to render (`frames` stacked RGB frames of `image_size`; 0: states) and
+  whether the robot's state follows them (`proprio`, `model.proprio`)."""
   source: str
   path: str
   preset: str
@@ -46,6 +47,7 @@ class DataSpec:
   action_dim: int
   image_size: int
   frames: int
+  proprio: bool = False
 
   @classmethod
   def from_config(cls, config: ml_collections.ConfigDict) -> 'DataSpec':
@@ -56,7 +58,8 @@ class DataSpec:
                tasks=tuple(config.tasks) if 'tasks' in config and len(config.tasks) > 1 else (),
                action_repeat=config.eval.action_repeat, obs_dim=config.obs_dim,
                action_dim=config.action_dim, image_size=m.image_size,
-               frames=m.image_channels // 3 if images else 0)
+               frames=m.image_channels // 3 if images else 0,
+               proprio=bool(images and m.proprio))
 
   def check(self) -> None:
     """One-line ValueErrors for the source, its preset or path (no file access: its loader
@@ -92,7 +95,8 @@ def _load_scripted(spec: DataSpec, progress: bool) -> dataset_lib.Dataset:
     return ds
   path = collection.dataset_path(spec.dir, spec.task, spec.preset, spec.episodes, spec.seed,
                                  spec.action_repeat, spec.max_episode_steps)
-  return pixels.get_or_render(ds, path, spec.image_size, spec.frames, progress=progress)
+  images = pixels.get_or_render(ds, path, spec.image_size, spec.frames, progress=progress)
+  return pixels.with_proprio(images, ds) if spec.proprio else images
 
 
 def _check_tdmpc2(spec: DataSpec) -> None:

@@ -7,6 +7,10 @@ this 2-core CPU (84 x 84: 59 ms; the frame's size hardly matters), against about
 simulator's own step; with shadows, reflections, the skybox and multisampling off (`fast`, the
 default) it takes about 6 ms (`python -m benchmarks.render`, results/benchmarks/render_cpu.md).
 The agent sees what it is trained on, so the cheaper picture is the one used throughout.
+
+With `proprio`, the robot's own state follows the frames, as MoDem gives it (Hansen et al. 2023):
+the hand's position and the gripper's opening, now and one simulator step before (PROPRIO_INDEX of
+Meta-World's 39-dimensional state), 8 floats after the pixels.
 """
 
 import gc
@@ -18,6 +22,9 @@ import numpy as np
 
 # Rendering features `fast` turns off (mujoco.mjtRndFlag names).
 SLOW_FLAGS = ('mjRND_SHADOW', 'mjRND_REFLECTION', 'mjRND_SKYBOX')
+# The robot's own state in Meta-World's observation: hand xyz and gripper opening (0-3), and the
+# same one simulator step before (18-21); the objects (4-17, 22-35) and the goal (36-38) are not.
+PROPRIO_INDEX = (0, 1, 2, 3, 18, 19, 20, 21)
 
 
 def check_rendering() -> None:
@@ -68,34 +75,38 @@ class FrameRenderer:
 class PixelObservations:
   """Wraps an environment (reset, step) so that its observation is the last `frames` frames,
   oldest first, stacked on the channels and flattened: float32 [size * size * 3 frames] in
-  [0, 255]. info['state'] keeps the state observation (for scripted policies and diagnostics).
-  At reset the first frame fills the stack."""
+  [0, 255], then with `proprio` the robot's state (PROPRIO_INDEX of the state observation).
+  info['state'] keeps the state observation (for scripted policies and diagnostics). At reset
+  the first frame fills the stack."""
 
   def __init__(self, env, size: int = 64, frames: int = 3, camera: str = 'corner2',
-               fast: bool = True):
+               fast: bool = True, proprio: bool = False):
     if frames < 1 or size < 1:
       raise ValueError(f'image observations need frames >= 1 and size >= 1, got {frames}, {size}')
-    self.env, self.frames = env, frames
+    self.env, self.frames, self.proprio = env, frames, proprio
     self.renderer = FrameRenderer(env, size, camera, fast)
     self.stack = []
 
   @property
   def obs_dim(self) -> int:
     size = self.renderer.renderer.height
-    return size * size * 3 * self.frames
+    return size * size * 3 * self.frames + (len(PROPRIO_INDEX) if self.proprio else 0)
 
-  def _obs(self) -> np.ndarray:
-    return np.concatenate(self.stack, axis=-1).astype(np.float32).reshape(-1)
+  def _obs(self, state: np.ndarray) -> np.ndarray:
+    image = np.concatenate(self.stack, axis=-1).astype(np.float32).reshape(-1)
+    if not self.proprio:
+      return image
+    return np.concatenate([image, proprio_of(state)])
 
   def reset(self, **kwargs) -> Tuple[np.ndarray, Dict[str, Any]]:
     state, info = self.env.reset(**kwargs)
     self.stack = [self.renderer.frame()] * self.frames
-    return self._obs(), dict(info, state=state)
+    return self._obs(state), dict(info, state=state)
 
   def step(self, action):
     state, reward, terminated, truncated, info = self.env.step(action)
     self.stack = self.stack[1:] + [self.renderer.frame()]
-    return self._obs(), reward, terminated, truncated, dict(info, state=state)
+    return self._obs(state), reward, terminated, truncated, dict(info, state=state)
 
   def close(self) -> None:
     self.renderer.close()
@@ -105,8 +116,13 @@ class PixelObservations:
     return getattr(self.env, name)
 
 
-def image_env_factory(size: int, frames: int, camera: str = 'corner2'):
+def proprio_of(states: np.ndarray) -> np.ndarray:
+  """The robot's own state, float32 [..., 8], of Meta-World state observations [..., 39]."""
+  return np.asarray(states, np.float32)[..., list(PROPRIO_INDEX)]
+
+
+def image_env_factory(size: int, frames: int, camera: str = 'corner2', proprio: bool = False):
   """make_env(**kwargs) wrapped in PixelObservations: an evaluation's env_factory."""
   from ld_mpc_jax.envs import metaworld_env  # pylint: disable=g-import-not-at-top
   return lambda **kwargs: PixelObservations(metaworld_env.make_env(**kwargs), size, frames,
-                                            camera)
+                                            camera, proprio=proprio)

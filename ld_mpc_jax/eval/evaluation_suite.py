@@ -109,7 +109,7 @@ def evaluate_policy(spec: EvalSpec, params, mode: str, num_episodes: int,
   policy.action_noise = float(e.action_noise)  # 0: exactly the policy's action.
   m = spec.act.model
   if env_factory is None and m.images:  # The policy observes rendered frames.
-    env_factory = image_env_factory(m.image_size, m.image_channels // 3)
+    env_factory = image_env_factory(m.image_size, m.image_channels // 3, proprio=m.proprio)
   eps = episodes(spec.goals, split, seed, num_episodes)
   if only is not None:
     eps = [eps[i] for i in only]

@@ -187,6 +187,15 @@ def _critic_terms(critic_loss, terms, metrics, params, target_params, z, z_ema, 
   return weights
 
 
+def _drq(m: ModelSettings, obs: jnp.ndarray, key: jax.Array) -> jnp.ndarray:
+  """DrQ for images (`conv` encoder): each image shifted at random, its own stream of `key`;
+  the robot's state after the pixels and state observations as they are."""
+  if m.encoder_type != 'conv':
+    return obs
+  return random_shift(obs, jax.random.fold_in(key, 102), m.image_size, m.image_channels, 4,
+                      m.proprio_dim)
+
+
 def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Callable:
   """Returns loss_fn(params, target_params, batch, key) -> (loss [], metrics {name: []}).
 
@@ -202,9 +211,7 @@ def make_loss_fn(m: ModelSettings, losses: LossSettings, nets: Networks) -> Call
   planned = losses.act_target == 'planned'
 
   def loss_fn(params, target_params, batch, key):
-    obs, action, reward = batch['obs'], batch['action'], batch['reward']
-    if m.encoder_type == 'conv':  # DrQ: each image shifted at random (its own stream).
-      obs = random_shift(obs, jax.random.fold_in(key, 102), m.image_size, m.image_channels)
+    obs, action, reward = _drq(m, batch['obs'], key), batch['action'], batch['reward']
     k_dyn, k_act, k_drop, k_roll, k_pi = jax.random.split(key, 5)
     drop = lambda i: {'dropout': jax.random.fold_in(k_drop, i)}  # One stream per network.
     encode = lambda p, o: nets.encoder.apply({'params': p['encoder']}, o)

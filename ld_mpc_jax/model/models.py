@@ -83,7 +83,8 @@ def build_encoder(m: ModelSettings) -> nn.Module:
   if m.encoder_type == 'identity':
     return IdentityEncoder(m.normalize_obs)
   if m.encoder_type == 'conv':
-    return ConvEncoder(m.image_size, m.image_channels, m.latent_dim)
+    return ConvEncoder(m.image_size, m.image_channels, m.latent_dim,
+                       proprio=m.proprio_dim)
   return Encoder(m.encoder_hidden, m.latent_dim, m.normalize_obs, m.latent_norm)
 
 
@@ -269,23 +270,30 @@ def _encode_images(enc: dict, obs: jnp.ndarray) -> jnp.ndarray:
   the parameters (VALID convolutions: 7 and 5 and 3 with stride 2, then 3). Sizes that the
   convolutions map to the same output (63 to 66 pixels, say) cannot be told apart here."""
   channels = enc['conv_0']['kernel'].shape[2]
-  dim = obs.shape[-1] if obs.ndim else 0
-  size = int(round((dim / channels) ** 0.5))
+  proprio = enc['proprio']['kernel'].shape[0] if 'proprio' in enc else 0  # model.proprio
+  dim = obs.shape[-1] - proprio if obs.ndim else 0
+  size = int(round((max(dim, 0) / channels) ** 0.5))
   out = size
   for kernel, stride in ((7, 2), (5, 2), (3, 2), (3, 1)):
     out = (out - kernel) // stride + 1
+  conv_features = enc['out']['kernel'].shape[0] - (
+      enc['proprio']['kernel'].shape[1] if proprio else 0)
   if size * size * channels != dim or out < 1 or (
-      out * out * enc['conv_3']['kernel'].shape[3] != enc['out']['kernel'].shape[0]):
-    raise ValueError(f'encode expects flat images [..., S * S * {channels}] of a size whose '
-                     f'convolutions give the encoder\'s {enc["out"]["kernel"].shape[0]} features, '
-                     f'got {obs.shape}')
+      out * out * enc['conv_3']['kernel'].shape[3] != conv_features):
+    tail = f' + {proprio} (the robot\'s state)' if proprio else ''
+    raise ValueError(f'encode expects flat images [..., S * S * {channels}{tail}] of a size whose '
+                     f'convolutions give the encoder\'s {conv_features} features, got {obs.shape}')
   return _apply_conv_encoder(enc, obs, size)
 
 
 @functools.partial(jax.jit, static_argnums=2)
 def _apply_conv_encoder(enc: dict, obs: jnp.ndarray, size: int) -> jnp.ndarray:
   channels, latent = enc['conv_0']['kernel'].shape[2], enc['out']['kernel'].shape[1]
-  return ConvEncoder(size, channels, latent).apply({'params': enc}, obs)
+  if 'proprio' not in enc:
+    return ConvEncoder(size, channels, latent).apply({'params': enc}, obs)
+  proprio, features = enc['proprio']['kernel'].shape
+  return ConvEncoder(size, channels, latent, proprio=proprio,
+                     proprio_features=features).apply({'params': enc}, obs)
 
 
 @jax.jit

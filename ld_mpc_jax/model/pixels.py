@@ -8,7 +8,9 @@ through datasets, buffers and `plan` as a state observation does.
 
 - `ConvEncoder`: TD-MPC2's pixel encoder (four 32-channel convolutions: 7x7 and 5x5 and 3x3 with
   stride 2, then 3x3; ReLU; each one matmul over patches, `PatchConv`), flattened, a dense layer
-  to the latent, RMS-normalised like the MLP encoder's latent.
+  to the latent, RMS-normalised like the MLP encoder's latent. With `proprio` floats of the
+  robot's own state after the pixels (`model.proprio`, as MoDem has it), a dense layer (ELU) of
+  them joins the convolutions' features before that last layer.
 - `random_shift`: DrQ (Kostrikov et al. 2021): each image padded by `pad` pixels (edge values)
   and cropped back at a random offset, a different one per image.
 - `FrameDynamics` (the dynamics kind 'conv_frames' of ld_mpc_jax.model.dynamics): the next
@@ -36,14 +38,18 @@ def as_images(x: jnp.ndarray, size: int, channels: int) -> jnp.ndarray:
 
 
 class ConvEncoder(nn.Module):
-  """Flat images [..., S * S * C] in [0, 255] -> z [..., latent_dim] (TD-MPC2's convolutions)."""
+  """Flat images [..., S * S * C] in [0, 255], then `proprio` floats of the robot's state ->
+  z [..., latent_dim] (TD-MPC2's convolutions)."""
   image_size: int
   channels: int
   latent_dim: int
   features: int = 32
+  proprio: int = 0
+  proprio_features: int = 64
 
   @nn.compact
   def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
+    obs, state = split_proprio(obs, self.proprio)
     x = as_images(obs, self.image_size, self.channels) / 255.0 - 0.5
     batch = x.shape[:-3]
     x = x.reshape((-1,) + x.shape[-3:])
@@ -51,7 +57,16 @@ class ConvEncoder(nn.Module):
       x = PatchConv(self.features, kernel, stride, name=f'conv_{i}')(x)
       x = nn.relu(x) if i < 3 else x
     x = x.reshape(batch + (-1,))
+    if self.proprio:
+      x = jnp.concatenate([x, nn.elu(nn.Dense(self.proprio_features, name='proprio')(state))], -1)
     return rms_normalize(nn.Dense(self.latent_dim, name='out')(x))
+
+
+def split_proprio(obs: jnp.ndarray, proprio: int):
+  """(the flat pixels, the last `proprio` floats: the robot's state, or None without them)."""
+  if not proprio:
+    return obs, None
+  return obs[..., :-proprio], obs[..., -proprio:]
 
 
 class PatchConv(nn.Module):
@@ -76,9 +91,13 @@ class PatchConv(nn.Module):
 
 
 def random_shift(obs: jnp.ndarray, key: jax.Array, size: int, channels: int,
-                 pad: int = 4) -> jnp.ndarray:
+                 pad: int = 4, proprio: int = 0) -> jnp.ndarray:
   """DrQ's augmentation of flat images [..., S * S * C]: each image edge-padded by `pad` and
-  cropped back to S x S at a random integer offset in [0, 2 pad]^2 (its own per image)."""
+  cropped back to S x S at a random integer offset in [0, 2 pad]^2 (its own per image); the last
+  `proprio` floats (the robot's state) are left as they are."""
+  obs, state = split_proprio(obs, proprio)
+  if state is not None:
+    return jnp.concatenate([random_shift(obs, key, size, channels, pad), state], -1)
   images = as_images(obs, size, channels)
   flat = images.reshape((-1,) + images.shape[-3:])
   padded = jnp.pad(flat, ((0, 0), (pad, pad), (pad, pad), (0, 0)), mode='edge')

@@ -24,7 +24,11 @@ _MODEL_FIELDS = (
     'proposal_blocks', 'dynamics_blocks', 'objective_blocks', 'actor_hidden', 'novelty_members',
     'novelty_target', 'proposal_type', 'dynamics_type', 'normalize_obs', 'obs_mask_constant',
     'task_dim', 'normalize_dynamics', 'encoder_type', 'num_bins', 'vmin', 'vmax', 'image_size',
-    'image_channels', 'latent_norm')
+    'image_channels', 'proprio', 'latent_norm')
+
+
+# Floats of the robot's own state after the pixels with `model.proprio` (envs.pixels.PROPRIO_INDEX).
+PROPRIO_DIM = 8
 
 
 def _frozen(value: Any) -> Any:
@@ -76,6 +80,7 @@ class ModelSettings(_Hashable):
   vmax: float
   image_size: int
   image_channels: int
+  proprio: bool
   latent_norm: str
   # config.diffusion
   prediction: str
@@ -112,6 +117,16 @@ class ModelSettings(_Hashable):
     dynamics on the images themselves): model.image_size^2 x model.image_channels, 3 channels a
     stacked RGB frame."""
     return self.encoder_type == 'conv' or self.dynamics_type == 'conv_frames'
+
+  @property
+  def image_dim(self) -> int:
+    """Floats of the pixels in an image observation (the robot's state, with `proprio`, after)."""
+    return self.image_size * self.image_size * self.image_channels
+
+  @property
+  def proprio_dim(self) -> int:
+    """Floats of the robot's state after the pixels (`model.proprio`), else 0."""
+    return PROPRIO_DIM if self.proprio else 0
 
   @property
   def multitask(self) -> bool:
@@ -166,16 +181,20 @@ class ModelSettings(_Hashable):
       raise ValueError(f"config.model.novelty_target must be 'latent' or 'obs', got "
                        f'{self.novelty_target!r}')
     kind, frames = self.encoder_type, self.dynamics_type == 'conv_frames'
-    image_dim = self.image_size * self.image_size * self.image_channels
+    image_dim = self.image_dim + self.proprio_dim
     if kind not in ('mlp', 'identity', 'conv'):
       raise ValueError(f"config.model.encoder_type must be 'mlp', 'identity' or 'conv', got "
                        f'{kind!r}')
     if kind != 'mlp' and self.multitask:
       raise ValueError(f'config.model.encoder_type={kind} is for one task (config.tasks is set)')
     if self.images and (self.obs_dim != image_dim or self.image_channels % 3):
-      raise ValueError(f'config.obs_dim must be model.image_size^2 x model.image_channels = '
-                       f'{image_dim} for image observations, the channels 3 per RGB frame, got '
+      raise ValueError(f'config.obs_dim must be model.image_size^2 x model.image_channels'
+                       f'{" + 8 (model.proprio)" if self.proprio else ""} = {image_dim} for '
+                       f'image observations, the channels 3 per RGB frame, got '
                        f'{self.obs_dim} and {self.image_channels} channels')
+    if self.proprio and kind != 'conv':
+      raise ValueError("config.model.proprio (the robot's state beside the pixels) is read by "
+                       f"config.model.encoder_type='conv' only, got {kind!r}")
     if frames and (kind != 'identity' or self.image_size % 2):
       raise ValueError("config.model.dynamics_type=conv_frames denoises frames: it needs "
                        "config.model.encoder_type='identity' (the latent is the frame stack) "

@@ -53,7 +53,7 @@ FIELDS = {
     'train': dict(data_parallel=False, num_seeds=1, obs_noise_aug=0.0, seed_devices=1),
 }
 # The version ld_mpc_jax/configs/base.py writes (config.version).
-CONFIG_VERSION = 10
+CONFIG_VERSION = 11
 
 
 def _online_fields(saved: dict) -> dict:
@@ -181,9 +181,20 @@ def to_v10(saved: dict) -> None:
       fill(saved, section, fields)
 
 
+# Field added in version 11, with the value that changes nothing: images without the robot's state.
+V11_FIELDS = {'model': dict(proprio=False)}
+
+
+def to_v11(saved: dict) -> None:
+  """Version 10 -> 11 (in place): `model.proprio` False."""
+  for section, fields in V11_FIELDS.items():
+    if section in saved:
+      fill(saved, section, fields)
+
+
 # version -> the step that brings a config of version - 1 to it.
 STEPS = {1: to_v1, 2: to_v2, 3: to_v3, 4: to_v4, 5: to_v5, 6: to_v6, 7: to_v7, 8: to_v8,
-         9: to_v9, 10: to_v10}
+         9: to_v9, 10: to_v10, 11: to_v11}
 
 
 def migrate(saved: dict) -> dict:
