@@ -270,14 +270,13 @@ def _encode_images(enc: dict, obs: jnp.ndarray) -> jnp.ndarray:
   the parameters (VALID convolutions: 7 and 5 and 3 with stride 2, then 3). Sizes that the
   convolutions map to the same output (63 to 66 pixels, say) cannot be told apart here."""
   channels = enc['conv_0']['kernel'].shape[2]
-  proprio = enc['proprio']['kernel'].shape[0] if 'proprio' in enc else 0  # model.proprio
+  proprio, features = _proprio_shape(enc)
   dim = obs.shape[-1] - proprio if obs.ndim else 0
   size = int(round((max(dim, 0) / channels) ** 0.5))
   out = size
   for kernel, stride in ((7, 2), (5, 2), (3, 2), (3, 1)):
     out = (out - kernel) // stride + 1
-  conv_features = enc['out']['kernel'].shape[0] - (
-      enc['proprio']['kernel'].shape[1] if proprio else 0)
+  conv_features = enc['out']['kernel'].shape[0] - (features if proprio else 0)
   if size * size * channels != dim or out < 1 or (
       out * out * enc['conv_3']['kernel'].shape[3] != conv_features):
     tail = f' + {proprio} (the robot\'s state)' if proprio else ''
@@ -289,11 +288,17 @@ def _encode_images(enc: dict, obs: jnp.ndarray) -> jnp.ndarray:
 @functools.partial(jax.jit, static_argnums=2)
 def _apply_conv_encoder(enc: dict, obs: jnp.ndarray, size: int) -> jnp.ndarray:
   channels, latent = enc['conv_0']['kernel'].shape[2], enc['out']['kernel'].shape[1]
-  if 'proprio' not in enc:
-    return ConvEncoder(size, channels, latent).apply({'params': enc}, obs)
-  proprio, features = enc['proprio']['kernel'].shape
+  proprio, features = _proprio_shape(enc)
   return ConvEncoder(size, channels, latent, proprio=proprio,
                      proprio_features=features).apply({'params': enc}, obs)
+
+
+def _proprio_shape(enc: dict):
+  """(floats of the robot's state the encoder reads, width of its layer of them), read off its
+  parameters (`model.proprio`); (0, ConvEncoder's default width) without them."""
+  if 'proprio' not in enc:
+    return 0, ConvEncoder.proprio_features
+  return tuple(enc['proprio']['kernel'].shape)
 
 
 @jax.jit
