@@ -216,6 +216,32 @@ def test_pixel_observations_stack_the_last_frames_flat():
 
 
 @NEEDS_RENDERING
+def test_the_environments_of_a_task_share_one_renderer_and_draw_their_own_state():
+  import mujoco  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.envs import metaworld_env, pixels  # pylint: disable=g-import-not-at-top
+  make = lambda seed: metaworld_env.make_env('door-open-v3', seed=seed, random_goals=True)
+  before = len(pixels._RENDERERS)  # Other tests' environments left open, if any.
+  envs = [pixels.PixelObservations(make(s), size=16, frames=1) for s in (0, 1)]
+  obs = [e.reset(seed=s)[0] for s, e in enumerate(envs)]
+  assert envs[0].renderer.renderer is envs[1].renderer.renderer
+  assert len(pixels._RENDERERS) == before + 1
+  base = envs[1].env.unwrapped  # Its door elsewhere: the models differ in KINEMATIC_FIELDS only.
+  assert not np.array_equal(envs[0].env.unwrapped.model.body_pos, base.model.body_pos)
+  assert not np.array_equal(obs[0], obs[1])
+  own = mujoco.Renderer(base.model, 16, 16)  # What the second one draws with a renderer of its own.
+  own.update_scene(base.data, camera='corner2')
+  for flag in pixels.SLOW_FLAGS:
+    own.scene.flags[getattr(mujoco.mjtRndFlag, flag)] = False
+  np.testing.assert_array_equal(obs[1], own.render().reshape(-1).astype(np.float32))
+  own.close()
+  envs[0].close()
+  envs[0].close()  # Twice is once: the second environment still draws.
+  assert np.array_equal(envs[1].step(np.zeros(4, np.float32))[0].shape, obs[1].shape)
+  envs[1].close()
+  assert len(pixels._RENDERERS) == before
+
+
+@NEEDS_RENDERING
 def test_an_image_dataset_replays_the_collected_episodes(tmp_path, monkeypatch):
   from ld_mpc_jax.data import collection, dataset, pixels as data_pixels, replay  # pylint: disable=g-import-not-at-top
   ds = collection.collect('door-open-v3', 'medium', 2, seed=0, max_episode_steps=20,

@@ -14,7 +14,9 @@ Meta-World's 39-dimensional state), 8 floats after the pixels.
 """
 
 import gc
+import hashlib
 import sys
+import threading
 from typing import Any, Dict, Tuple
 import warnings
 
@@ -49,16 +51,50 @@ def check_rendering() -> None:
                      'libosmesa6) or MUJOCO_GL=egl')
 
 
+# Model arrays that reach a frame through the simulator's state alone (mj_kinematics turns them into
+# data.xpos, site_xpos, ...): Meta-World moves the objects and goals of an episode there, so the
+# environments of one task differ in nothing else that is drawn (tests/test_pixels.py).
+KINEMATIC_FIELDS = frozenset(('body_pos', 'body_quat', 'site_pos', 'site_quat'))
+_RENDERERS: Dict[tuple, list] = {}  # key -> [mujoco.Renderer, environments using it]
+_RENDERERS_LOCK = threading.Lock()
+
+
+def render_key(model, size: int) -> tuple:
+  """What a renderer draws with: the thread (an OSMesa context is made current in its own), the
+  frame's size, and a digest of every model array but KINEMATIC_FIELDS with the offscreen
+  settings. Environments of one task share it whatever their goals."""
+  digest = hashlib.blake2b(digest_size=16)
+  for name in sorted(dir(model)):
+    value = None if name.startswith('_') or name in KINEMATIC_FIELDS else getattr(model, name, None)
+    if isinstance(value, np.ndarray):
+      digest.update(name.encode() + str(value.shape).encode() + np.ascontiguousarray(value).data)
+  g = model.vis.global_
+  digest.update(repr((model.vis.quality.offsamples, g.offwidth, g.offheight, model.stat.extent,
+                      model.vis.map.znear, model.vis.map.zfar)).encode())
+  return threading.get_ident(), size, digest.hexdigest()
+
+
 class FrameRenderer:
-  """frame() -> uint8 [size, size, 3] of `camera` in the environment's current state."""
+  """frame() -> uint8 [size, size, 3] of `camera` in the environment's current state.
+
+  The environments of one task share one `mujoco.Renderer` (per thread and frame size; `render_key`):
+  each holds an OSMesa context of about 130 MB here, so that 50 evaluation environments held 6 GB
+  of them. A shared one draws each environment's own state, the same pixels as its own renderer;
+  the last environment's `close` closes it.
+  """
 
   def __init__(self, env, size: int = 64, camera: str = 'corner2', fast: bool = True):
     import mujoco  # pylint: disable=g-import-not-at-top (the environments' package)
     base = env.unwrapped
-    self.data, self.camera, self.fast = base.data, camera, fast
+    self.data, self.camera, self.fast, self.size = base.data, camera, fast, size
     if fast:  # Multisampling is the model's setting: this environment renders without it.
       base.model.vis.quality.offsamples = 0
-    self.renderer = mujoco.Renderer(base.model, size, size)
+    self.key = render_key(base.model, size)
+    with _RENDERERS_LOCK:
+      if self.key not in _RENDERERS:
+        _RENDERERS[self.key] = [mujoco.Renderer(base.model, size, size), 0]
+      _RENDERERS[self.key][1] += 1
+      self.renderer = _RENDERERS[self.key][0]
     self.flags = [getattr(mujoco.mjtRndFlag, name) for name in SLOW_FLAGS]
 
   def frame(self) -> np.ndarray:
@@ -69,7 +105,16 @@ class FrameRenderer:
     return self.renderer.render()
 
   def close(self) -> None:
-    self.renderer.close()
+    """Closes the shared renderer when no other environment uses it; twice is once."""
+    if self.renderer is None:
+      return
+    with _RENDERERS_LOCK:
+      entry = _RENDERERS[self.key]
+      entry[1] -= 1
+      if not entry[1]:
+        del _RENDERERS[self.key]
+        entry[0].close()
+    self.renderer = None
 
 
 class PixelObservations:
@@ -89,7 +134,7 @@ class PixelObservations:
 
   @property
   def obs_dim(self) -> int:
-    size = self.renderer.renderer.height
+    size = self.renderer.size
     return size * size * 3 * self.frames + (len(PROPRIO_INDEX) if self.proprio else 0)
 
   def _obs(self, state: np.ndarray) -> np.ndarray:
