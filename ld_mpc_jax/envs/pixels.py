@@ -78,8 +78,8 @@ class FrameRenderer:
   """frame() -> uint8 [size, size, 3] of `camera` in the environment's current state.
 
   The environments of one task share one `mujoco.Renderer` (per thread and frame size; `render_key`):
-  each holds an OSMesa context of about 130 MB here, so that 50 evaluation environments held 6 GB
-  of them. A shared one draws each environment's own state, the same pixels as its own renderer;
+  a renderer of its own held 165 MB here, so that 50 evaluation environments held 8 GB of them
+  (`python -m benchmarks.render --memory=20`: a pixel environment 30 MB with it shared). A shared one draws each environment's own state, the same pixels as its own renderer;
   the last environment's `close` closes it.
   """
 
