@@ -215,6 +215,12 @@ def test_pixel_observations_stack_the_last_frames_flat():
   env.close()
 
 
+def test_evaluations_of_a_pixel_model_reuse_one_environment_factory():
+  from ld_mpc_jax.envs.pixels import image_env_factory  # pylint: disable=g-import-not-at-top
+  assert image_env_factory(16, 1, proprio=True) is image_env_factory(16, 1, proprio=True)
+  assert image_env_factory(16, 1) is not image_env_factory(16, 2)
+
+
 @NEEDS_RENDERING
 def test_the_environments_of_a_task_share_one_renderer_and_draw_their_own_state():
   import mujoco  # pylint: disable=g-import-not-at-top

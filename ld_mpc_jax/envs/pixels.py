@@ -13,6 +13,7 @@ the hand's position and the gripper's opening, now and one simulator step before
 Meta-World's 39-dimensional state), 8 floats after the pixels.
 """
 
+import functools
 import gc
 import hashlib
 import sys
@@ -166,8 +167,13 @@ def proprio_of(states: np.ndarray) -> np.ndarray:
   return np.asarray(states, np.float32)[..., list(PROPRIO_INDEX)]
 
 
+@functools.lru_cache(maxsize=None)
 def image_env_factory(size: int, frames: int, camera: str = 'corner2', proprio: bool = False):
-  """make_env(**kwargs) wrapped in PixelObservations: an evaluation's env_factory."""
+  """make_env(**kwargs) wrapped in PixelObservations: an evaluation's env_factory. The same
+  function for the same arguments, so that evaluations reuse their environments (the pool of
+  eval.evaluation is keyed by the factory). A new one each time made new environments for every
+  evaluation and kept two pools of them: a three-seed pixel run's final evaluation, a renderer
+  an environment then, reached 23 GB resident."""
   from ld_mpc_jax.envs import metaworld_env  # pylint: disable=g-import-not-at-top
   return lambda **kwargs: PixelObservations(metaworld_env.make_env(**kwargs), size, frames,
                                             camera, proprio=proprio)
