@@ -7,11 +7,13 @@
 # for the three seeds, then the run's own final evaluation (planner and actor prior, 50 held-out episodes a seed); it was
 # stopped at seed 2 (the process held 23.4 GB: each seed's evaluation environments, with a renderer each, stayed), and the
 # same command again evaluated seed 2 (seeds 0 and 1 from their saved reports).
+# The planner with safe selection on the same checkpoints and episodes (seed<s>_safe.json.gz, gzipped), from main at
+# commit 7a79f0e (the same frames: the shared renderer draws what each environment's own did), the third command.
 # The paired comparisons on the same held-out episodes, against the state agent (A) and this run at 4,000 updates (C):
 #   A=results/noise/offline_door_medium_mask_859bac5; C=results/pixels/door_medium_proprio_6d966fe; D=results/pixels/door_medium_proprio8k_6d966fe
-#   python -m experiments.report $A/seed0_episodes.csv.gz+$C/seed0_plan.json.gz#4k+$D/seed0_episodes.csv.gz#8k \
-#     $A/seed1_episodes.csv.gz+$C/seed1_plan.json.gz#4k+$D/seed1_episodes.csv.gz#8k \
-#     $A/seed2_episodes.csv.gz+$C/seed2_plan.json.gz#4k+$D/seed2_episodes.csv.gz#8k
+#   python -m experiments.report $A/seed0_episodes.csv.gz+$C/seed0_plan.json.gz#4k+$D/seed0_episodes.csv.gz#8k+$D/seed0_safe.json.gz#safe8k \
+#     $A/seed1_episodes.csv.gz+$C/seed1_plan.json.gz#4k+$D/seed1_episodes.csv.gz#8k+$D/seed1_safe.json.gz#safe8k \
+#     $A/seed2_episodes.csv.gz+$C/seed2_plan.json.gz#4k+$D/seed2_episodes.csv.gz#8k+$D/seed2_safe.json.gz#safe8k
 set -e
 cd "$REPO"  # a worktree of commit 6d966fe
 export MUJOCO_GL=osmesa
@@ -22,3 +24,7 @@ export MUJOCO_GL=osmesa
   --config.model.proprio=True --config.obs_dim=6920 --config.train.num_seeds=3 --config.data.preset=medium \
   --config.eval.splits=held_out --config.eval.baselines=actor --config.train.eval_every=8000 \
   --config.train.num_steps=8000 --continue_with_changes
+for s in 0 1 2; do  # from main at commit 7a79f0e
+  .venv/bin/python -m experiments.evaluate --workdir=runs/pixels_proprio8k_door_medium/run/seed$s --modes=plan \
+    --splits=held_out --config.plan.safe_selection=True --out=runs/pixels_proprio8k_door_medium/seed${s}_safe.json
+done
