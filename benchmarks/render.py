@@ -81,7 +81,8 @@ def memory_markdown(r: dict) -> str:
       f"{r['task']} in one process, {r['size']} x {r['size']} frames (MB).", '',
       '| environment alone | pixel environment, renderer shared | a renderer of its own |',
       '| ---: | ---: | ---: |',
-      f"| {r['env_mb']:.1f} | {r['pixel_env_shared_mb']:.1f} | {r['own_renderer_mb']:.1f} |"]) + '\n'
+      f"| {r['env_mb']:.1f} | {r['pixel_env_shared_mb']:.1f} | "
+      f"{r['own_renderer_mb']:.1f} |"]) + '\n'
 
 
 def markdown(rows: List[dict]) -> str:

@@ -78,10 +78,11 @@ def render_key(model, size: int) -> tuple:
 class FrameRenderer:
   """frame() -> uint8 [size, size, 3] of `camera` in the environment's current state.
 
-  The environments of one task share one `mujoco.Renderer` (per thread and frame size; `render_key`):
-  a renderer of its own held 165 MB here, so that 50 evaluation environments held 8 GB of them
-  (`python -m benchmarks.render --memory=20`: a pixel environment 30 MB with it shared). A shared one draws each environment's own state, the same pixels as its own renderer;
-  the last environment's `close` closes it.
+  The environments of one task share one `mujoco.Renderer` (per thread and frame size;
+  `render_key`): a renderer of its own held 165 MB here, so 50 evaluation environments held 8 GB
+  of them (`python -m benchmarks.render --memory=20`; a pixel environment holds 30 MB with it
+  shared). The shared one draws each environment's own state, the same pixels as its own
+  renderer; the last environment's `close` closes it.
   """
 
   def __init__(self, env, size: int = 64, camera: str = 'corner2', fast: bool = True):
@@ -171,9 +172,9 @@ def proprio_of(states: np.ndarray) -> np.ndarray:
 def image_env_factory(size: int, frames: int, camera: str = 'corner2', proprio: bool = False):
   """make_env(**kwargs) wrapped in PixelObservations: an evaluation's env_factory. The same
   function for the same arguments, so that evaluations reuse their environments (the pool of
-  eval.evaluation is keyed by the factory). A new one each time made new environments for every
-  evaluation and kept two pools of them: a three-seed pixel run's final evaluation, a renderer
-  an environment then, reached 23 GB resident."""
+  eval.evaluation is keyed by the factory). With a new one each time, every evaluation made new
+  environments and two pools of them were kept: a three-seed pixel run's final evaluation reached
+  23 GB resident when each environment had a renderer of its own."""
   from ld_mpc_jax.envs import metaworld_env  # pylint: disable=g-import-not-at-top
   return lambda **kwargs: PixelObservations(metaworld_env.make_env(**kwargs), size, frames,
                                             camera, proprio=proprio)
