@@ -49,6 +49,12 @@ def test_video_and_json_are_separate_files(tmp_path, smoke_config):
     out = json.load(f)
   assert out['video'] == video and 'video_error' not in out
   assert out['records'] and out['step'] == 0  # The state's own step
+  # The evaluated cell is kept for a re-run (--nocache: none), with the same records.
+  (cell,) = os.listdir(os.path.join(workdir, 'evals'))
+  assert cell.startswith('actor_held_out_seed0_')
+  with open(os.path.join(workdir, 'evals', cell)) as f:
+    kept = json.load(f)['records']
+  assert [r['return'] for r in kept] == [r['return'] for r in out['records']]
 
 
 def test_an_existing_video_is_kept_unless_overwrite(tmp_path):

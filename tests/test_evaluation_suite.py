@@ -118,7 +118,12 @@ def test_evaluate_checkpoint_caches_every_cell(tmp_path, monkeypatch):
   # The same grid again: every cell from its file, the records as before, tagged with this run.
   again = evaluation_suite.evaluate_checkpoint(spec, None, workdir, run=8, log=lines.append,
                                                progress=False, **grid)
-  assert len(calls) == 4 and len(lines) == 4
+  assert len(calls) == 4 and len(lines) == 8
+  # Each reused cell says so, with the same success as when it was evaluated.
+  kept = [line.split(': success ')[1] for line in lines[4:]]
+  assert [k.split(' (kept in ')[0] for k in kept] == [
+      line.split(': success ')[1].split(' (50')[0] for line in lines[:4]]
+  assert all(os.path.exists(k.split(' (kept in ')[1][:-1]) for k in kept)
   assert [r['success'] for r in again] == [r['success'] for r in records]
   assert all(r['run'] == 8 for r in again)
   # A changed input that changes the episodes (here the planner's K) is a new cell.

@@ -42,3 +42,8 @@ def test_eta_of_an_online_run_starts_after_its_seed_waves():
   assert eta.text(2400) == 'eta: after the first steps'
   eta.advanced(3200, seconds=80.0)  # 800 steps in 80 s.
   assert eta.text(3200) == f'eta {round(6800 * 0.1 / 60)} min + evaluations'
+
+
+def test_the_bars_rate_says_timing_until_measured():
+  assert progress.rate_text(float('nan')) == 'timing'  # The first interval: compilation.
+  assert progress.rate_text(2.345) == '2.35'

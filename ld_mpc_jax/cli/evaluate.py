@@ -9,7 +9,9 @@ the same episodes of each goal split and evaluation seed (environments in lockst
 call per decision). Prints pooled success with Wilson intervals and exact McNemar tests between
 policies, and writes the per-episode records and the summary to <workdir>/evaluation.json
 (or --out; an existing file is kept unless --overwrite; written once the policies are evaluated,
-then again with the noise sweep and video).
+then again with the noise sweep and video). Each (policy, split, seed) result is kept under
+<workdir>/evals/ as training keeps its own, so a killed evaluation resumes where it stopped and
+a finished one is read back (--nocache: recompute every cell, keep none).
 Optionally an observation-noise sweep (--noise_sweep: every policy of --modes at each std of
 eval.noise_stds on the same held-out episodes, noise on eval.obs_noise_dims; <out>_noise.md and
 <out>_noise.png beside the JSON, whose `noise_sweep` keeps the per-episode records; pool three
@@ -38,6 +40,9 @@ _VIDEO = flags.DEFINE_bool('video', False, 'Render a 2-episode video of the plan
 _OUT = flags.DEFINE_string('out', None, 'JSON output (default: <workdir>/evaluation.json).')
 _VIDEO_OUT = flags.DEFINE_string('video_out', None, 'mp4 of --video (default: '
                                   '<workdir>/planner.mp4).')
+_CACHE = flags.DEFINE_bool('cache', True, 'Keep each (policy, split, seed) result under '
+                           '<workdir>/evals/ and reuse it, as training does: a killed evaluation '
+                           'resumes where it stopped (--nocache: recompute all, write none).')
 _OVERWRITE = flags.DEFINE_bool('overwrite', False, 'Replace an existing --out or --video_out '
                                'file.')
 flags.mark_flag_as_required('workdir')
@@ -82,7 +87,7 @@ def main(argv):
   episodes = _EPISODES.value or config.eval.episodes
   print(f'evaluating checkpoint step {step} of {_WORKDIR.value}: {", ".join(_MODES.value)}; '
         f'{episodes} per split {list(splits)} and seed {seeds}', file=sys.stderr, flush=True)
-  records = evaluate(spec, params, None, step, _MODES.value, splits, seeds, episodes,
+  records = evaluate(spec, params, _cache_dir(), step, _MODES.value, splits, seeds, episodes,
                      run=config.seed)  # A multi-task agent: every task, records per task.
   summary = evaluation_suite.summarize(records)
   if spec.multitask:
@@ -105,6 +110,18 @@ def main(argv):
       print(f'no video ({out["video_error"]}); try MUJOCO_GL=osmesa with libosmesa6 installed')
   _write(path, out)
   print(f'wrote {path} and {os.path.splitext(path)[0]}.md')
+
+
+def _cache_dir():
+  """The workdir whose evals/ keeps each evaluated cell, or None (--nocache, or a run directory
+  this user cannot write: nothing is kept, with a line saying so)."""
+  if not _CACHE.value:
+    return None
+  if not os.access(_WORKDIR.value, os.W_OK):
+    print(f'{_WORKDIR.value} is not writable: the evaluation keeps no cells under evals/',
+          file=sys.stderr)
+    return None
+  return _WORKDIR.value
 
 
 def _noise_sweep(spec, params, step: int, seeds, episodes: int, stds, path: str, run) -> dict:

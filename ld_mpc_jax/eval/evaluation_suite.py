@@ -208,11 +208,11 @@ def evaluate_checkpoint(spec: EvalSpec, params, workdir: Optional[str],
         with open(path + '.tmp', 'w') as f:
           json.dump(cell, f)
         os.replace(path + '.tmp', path)
-      s = cell['summary']
-      of_run = '' if run is None else f' (run {run})'  # The training seed, in a run of several.
-      log(f"{POLICY_NAMES.get(mode, mode)}, {split} goals, evaluation seed {seed}{of_run}: success "
-          f"{s['success_rate']:.2f} [{s['success_ci95'][0]:.2f}, {s['success_ci95'][1]:.2f}] "
-          f"({s['decisions_per_s']:.0f} decisions/s)")
+    s = cell['summary']
+    of_run = '' if run is None else f' (run {run})'  # The training seed, in a run of several.
+    log(f"{POLICY_NAMES.get(mode, mode)}, {split} goals, evaluation seed {seed}{of_run}: success "
+        f"{s['success_rate']:.2f} [{s['success_ci95'][0]:.2f}, {s['success_ci95'][1]:.2f}] "
+        + (f'(kept in {found})' if found else f"({s['decisions_per_s']:.0f} decisions/s)"))
     for rec in cell['records']:
       rec['run'] = run
       if obs_noise_std > 0:  # Records of the protocol keep their fields.

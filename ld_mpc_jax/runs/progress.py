@@ -23,6 +23,12 @@ def stage(message: str) -> None:
     tqdm.tqdm.write(message, file=sys.stderr)
 
 
+def rate_text(steps_per_s: float) -> str:
+  """The bar's steps/s: 'timing' until a second log point gives a rate (the first interval
+  holds the compilation and is not timed)."""
+  return f'{steps_per_s:.2f}' if np.isfinite(steps_per_s) else 'timing'
+
+
 def progress_bar(total: int, initial: int, desc: str, unit: str = 'step') -> tqdm.tqdm:
   """A run's progress bar without tqdm's own rate and ETA (its first interval holds the
   compilation, and it knows nothing of evaluations): `loop` writes one ETA into the

@@ -22,7 +22,7 @@ from ld_mpc_jax import data, envs
 from ld_mpc_jax.eval import multitask_eval, run_files
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs.lock import workdir_lock
-from ld_mpc_jax.runs.progress import progress_bar, stage
+from ld_mpc_jax.runs.progress import progress_bar, rate_text, stage
 from ld_mpc_jax.runs.seed_plan import SeedPlan, seed_plans
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.model import tasks
@@ -201,7 +201,7 @@ class OfflineJob:
     self.timer.tick(done)
     metrics = jax.device_get(self.metrics)
     self.run.check_loss(metrics['loss'], f'step {done}')
-    self.bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=f'{self.timer.steps_per_s:.2f}')
+    self.bar.set_postfix(loss=f"{metrics['loss']:.3f}", steps_s=rate_text(self.timer.steps_per_s))
     row = {'step': done, **{k: float(v) for k, v in sorted(metrics.items())},
            'steps_per_s': self.timer.steps_per_s}
     run_files.append_csv(os.path.join(self.run.workdir, run_files.METRICS_CSV), row)

@@ -26,7 +26,7 @@ from ld_mpc_jax.learn.train_state import create_train_state, make_seeds_update, 
 from ld_mpc_jax.ops.seed_groups import SeedGroups
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs import online_report
-from ld_mpc_jax.runs.progress import progress_bar
+from ld_mpc_jax.runs.progress import progress_bar, rate_text
 from ld_mpc_jax.runs.seed_plan import SeedPlan
 
 
@@ -119,7 +119,7 @@ class OfflineSeedsJob:
              'steps_per_s': rate}
       run_files.append_csv(os.path.join(run.workdir, run_files.METRICS_CSV), row)
       run.log_scalars('train', {k: v for k, v in row.items() if k != 'step'}, done)
-    self.bar.set_postfix(loss=f"{float(np.mean(metrics['loss'])):.3f}", steps_s=f'{rate:.2f}')
+    self.bar.set_postfix(loss=f"{float(np.mean(metrics['loss'])):.3f}", steps_s=rate_text(rate))
 
   def checkpoint(self) -> None:
     for run, state in zip(self.seed_runs, self.groups.per_seed(self.states)):
