@@ -296,3 +296,25 @@ def test_an_interrupted_rendering_goes_on_where_it_stopped(tmp_path, monkeypatch
   assert np.array_equal(resumed.observations, whole.observations)
   other = data_pixels.render_dataset(ds, 8, 1, camera='corner', partial=partial)  # Other data.
   assert len(resets) == 6 and other.observations.shape == whole.observations.shape
+
+
+_POOLED_AT_EXIT = """
+from ld_mpc_jax.eval import evaluation
+from ld_mpc_jax.envs.pixels import image_env_factory
+for env in evaluation._envs(image_env_factory(16, 1), 2, dict(task='door-open-v3', seed=0)):
+  env.reset(seed=1)
+print('kept')
+"""
+
+
+@NEEDS_RENDERING
+def test_renderers_an_evaluation_pool_keeps_close_quietly_at_exit():
+  """The pooled environments live until the process ends: their shared renderer closes at exit
+  (envs.pixels.close_renderers), not in the interpreter's teardown, which printed TypeErrors."""
+  import subprocess  # pylint: disable=g-import-not-at-top
+  import sys  # pylint: disable=g-import-not-at-top
+  repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+  done = subprocess.run([sys.executable, '-c', _POOLED_AT_EXIT], cwd=repo, capture_output=True,
+                        text=True, timeout=300, env=dict(os.environ, PYTHONPATH=repo))
+  assert done.returncode == 0 and done.stdout.strip() == 'kept', done.stderr[-2000:]
+  assert 'Exception ignored' not in done.stderr and 'TypeError' not in done.stderr, done.stderr

@@ -13,6 +13,7 @@ the hand's position and the gripper's opening, now and one simulator step before
 Meta-World's 39-dimensional state), 8 floats after the pixels.
 """
 
+import atexit
 import functools
 import gc
 import hashlib
@@ -58,6 +59,17 @@ def check_rendering() -> None:
 KINEMATIC_FIELDS = frozenset(('body_pos', 'body_quat', 'site_pos', 'site_quat'))
 _RENDERERS: Dict[tuple, list] = {}  # key -> [mujoco.Renderer, environments using it]
 _RENDERERS_LOCK = threading.Lock()
+
+
+@atexit.register
+def close_renderers() -> None:
+  """Closes every shared renderer still open (environments an evaluation pool keeps until the
+  process ends): at exit, while mujoco's OpenGL modules stand. Left to the interpreter's teardown,
+  each renderer's own `__del__` printed two ignored TypeErrors after a run's last line."""
+  with _RENDERERS_LOCK:
+    for renderer, _ in _RENDERERS.values():
+      renderer.close()
+    _RENDERERS.clear()
 
 
 def render_key(model, size: int) -> tuple:
@@ -111,11 +123,12 @@ class FrameRenderer:
     if self.renderer is None:
       return
     with _RENDERERS_LOCK:
-      entry = _RENDERERS[self.key]
-      entry[1] -= 1
-      if not entry[1]:
-        del _RENDERERS[self.key]
-        entry[0].close()
+      entry = _RENDERERS.get(self.key)  # None: closed at exit (close_renderers).
+      if entry is not None:
+        entry[1] -= 1
+        if not entry[1]:
+          del _RENDERERS[self.key]
+          entry[0].close()
     self.renderer = None
 
 
