@@ -6,6 +6,9 @@
 # is constant after warm-up and resuming is exact, so this is the 12,000-update run). On the 2-core AMD EPYC: 83 min for the
 # last 4,000 updates of the three seeds (14,494 s of training in all, 81 min a seed), then the run's own final evaluation
 # (planner and actor prior, 50 held-out episodes a seed; 12 min beside the second command).
+# From scratch in one command: the first command of door_medium_proprio8k_6d966fe/run.sh with --config.train.num_steps=12000
+# --config.train.eval_every=12000 (not run that way here: this run was resumed twice, which is exact; the code between
+# 6d966fe and 318d80b changed nothing it computes).
 # The planner with safe selection on the same checkpoints and episodes (seed<s>_safe.json.gz, gzipped), from main at
 # commit 31c5635, the second command.
 # The paired comparisons on the same held-out episodes, against the state agent (A) and this run at 8,000 updates (D):
