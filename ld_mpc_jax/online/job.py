@@ -110,17 +110,6 @@ class OnlineJob:
   def progress(self) -> int:
     return self.steps['env_steps']
 
-  def learning(self) -> bool:
-    return self.steps['env_steps'] >= self.learn_start
-
-  def views(self):
-    """Each seed's EMA parameters."""
-    return self.learner.views()
-
-  def seed_metrics(self) -> Dict[str, np.ndarray]:
-    """The last update's metrics, [num_seeds] numpy per name ({} before the first update)."""
-    return self.learner.seed_metrics()
-
   def advance(self) -> None:
     """One wave (`seats.run_wave`): its episodes into the buffers, then its steps, episodes and
     time into the counters."""
@@ -142,7 +131,7 @@ class OnlineJob:
     demonstrations and `online.demo_seed_actor`: the actor prior pretrained on them), else
     `online.act_mode` ('plan' or 'actor')."""
     o = self.online
-    if not self.learning():
+    if self.steps['env_steps'] < self.learn_start:
       return 'random'
     if o.demos and o.demo_seed_actor and self.steps['env_steps'] < o.seed_steps:
       return 'actor'
@@ -170,8 +159,8 @@ class OnlineJob:
           os.remove(os.path.join(workdir, BUFFER_DIR, name))
 
   def eval_params(self):
-    """Each seed's EMA parameters (`_SeatRuns.periodic_eval`)."""
-    return self.views()
+    """Each seed's EMA parameters (`SeatRuns.periodic_eval`)."""
+    return self.learner.views()
 
   def log(self, before: int) -> None:
     mode, seconds, records = self.last

@@ -23,23 +23,15 @@ class ActingSchedule:
   """The acting planner's settings that anneal with environment steps (`config.online`), built
   once per run where it knows when learning starts.
 
-  Each is linear from its start value at its first step to its end value at `end` (= schedule_end:
-  `online.schedule_steps`, or `online.env_steps` where that is 0), constant after:
+  Each is linear from its start value at its first step to its end value at `schedule_end`
+  (`online.schedule_steps`, or `online.env_steps` where that is 0), constant after:
   - the executed action's noise std (`exec_noise_start` -> `exec_noise_end`), from `learn_start`;
   - under `online.act_schedule='linear'` the intrinsic term's weights (`act_pessimism`,
     `act_disagreement`, `act_novelty` -> their `_end`), from `plan_start` (the first planner
     wave); under 'constant' those keep their start values.
   """
-  online: OnlineSettings  # Its start and end values, act_schedule and schedule_end.
+  online: OnlineSettings
   learn_start: int  # Environment steps where updates start.
-
-  @property
-  def schedule(self) -> str:
-    return self.online.act_schedule  # 'constant' | 'linear'.
-
-  @property
-  def end(self) -> int:
-    return self.online.schedule_end
 
   @property
   def plan_start(self) -> int:
@@ -48,19 +40,17 @@ class ActingSchedule:
     o = self.online
     return o.seed_steps if o.demos and o.demo_seed_actor else self.learn_start
 
-  def _value(self, name: str) -> float:
-    return float(getattr(self.online, name))
-
   def executed_noise(self, env_steps: int) -> float:
     """Std of the noise on the executed action at `env_steps`."""
-    return _linear(self._value('exec_noise_start'), self._value('exec_noise_end'), env_steps,
-                   self.learn_start, self.end)
+    o = self.online
+    return _linear(o.exec_noise_start, o.exec_noise_end, env_steps, self.learn_start,
+                   o.schedule_end)
 
   def _scheduled(self, name: str, env_steps: int) -> float:
-    start = self._value(name)
-    if self.schedule == 'constant':
+    o, start = self.online, float(getattr(self.online, name))
+    if o.act_schedule == 'constant':
       return start
-    return _linear(start, self._value(f'{name}_end'), env_steps, self.plan_start, self.end)
+    return _linear(start, getattr(o, f'{name}_end'), env_steps, self.plan_start, o.schedule_end)
 
   def exploration(self, env_steps: int) -> Tuple[float, float]:
     """(pessimism, disagreement weight) of the acting planner at `env_steps`."""
@@ -74,11 +64,10 @@ class ActingSchedule:
 
   def intrinsic(self, env_steps: int) -> Intrinsic:
     """The acting planner's traced intrinsic term at `env_steps` (build_plan's `intrinsic`,
-    float32 scalars): `exploration`'s values and `novelty`'s, except the pessimism under the
-    'constant' schedule, which OnlineSettings.acting_plan sets as the plan's `pessimism` (0
-    here)."""
+    float32 scalars), except the pessimism under the 'constant' schedule, which
+    OnlineSettings.acting_plan sets as the plan's `pessimism` (0 here)."""
     pessimism, disagreement = self.exploration(env_steps)
-    if self.schedule == 'constant':
+    if self.online.act_schedule == 'constant':
       pessimism = 0.0
     return Intrinsic(pessimism=np.float32(pessimism), disagreement=np.float32(disagreement),
                      novelty=np.float32(self.novelty(env_steps)))

@@ -72,11 +72,11 @@ class Seat:
     self.update_key = jax.random.key(online.seed + 1)
 
   def ema_params(self, job):
-    return job.views()[self.index]
+    return job.learner.views()[self.index]
 
   def log(self, job, before: int, wave: WaveRecord, mode: str, seconds: float) -> None:
     """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
-    metrics = {k: float(v[self.index]) for k, v in sorted(job.seed_metrics().items())}
+    metrics = {k: float(v[self.index]) for k, v in sorted(job.learner.seed_metrics().items())}
     step, episodes, c = job.counters['env_steps'], wave.episodes, job.counters
     if metrics:
       self.run.check_loss(metrics['loss'], f'environment step {step}')

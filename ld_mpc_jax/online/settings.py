@@ -25,6 +25,12 @@ ACT_MODES = ('plan', 'actor')
 # per episode (envs.make_env(random_goals=True)).
 TRAIN_GOALS = ('mt1', 'random')
 SCHEDULES = ('constant', 'linear')
+# The integer fields and their least values (0 for schedule_steps: online.env_steps; for
+# act_dynamics_draws: the plan's draws).
+_COUNTS = (('env_steps', 1), ('num_envs', 1), ('episode_steps', 1), ('checkpoint_every', 1),
+           ('eval_every', 1), ('updates_per_call', 1), ('seed_steps', 0), ('schedule_steps', 0),
+           ('plan_chunk', 0), ('demos', 0), ('demo_pretrain_updates', 0), ('act_num_gaussian', 0),
+           ('act_iterations', 0), ('act_dynamics_draws', 0))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,9 +159,7 @@ class OnlineSettings(_Hashable):
     if model.images:
       raise ValueError('image observations (model.encoder_type=conv, dynamics_type=conv_frames) '
                        'train offline only for now: online acting does not render frames yet')
-    for name, least in (('env_steps', 1), ('num_envs', 1), ('episode_steps', 1),
-                        ('checkpoint_every', 1), ('eval_every', 1), ('seed_steps', 0),
-                        ('plan_chunk', 0), ('demos', 0), ('demo_pretrain_updates', 0)):
+    for name, least in _COUNTS:
       v = getattr(self, name)
       if not isinstance(v, int) or isinstance(v, bool) or v < least:
         raise ValueError(f'config.online.{name} must be an integer >= {least}, got {v!r}')
@@ -181,9 +185,6 @@ class OnlineSettings(_Hashable):
     if self.updates_per_call > 1 and self.data_parallel:
       raise ValueError('config.online.updates_per_call > 1 is not supported with '
                        'config.train.data_parallel; set one of them off')
-    if not isinstance(self.updates_per_call, int) or self.updates_per_call < 1:
-      raise ValueError(f'config.online.updates_per_call must be an integer >= 1, '
-                       f'got {self.updates_per_call!r}')
     if min(self.exec_noise_start, self.exec_noise_end) < 0:
       raise ValueError('config.online.exec_noise_start and exec_noise_end must be >= 0')
     if self.act_mode not in ACT_MODES:
@@ -243,10 +244,6 @@ class OnlineSettings(_Hashable):
     if self.act_safe_selection and plan.num_prior_candidates < 1:
       raise ValueError("config.online.act_safe_selection needs the actor prior's own sequence as "
                        'a candidate: config.plan.num_prior_candidates >= 1')
-    for name in ('act_num_gaussian', 'act_iterations'):
-      if not isinstance(getattr(self, name), int) or getattr(self, name) < 0:
-        raise ValueError(f'config.online.{name} must be an integer >= 0, '
-                         f'got {getattr(self, name)!r}')
     self._check_exploration(model, plan)
     try:  # The acting planner's (validate_config checked the evaluation's).
       search.validate_plan(self.acting_plan(plan), model)
@@ -261,12 +258,6 @@ class OnlineSettings(_Hashable):
     if self.act_schedule not in SCHEDULES:
       raise ValueError(f'config.online.act_schedule must be one of {SCHEDULES}, '
                        f'got {self.act_schedule!r}')
-    if not isinstance(self.schedule_steps, int) or self.schedule_steps < 0:
-      raise ValueError('config.online.schedule_steps must be an integer >= 0 (0: '
-                       f'online.env_steps), got {self.schedule_steps!r}')
-    if not isinstance(self.act_dynamics_draws, int) or self.act_dynamics_draws < 0:
-      raise ValueError('config.online.act_dynamics_draws must be an integer >= 0, '
-                       f'got {self.act_dynamics_draws!r}')
     linear = self.act_schedule == 'linear'
     weights = (self.act_disagreement,) + ((self.act_disagreement_end,) if linear else ())
     if any(weights) and (self.act_dynamics_draws or plan.dynamics_draws) < 2:
