@@ -34,14 +34,18 @@ class OnlineJob:
   """
 
   def __init__(self, plans: Sequence, seed_runs: Sequence, offline: Optional[data.Dataset],
-               bar: Callable[[int], Any], sources: Optional[Sequence[str]] = None):
+               bar: Callable[[int], Any], log_wave: Callable,
+               sources: Optional[Sequence[str]] = None):
     """`plans`: each training seed's SeedPlan (runs.seed_plan.seed_plans), which differ in their
     seeds (and sources) only; `seed_runs`: each seed's run directory (runs.loop.Run of its plan);
     `offline`: the dataset of the run fine-tuned (None from scratch); `bar`: makes the progress
-    bar from the environment steps so far; `sources`: the workdir each seed fine-tunes from
-    (`online.init_from`, checked: runs.online.check_init_from; None from scratch)."""
+    bar from the environment steps so far; `log_wave`: writes down a seed's wave
+    (runs.online_report.log_wave: online.csv, losses.csv); `sources`: the workdir each seed
+    fine-tunes from (`online.init_from`, checked: runs.online.check_init_from; None from
+    scratch)."""
     first = plans[0]
     self.plans, self.model, self.online = plans, first.learn.model, first.online
+    self.log_wave = log_wave
     self.fine_tune = sources is not None
     keep_plans = first.learn.losses.act_target == 'planned'
     self.seats = [Seat(run, p.online, self.model, offline, i, keep_plans)
@@ -163,8 +167,9 @@ class OnlineJob:
     return self.learner.views()
 
   def log(self, before: int) -> None:
+    """Each seed's wave written down (`log_wave`), the progress bar's figures."""
     mode, seconds, records = self.last
     for seat, record in zip(self.seats, records):
-      seat.log(self, before, record, mode, seconds)
+      self.log_wave(self, seat, before, record, mode, seconds)
     self.bar.set_postfix(updates=self.counters['updates'], success=np.mean(
         [e['success'].any() for record in records for e in record.episodes]))

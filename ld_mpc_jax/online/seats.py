@@ -1,19 +1,17 @@
 """The training seeds of an online run (ld_mpc_jax.online.job, `train.num_seeds`): each seed's
 run directory, settings, buffer and environments (`Seat`), one wave of their episodes
 (`run_wave`), each seed's episodes while they run (`SeatWave`) and what the wave left
-(`WaveRecord`). What a wave acts with is fixed at its start (`WaveSchedule`) and passed in, and
+(`WaveRecord`, which runs.online_report.log_wave writes down). What a wave acts with is fixed at its start (`WaveSchedule`) and passed in, and
 the job's counters change after it: during a wave only the learner's parameters advance
 (ld_mpc_jax.online.learner), and the policy acts with them."""
 
 import dataclasses
-import os
 from typing import Any, List, Optional, Sequence, Tuple
 
 import jax
 import numpy as np
 
 from ld_mpc_jax import data, envs
-from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.plan.agent import BatchAgentPolicy
 from ld_mpc_jax.plan.seeds_agent import SeedsAgentPolicy
@@ -22,7 +20,6 @@ from ld_mpc_jax.data.replay import window_length
 from ld_mpc_jax.online.schedule import ar1_noise
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.model.settings import ModelSettings
-from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
 from ld_mpc_jax.envs import goals
 from ld_mpc_jax.plan.search import CANDIDATES
 
@@ -73,51 +70,6 @@ class Seat:
 
   def ema_params(self, job):
     return job.learner.views()[self.index]
-
-  def log(self, job, before: int, wave: WaveRecord, mode: str, seconds: float) -> None:
-    """online.csv (one row per wave), losses.csv (the wave's last update) and TensorBoard."""
-    metrics = {k: float(v[self.index]) for k, v in sorted(job.learner.seed_metrics().items())}
-    step, episodes, c = job.counters['env_steps'], wave.episodes, job.counters
-    if metrics:
-      self.run.check_loss(metrics['loss'], f'environment step {step}')
-    # Shares of planned decisions: NaN where nothing was planned (random waves, the actor acting).
-    decisions = int(wave.winners[:-1].sum()) or float('nan')
-    row = dict(env_steps=step, episodes=c['episodes'], updates=c['updates'],
-               acting={'plan': 'planner', 'actor': 'actor', 'random': 'random'}[mode],
-               episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
-               episode_success=float(np.mean([e['success'].any() for e in episodes])),
-               max_step_reward=wave.dense_max,  # Dense reward, also under a sparse one.
-               **{f'won_{k}': float(wave.winners[j] / decisions)
-                  for j, k in enumerate(CANDIDATES.names())},
-               departed=float(wave.winners[-1] / decisions),
-               exec_noise=job.acting_schedule.executed_noise(before)
-               if mode != 'random' else float('nan'),
-               env_steps_per_s=(step - before) / seconds,
-               **self._acting_columns(job, before, wave, mode))
-    run_files.append_csv(os.path.join(self.run.workdir, ONLINE_CSV), row)
-    if metrics:  # Losses of the wave's last update, from the first update on.
-      run_files.append_csv(os.path.join(self.run.workdir, LOSSES_CSV),
-                           dict(env_steps=step, **metrics))
-    for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
-      if k != 'acting' and np.isfinite(v):  # NaN marks "not measured" in the CSV only.
-        self.run.writer.add_scalar(f'online/{k}', v, step)
-
-  def _acting_columns(self, job, before: int, wave: WaveRecord, mode: str) -> dict:
-    """The wave's planned decisions, the mean spread of their candidates' first actions (of
-    the first round's, and of the proposal's alone) and the intrinsic term's scheduled weights;
-    NaN where nothing was planned. (Last in the row: a run resumed from code without them keeps
-    its earlier columns in place.)"""
-    spreads = np.asarray(wave.spreads, np.float64).reshape(-1, 2)
-    mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
-    pessimism, disagreement = (job.acting_schedule.exploration(before)
-                               if mode == 'plan' else (float('nan'),) * 2)
-    out = dict(planned=int(wave.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
-               spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
-               act_disagreement=disagreement)
-    if self.novelty:  # Only runs with the exploration value have the column.
-      out['act_novelty'] = (job.acting_schedule.novelty(before)
-                            if mode == 'plan' else float('nan'))
-    return out
 
 
 class SeatRuns:

@@ -145,4 +145,5 @@ def online_job(plans: Sequence[SeedPlan], offline: Optional[data.Dataset]) -> On
   sources = ([seed_source(p.online.init_from, p.seed) for p in plans]
              if first.online.init_from else None)
   bar = lambda initial: progress_bar(first.online.env_steps, initial, 'online', unit='env step')
-  return OnlineJob(plans, [runs.Run(p) for p in plans], offline, bar, sources)
+  return OnlineJob(plans, [runs.Run(p) for p in plans], offline, bar, online_report.log_wave,
+                   sources)

@@ -1,15 +1,19 @@
-"""The report files of an online run (ld_mpc_jax.runs.online): report.json and report.md of each
-training seed, and the pooled table of a run of several seeds (`train.num_seeds`)."""
+"""The report files of an online run (ld_mpc_jax.runs.online): each training seed's online.csv and
+losses.csv (a row per wave) with report.json and report.md, and the pooled table of a run of
+several seeds (`train.num_seeds`)."""
 
 import json
 import os
 from typing import Any, Dict, List, Optional
 
+import numpy as np
+
 from ld_mpc_jax.eval import run_files
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.ops import stats
 from ld_mpc_jax.model.models import count_params
-from ld_mpc_jax.eval.run_files import ONLINE_CSV
+from ld_mpc_jax.eval.run_files import LOSSES_CSV, ONLINE_CSV
+from ld_mpc_jax.plan.search import CANDIDATES
 
 
 def report(job, seat, final, summary) -> Dict[str, Any]:
@@ -37,6 +41,54 @@ def report(job, seat, final, summary) -> Dict[str, Any]:
                                       if buffer.offline is not None else 0)},
       **seat.run.provenance(),
   }
+
+
+def log_wave(job, seat, before: int, wave, mode: str, seconds: float) -> None:
+  """A wave of one training seed (`seat`, an online.Seat; `wave`, its online.seats.WaveRecord;
+  `before`: environment steps before it): a row of online.csv, the wave's last update's losses in
+  losses.csv, both in TensorBoard."""
+  metrics = {k: float(v[seat.index]) for k, v in sorted(job.learner.seed_metrics().items())}
+  step, episodes, c = job.counters['env_steps'], wave.episodes, job.counters
+  if metrics:
+    seat.run.check_loss(metrics['loss'], f'environment step {step}')
+  # Shares of planned decisions: NaN where nothing was planned (random waves, the actor acting).
+  decisions = int(wave.winners[:-1].sum()) or float('nan')
+  row = dict(env_steps=step, episodes=c['episodes'], updates=c['updates'],
+             acting={'plan': 'planner', 'actor': 'actor', 'random': 'random'}[mode],
+             episode_return=float(np.mean([e['reward'].sum() for e in episodes])),
+             episode_success=float(np.mean([e['success'].any() for e in episodes])),
+             max_step_reward=wave.dense_max,  # Dense reward, also under a sparse one.
+             **{f'won_{k}': float(wave.winners[j] / decisions)
+                for j, k in enumerate(CANDIDATES.names())},
+             departed=float(wave.winners[-1] / decisions),
+             exec_noise=job.acting_schedule.executed_noise(before)
+             if mode != 'random' else float('nan'),
+             env_steps_per_s=(step - before) / seconds,
+             **_acting_columns(job, seat, before, wave, mode))
+  run_files.append_csv(os.path.join(seat.run.workdir, ONLINE_CSV), row)
+  if metrics:  # Losses of the wave's last update, from the first update on.
+    run_files.append_csv(os.path.join(seat.run.workdir, LOSSES_CSV),
+                         dict(env_steps=step, **metrics))
+  for k, v in list(row.items())[1:] + [(f'loss/{k}', v) for k, v in metrics.items()]:
+    if k != 'acting' and np.isfinite(v):  # NaN marks "not measured" in the CSV only.
+      seat.run.writer.add_scalar(f'online/{k}', v, step)
+
+
+def _acting_columns(job, seat, before: int, wave, mode: str) -> dict:
+  """The wave's planned decisions, the mean spread of their candidates' first actions (of the
+  first round's, and of the proposal's alone) and the intrinsic term's scheduled weights; NaN
+  where nothing was planned. (Last in the row: a run resumed from code without them keeps its
+  earlier columns in place.)"""
+  spreads = np.asarray(wave.spreads, np.float64).reshape(-1, 2)
+  mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
+  pessimism, disagreement = (job.acting_schedule.exploration(before)
+                             if mode == 'plan' else (float('nan'),) * 2)
+  out = dict(planned=int(wave.winners[:-1].sum()), spread_first=mean(spreads[:, 0]),
+             spread_proposal=mean(spreads[:, 1]), act_pessimism=pessimism,
+             act_disagreement=disagreement)
+  if seat.novelty:  # Only runs with the exploration value have the column.
+    out['act_novelty'] = job.acting_schedule.novelty(before) if mode == 'plan' else float('nan')
+  return out
 
 
 POOLED_MD, POOLED_JSON = 'pooled.md', 'pooled.json'
