@@ -86,14 +86,15 @@ def breakdown(config: ml_collections.ConfigDict, num_seeds: int, waves: int) -> 
   """One entry: ms per simulator step of each part over `waves` timed waves of `num_seeds`
   seeds, the simulator steps, decisions and updates they made, and the timed wall seconds."""
   from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top
+  from ld_mpc_jax.configs.overrides import with_overrides  # pylint: disable=g-import-not-at-top
   from ld_mpc_jax.runs.seed_plan import seed_plans  # pylint: disable=g-import-not-at-top
-  c = ml_collections.ConfigDict(config.to_dict())
-  c.train.num_seeds, c.eval.episodes = num_seeds, 0
-  o = c.online
+  o = config.online
   wave_steps = o.num_envs * o.episode_steps
   untimed = o.seed_steps + wave_steps  # Seed waves, then the wave that compiles.
-  o.env_steps = untimed + waves * wave_steps
-  o.eval_every = o.checkpoint_every = o.env_steps
+  total = untimed + waves * wave_steps
+  c = with_overrides(config, {'train.num_seeds': num_seeds, 'eval.episodes': 0,
+                              'online.env_steps': total, 'online.eval_every': total,
+                              'online.checkpoint_every': total})
   totals = {p: 0.0 for p in PARTS}
   counts = {'decisions': 0}
   with tempfile.TemporaryDirectory() as workdir:
@@ -108,7 +109,7 @@ def breakdown(config: ml_collections.ConfigDict, num_seeds: int, waves: int) -> 
         totals[part] = 0.0
       counts['decisions'] = 0
       steps0, updates0, start = job.progress, job.counters['updates'], time.perf_counter()
-      while job.progress < o.env_steps:
+      while job.progress < total:
         before = job.progress
         job.advance()
         job.log(before)
