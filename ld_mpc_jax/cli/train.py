@@ -57,7 +57,7 @@ def main(argv):
   del argv
   logging.set_verbosity(logging.WARNING)  # Keep orbax's per-save INFO lines out of the log.
   import jax
-  from ld_mpc_jax.ops.seed_groups import SeedGroups, cpu_devices_wanted
+  from ld_mpc_jax.ops.seed_groups import cpu_devices_wanted
   try:
     t = _CONFIG.value.train
   except OSError as err:  # A config file that failed to load (ml_collections defers the error).
@@ -71,25 +71,12 @@ def main(argv):
     jax.distributed.initialize(coordinator_address=_COORDINATOR.value,
                                num_processes=_NUM_PROCESSES.value, process_id=_PROCESS_ID.value)
   from ld_mpc_jax.learn.checkpointing import WorkdirError
-  from ld_mpc_jax.configs import online_enabled
-  from ld_mpc_jax.runs.checks import validate_config
-  from ld_mpc_jax.data import DatasetError, sources
-  from ld_mpc_jax.model.tasks import Tasks
-  from ld_mpc_jax.model.settings import ModelSettings
-  from ld_mpc_jax.envs.pixels import check_rendering
+  from ld_mpc_jax.runs.checks import checked_plans
+  from ld_mpc_jax.data import DatasetError
   from ld_mpc_jax.runs.train import train_and_evaluate
   try:  # Bad input: one line and exit code 2, before anything is collected or compiled.
     cli.check_workdir(_WORKDIR.value)
-    validate_config(_CONFIG.value)
-    Tasks.from_config(_CONFIG.value).check()  # config.task, or every name of config.tasks.
-    sources.DataSpec.from_config(_CONFIG.value).check()
-    SeedGroups(t.num_seeds, devices)  # Enough devices for train.seed_devices (e.g. one GPU).
-    if ModelSettings.from_config(_CONFIG.value).images:  # Frames are rendered: can they be?
-      check_rendering()
-    if online_enabled(_CONFIG.value) and _CONFIG.value.online.init_from:  # The offline run
-      from ld_mpc_jax.runs.online import check_init_from  # to fine-tune exists and fits.
-      from ld_mpc_jax.runs.seed_plan import seed_plans
-      check_init_from(seed_plans(_CONFIG.value, _WORKDIR.value))
+    checked_plans(_CONFIG.value, _WORKDIR.value)  # What train_and_evaluate checks first.
   except (ValueError, OSError) as err:  # OSError: a config file that failed to load (deferred).
     cli.fail(' '.join(str(err).split()))
   from ld_mpc_jax.runs import progress

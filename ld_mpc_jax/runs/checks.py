@@ -1,4 +1,8 @@
-"""The whole config's checks, as a run makes them before any long work."""
+"""The whole config's checks, as a run makes them before any long work: `validate_config` (the
+config alone), `checked_plans` (that, and what the run needs of this machine and of the run it
+fine-tunes, then each training seed's plan)."""
+
+from typing import Optional, Tuple
 
 import ml_collections
 
@@ -11,7 +15,9 @@ from ld_mpc_jax.model.config_checks import check_sections, fields_checked
 from ld_mpc_jax.model.settings import LossSettings, ModelSettings, PlanSettings
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.plan.search import validate_plan
-from ld_mpc_jax.runs.seed_plan import EvalRounds
+from ld_mpc_jax.envs.tasks import Tasks
+from ld_mpc_jax.ops.seed_groups import SeedGroups
+from ld_mpc_jax.runs.seed_plan import EvalRounds, SeedPlan, seed_plans
 
 
 def validate_config(config: ml_collections.ConfigDict) -> None:
@@ -35,6 +41,30 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     OptimSettings.from_config(config).check(losses)
   if online_enabled(config):
     OnlineSettings.from_config(config).check(model, plan)
+
+
+def checked_plans(config: ml_collections.ConfigDict, workdir: str,
+                  continue_with_changes: Optional[bool] = None) -> Tuple[SeedPlan, ...]:
+  """Each training seed's plan (runs.seed_plan.seed_plans) once every check a run makes before
+  any long work has passed, each a one-line ValueError: the config (`validate_config`), its task
+  names, the devices its seeds ask for (`train.seed_devices`), offscreen rendering for a model of
+  images, and with `online.init_from` the offline run (or runs) it fine-tunes
+  (runs.online.check_init_from), whose data the run then trains on: `config.data` takes them.
+
+  With `continue_with_changes` given, each seed's workdir is checked against its config too
+  (`checkpointing.check_workdir`: a WorkdirError before anything is written); None: not.
+  """
+  validate_config(config)
+  Tasks.from_config(config).check()  # config.task, or every name of config.tasks.
+  t = config.train
+  SeedGroups(t.num_seeds, t.get('seed_devices', 1))  # Enough devices (one GPU, say).
+  if ModelSettings.from_config(config).images:  # Frames are rendered: can they be?
+    from ld_mpc_jax.envs.pixels import check_rendering  # pylint: disable=g-import-not-at-top
+    check_rendering()
+  if online_enabled(config) and config.online.init_from:
+    from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (environments)
+    config.data.update(online.check_init_from(seed_plans(config, workdir)).data.to_dict())
+  return seed_plans(config, workdir, continue_with_changes)
 
 
 def check_seeds(num_seeds: int, seed_devices: int, data_parallel: bool) -> None:

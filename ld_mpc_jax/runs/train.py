@@ -18,16 +18,14 @@ import ml_collections
 import numpy as np
 
 from ld_mpc_jax.learn import checkpointing
-from ld_mpc_jax import data, envs
+from ld_mpc_jax import data
 from ld_mpc_jax.eval import multitask_eval, run_files
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs.lock import workdir_lock
 from ld_mpc_jax.runs.progress import progress_bar, rate_text, stage
-from ld_mpc_jax.runs.seed_plan import SeedPlan, seed_plans
+from ld_mpc_jax.runs.seed_plan import SeedPlan
 from ld_mpc_jax.ops import sharding
-from ld_mpc_jax.model import tasks
-from ld_mpc_jax.configs import online_enabled
-from ld_mpc_jax.runs.checks import validate_config
+from ld_mpc_jax.runs.checks import checked_plans
 from ld_mpc_jax.model.models import count_params
 from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
@@ -42,9 +40,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   tasks.png, and its report a per-task table ('per_task'). The returned report also holds the
   per-episode records under 'records'.
 
-  The one place in runs/ that reads the config: it checks it (`runs.checks.validate_config`, the
-  task names, `online.init_from`), then builds each training seed's plan with its workdir checked
-  (`runs.seed_plan.seed_plans`); the jobs read the plans.
+  The one place in runs/ that reads the config: it checks it and builds each training seed's plan
+  with its workdir checked (`runs.checks.checked_plans`: the config, the task names, the devices,
+  rendering, `online.init_from`); the jobs read the plans.
 
   A workdir that holds a run of another config is refused (`checkpointing.WorkdirError`, before
   anything is written to it) unless `continue_with_changes`; its earlier config.json is then kept
@@ -69,19 +67,11 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
       print(f'{workdir} holds this run, finished: nothing to do, nothing changed (to train it '
             'further, raise its step count and pass --continue_with_changes)', file=sys.stderr)
       return finished
-    validate_config(config)
-    online = online_enabled(config)
-    if online:
-      envs.check_task(config.task)
-      from ld_mpc_jax.runs import online as online_job  # pylint: disable=g-import-not-at-top
-      if config.online.init_from:  # Checked (each seed's source), and its data trained on too.
-        config.data.update(online_job.check_init_from(seed_plans(config, workdir)).data.to_dict())
-    else:
-      tasks.Tasks.from_config(config).check()
-    plans = seed_plans(config, workdir, continue_with_changes)  # Each seed's workdir checked.
+    plans = checked_plans(config, workdir, continue_with_changes)  # Each seed's workdir too.
     os.makedirs(workdir, exist_ok=True)
-    if online:
-      return online_job.train_online(plans, workdir)
+    if plans[0].online is not None:
+      from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (environments)
+      return online.train_online(plans, workdir)
     return _train_offline(plans, workdir)
 
 
