@@ -98,7 +98,7 @@ def test_a_version_3_online_config_keeps_its_schedules_ending_at_env_steps():
   del v3['online']['schedule_steps']
   migrated = checkpointing.migrate_config(v3)
   assert (migrated.version, migrated.online.schedule_steps) == (legacy.CONFIG_VERSION, 0)
-  assert configs.schedule_end(migrated) == migrated.online.env_steps
+  assert configs.schedule_end(migrated.online) == migrated.online.env_steps
 
 
 # What migrating each saved config gave, to version 7, when the migration still worked on a

@@ -10,12 +10,11 @@ def online_enabled(config) -> bool:
   return 'online' in config and bool(config.online.enabled)
 
 
-def schedule_end(config) -> int:
+def schedule_end(online) -> int:
   """Simulator steps at which every annealed schedule of online training ends (the
-  demonstrations' share, executed-action noise, `online.act_schedule='linear'`):
-  `online.schedule_steps`, or `online.env_steps` where it is 0."""
-  o = config.online
-  return int(o.schedule_steps or o.env_steps)
+  demonstrations' share, executed-action noise, `online.act_schedule='linear'`), of an online
+  section (`config.online`, or OnlineSettings): `schedule_steps`, or `env_steps` where it is 0."""
+  return int(online.schedule_steps or online.env_steps)
 
 
 def resolve_config_arg(argv):

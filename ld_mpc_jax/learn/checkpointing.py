@@ -234,7 +234,7 @@ def check_workdir(config: ml_collections.ConfigDict, workdir: str,
     raise WorkdirError(f'{workdir}: even with --continue_with_changes, its checkpoints cannot '
                        f'continue under this config: the networks differ ({", ".join(changes)})')
   if 'online' in saved and 'online' in config:
-    _warn_moved_schedules(configs.schedule_end(saved), configs.schedule_end(config))
+    _warn_moved_schedules(configs.schedule_end(saved.online), configs.schedule_end(config.online))
 
 
 def _warn_moved_schedules(old: int, new: int) -> None:
