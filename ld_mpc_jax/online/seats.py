@@ -1,9 +1,10 @@
 """The training seeds of an online run (ld_mpc_jax.online.job, `train.num_seeds`): each seed's
 run directory, settings, buffer and environments (`Seat`), one wave of their episodes
 (`run_wave`), each seed's episodes while they run (`SeatWave`) and what the wave left
-(`WaveRecord`, which runs.online_report.log_wave writes down). What a wave acts with is fixed at its start (`WaveSchedule`) and passed in, and
-the job's counters change after it: during a wave only the learner's parameters advance
-(ld_mpc_jax.online.learner), and the policy acts with them."""
+(`WaveRecord`, which runs.online_report.log_wave writes down). What a wave acts with is fixed
+at its start (`WaveSchedule`) and passed in, and the job's counters change after it: during a
+wave only the learner's parameters advance (ld_mpc_jax.online.learner), and the policy acts
+with them."""
 
 import dataclasses
 from typing import Any, List, Optional, Sequence, Tuple

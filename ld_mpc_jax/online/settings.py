@@ -26,12 +26,12 @@ ACT_MODES = ('plan', 'actor')
 # per episode (envs.make_env(random_goals=True)).
 TRAIN_GOALS = ('mt1', 'random')
 SCHEDULES = ('constant', 'linear')
-# The integer fields and their least values (0 for schedule_steps: online.env_steps; for
-# act_dynamics_draws: the plan's draws).
+# The integer fields and their least values (0 for act_dynamics_draws: the plan's draws).
 _COUNTS = (('env_steps', 1), ('num_envs', 1), ('episode_steps', 1), ('checkpoint_every', 1),
            ('eval_every', 1), ('updates_per_call', 1), ('seed_steps', 0), ('schedule_steps', 0),
            ('plan_chunk', 0), ('demos', 0), ('demo_pretrain_updates', 0), ('act_num_gaussian', 0),
            ('act_iterations', 0), ('act_dynamics_draws', 0))
+_HINTS = {'schedule_steps': ' (0: online.env_steps)'}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -162,7 +162,8 @@ class OnlineSettings(_Hashable):
     for name, least in _COUNTS:
       v = getattr(self, name)
       if not isinstance(v, int) or isinstance(v, bool) or v < least:
-        raise ValueError(f'config.online.{name} must be an integer >= {least}, got {v!r}')
+        raise ValueError(f'config.online.{name} must be an integer >= {least}'
+                         f'{_HINTS.get(name, "")}, got {v!r}')
     for name in ('update_ratio', 'action_noise_std', 'prior_noise_std', 'demo_noise_std'):
       if getattr(self, name) < 0:
         raise ValueError(f'config.online.{name} must be >= 0, got {getattr(self, name)}')

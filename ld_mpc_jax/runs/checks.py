@@ -9,6 +9,7 @@ import ml_collections
 from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.learn.train_state import OptimSettings
 from ld_mpc_jax.configs import online_enabled
+from ld_mpc_jax.configs.overrides import with_overrides
 from ld_mpc_jax.data.sources import DataSpec
 from ld_mpc_jax.eval.spec import EvalSettings
 from ld_mpc_jax.model.config_checks import check_sections, fields_checked
@@ -49,7 +50,7 @@ def checked_plans(config: ml_collections.ConfigDict, workdir: str,
   any long work has passed, each a one-line ValueError: the config (`validate_config`), its task
   names, the devices its seeds ask for (`train.seed_devices`), offscreen rendering for a model of
   images, and with `online.init_from` the offline run (or runs) it fine-tunes
-  (runs.online.check_init_from), whose data the run then trains on: `config.data` takes them.
+  (runs.online.check_init_from), whose data the plans then train on (`config` is left as it is).
 
   With `continue_with_changes` given, each seed's workdir is checked against its config too
   (`checkpointing.check_workdir`: a WorkdirError before anything is written); None: not.
@@ -63,7 +64,9 @@ def checked_plans(config: ml_collections.ConfigDict, workdir: str,
     check_rendering()
   if online_enabled(config) and config.online.init_from:
     from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (environments)
-    config.data.update(online.check_init_from(seed_plans(config, workdir)).data.to_dict())
+    source = online.check_init_from(seed_plans(config, workdir))
+    config = with_overrides(config, {})  # A copy, its data the source's.
+    config.data.update(source.data.to_dict())
   return seed_plans(config, workdir, continue_with_changes)
 
 
