@@ -11,7 +11,7 @@ import os
 import signal
 import sys
 
-from absl import app, flags, logging
+from absl import flags, logging
 from ml_collections import config_flags
 
 from ld_mpc_jax.cli import errors as cli
