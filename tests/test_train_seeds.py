@@ -126,3 +126,15 @@ def test_fine_tuning_from_a_run_of_several_seeds_starts_each_seed_from_its_own(r
   config.online.init_from = str(one)
   with pytest.raises(ValueError, match='run of several seeds without seed1/'):
     online.check_init_from(seed_plans(config, ''))
+
+
+def test_rerunning_a_finished_run_of_several_seeds_changes_nothing(runs, tmp_path, capsys):
+  """Each seed's config and final checkpoint, and pooled.json: the run says it is finished and
+  writes nothing (it restored both seeds and wrote every report again before)."""
+  work = tmp_path / 'both'
+  shutil.copytree(runs / 'both', work)
+  before = {p: p.read_bytes() for p in work.rglob('*') if p.is_file()}
+  report = train_and_evaluate(_config(0, 2), str(work))
+  assert report['seeds'] == [0, 1]
+  assert 'finished: nothing to do, nothing changed' in capsys.readouterr().err
+  assert {p: p.read_bytes() for p in work.rglob('*') if p.is_file()} == before

@@ -14,7 +14,7 @@ saves in <workdir>/seed<seed> what a run of that seed alone saves.
 import dataclasses
 import json
 import os
-from typing import Any, Dict, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 import ml_collections
 
@@ -114,14 +114,7 @@ def seed_plans(config: ml_collections.ConfigDict, workdir: str,
   With `continue_with_changes` given, each seed's workdir is checked against its config first
   (`checkpointing.check_workdir`: a WorkdirError before anything is written).
   """
-  seeds = [(config, workdir)]
-  if config.train.num_seeds > 1:
-    seeds = []
-    for i in range(config.train.num_seeds):
-      c = with_overrides(config, {'seed': config.seed + i, 'train.num_seeds': 1})
-      if 'online' in c and c.online.init_from:  # Each seed fine-tunes from its own offline seed.
-        c.online.init_from = seed_source(c.online.init_from, c.seed)
-      seeds.append((c, os.path.join(workdir, f'seed{c.seed}')))
+  seeds = seed_configs(config, workdir)
   if continue_with_changes is not None:
     for c, w in seeds:
       checkpointing.check_workdir(c, w, continue_with_changes)
@@ -131,6 +124,22 @@ def seed_plans(config: ml_collections.ConfigDict, workdir: str,
       loop=LoopSettings(seed=c.seed, **{f: c.train[f] for f in _LOOP_FIELDS}),
       evals=EvalRounds.from_fields(c.eval.to_dict()),
       online=OnlineSettings.from_config(c) if online_enabled(c) else None) for c, w in seeds)
+
+
+def seed_configs(config: ml_collections.ConfigDict,
+                 workdir: str) -> List[Tuple[ml_collections.ConfigDict, str]]:
+  """(config, workdir) of each training seed: the run itself with one seed; with
+  `train.num_seeds` = N > 1, seed config.seed + i in <workdir>/seed<seed>, its config as a run of
+  that seed alone records it (num_seeds 1; `online.init_from`: its own, `seed_source`)."""
+  if config.train.num_seeds == 1:
+    return [(config, workdir)]
+  seeds = []
+  for i in range(config.train.num_seeds):
+    c = with_overrides(config, {'seed': config.seed + i, 'train.num_seeds': 1})
+    if 'online' in c and c.online.init_from:  # Each seed fine-tunes from its own offline seed.
+      c.online.init_from = seed_source(c.online.init_from, c.seed)
+    seeds.append((c, os.path.join(workdir, f'seed{c.seed}')))
+  return seeds
 
 
 def seed_source(path: str, seed: int) -> str:
