@@ -180,23 +180,29 @@ def test_a_checkpoint_written_on_another_backend_restores_here(tmp_path):
     assert a.devices() == {jax.local_devices()[0]}
 
 
+def _check_workdir(config, workdir, continue_with_changes=False):
+  """checkpointing.check_workdir of a config's recorded fields and LearnSettings."""
+  checkpointing.check_workdir(config.to_dict(), LearnSettings.from_config(config), workdir,
+                              continue_with_changes)
+
+
 def test_a_workdir_of_another_config_is_refused_naming_the_fields(tmp_path):
   workdir = str(tmp_path)
   saved = door_open.get_config('smoke')
   checkpointing.save_config(saved, workdir)
-  checkpointing.check_workdir(door_open.get_config('smoke'), workdir)  # The same: no error.
+  _check_workdir(door_open.get_config('smoke'), workdir)  # The same: no error.
   other = with_overrides(door_open.get_config('smoke'), {'train.learning_rate': 1e-2, 'seed': 7})
   with pytest.raises(checkpointing.WorkdirError) as err:
-    checkpointing.check_workdir(other, workdir)
+    _check_workdir(other, workdir)
   message = str(err.value)
   assert '\n' not in message and '--continue_with_changes' in message
   assert f'seed (0 -> 7), train.learning_rate ({saved.train.learning_rate} -> 0.01)' in message
-  checkpointing.check_workdir(other, workdir, continue_with_changes=True)  # No checkpoint.
+  _check_workdir(other, workdir, continue_with_changes=True)  # No checkpoint.
   assert os.listdir(workdir) == [checkpointing.CONFIG_FILE]  # Checks write nothing.
   # Where the seeds compute is no change: a run continues on other devices as it is.
   placed = with_overrides(door_open.get_config('smoke'), {'train.seed_devices': 3})
   assert saved.train.seed_devices != 3
-  checkpointing.check_workdir(placed, workdir)
+  _check_workdir(placed, workdir)
   assert checkpointing.config_changes(saved.to_dict(), placed.to_dict()) == []
 
 
@@ -210,7 +216,7 @@ def test_continuing_with_other_networks_is_refused_even_with_the_flag(tmp_path):
   manager.wait_until_finished()
   wider = with_overrides(door_open.get_config('smoke'), {'model.width': 32})
   with pytest.raises(checkpointing.WorkdirError, match=r'networks differ \(model.width'):
-    checkpointing.check_workdir(wider, workdir, continue_with_changes=True)
+    _check_workdir(wider, workdir, continue_with_changes=True)
 
 
 def test_continuing_to_more_steps_warns_that_the_schedules_move(tmp_path, capsys):
@@ -218,12 +224,12 @@ def test_continuing_to_more_steps_warns_that_the_schedules_move(tmp_path, capsys
   checkpointing.save_config(door_open_online.get_config('smoke'), workdir)
   longer = door_open_online.get_config('smoke')
   longer.online.env_steps *= 2
-  checkpointing.check_workdir(longer, workdir, continue_with_changes=True)
+  _check_workdir(longer, workdir, continue_with_changes=True)
   err = capsys.readouterr().err.strip()
   old = longer.online.env_steps // 2
   assert err.count('\n') == 0 and err.endswith(f'--config.online.schedule_steps={old} keeps the run\'s')
   longer.online.schedule_steps = old  # Kept: nothing to say.
-  checkpointing.check_workdir(longer, workdir, continue_with_changes=True)
+  _check_workdir(longer, workdir, continue_with_changes=True)
   assert capsys.readouterr().err == ''
 
 

@@ -13,8 +13,9 @@ def online_enabled(config) -> bool:
 def schedule_end(online) -> int:
   """Simulator steps at which every annealed schedule of online training ends (the
   demonstrations' share, executed-action noise, `online.act_schedule='linear'`), of an online
-  section (`config.online`, or OnlineSettings): `schedule_steps`, or `env_steps` where it is 0."""
-  return int(online.schedule_steps or online.env_steps)
+  section (`config.online`, or it as a dict): `schedule_steps`, or `env_steps` where it is 0
+  (OnlineSettings.schedule_end likewise)."""
+  return int(online['schedule_steps'] or online['env_steps'])
 
 
 def resolve_config_arg(argv):

@@ -211,17 +211,15 @@ def config_changes(saved: dict, current: dict) -> List[str]:
           if k not in old or k not in new or old[k] != new[k]]
 
 
-def check_workdir(config: ml_collections.ConfigDict, workdir: str,
+def check_workdir(fields: dict, learn: LearnSettings, workdir: str,
                   continue_with_changes: bool = False) -> None:
-  """WorkdirError when `workdir` holds a run of another config; reads, never writes.
-
-  With `continue_with_changes`, a changed config continues the run, unless its networks no
-  longer fit the checkpoint (then nothing could be restored).
-  """
+  """WorkdirError when `workdir` holds a run of another config (`fields`: as the run records it,
+  nested dicts; `learn`: its LearnSettings); reads, never writes. With `continue_with_changes`, a
+  changed config continues the run, unless its networks no longer fit the checkpoint."""
   if not os.path.exists(os.path.join(workdir, CONFIG_FILE)):
     return
   saved = load_config(workdir)
-  changes = config_changes(saved.to_dict(), config.to_dict())
+  changes = config_changes(saved.to_dict(), fields)
   if not changes:
     return
   if not continue_with_changes:
@@ -229,12 +227,12 @@ def check_workdir(config: ml_collections.ConfigDict, workdir: str,
     raise WorkdirError(f'{workdir} holds a run of another config; this one differs in {shown}: '
                        'choose another --workdir, or pass --continue_with_changes to continue '
                        'that run under this config')
-  shapes = lambda c: jax.tree.map(lambda x: x.shape, abstract_state(LearnSettings.from_config(c)))
-  if has_checkpoint(workdir) and shapes(saved) != shapes(config):
+  shapes = lambda s: jax.tree.map(lambda x: x.shape, abstract_state(s))
+  if has_checkpoint(workdir) and shapes(LearnSettings.from_config(saved)) != shapes(learn):
     raise WorkdirError(f'{workdir}: even with --continue_with_changes, its checkpoints cannot '
                        f'continue under this config: the networks differ ({", ".join(changes)})')
-  if 'online' in saved and 'online' in config:
-    _warn_moved_schedules(configs.schedule_end(saved.online), configs.schedule_end(config.online))
+  if 'online' in saved and 'online' in fields:
+    _warn_moved_schedules(configs.schedule_end(saved.online), configs.schedule_end(fields['online']))
 
 
 def _warn_moved_schedules(old: int, new: int) -> None:

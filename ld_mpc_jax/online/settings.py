@@ -13,7 +13,6 @@ from typing import List, Tuple
 
 import ml_collections
 
-from ld_mpc_jax import configs
 from ld_mpc_jax.data import demos as demos_lib
 from ld_mpc_jax.model import proposals
 from ld_mpc_jax.plan import search
@@ -100,8 +99,9 @@ class OnlineSettings(_Hashable):
 
   @property
   def schedule_end(self) -> int:
-    """Simulator steps at which every annealed schedule ends (configs.schedule_end)."""
-    return configs.schedule_end(self)
+    """Simulator steps at which every annealed schedule ends (the demonstrations' share, the
+    executed-action noise, act_schedule='linear'): schedule_steps, or env_steps where it is 0."""
+    return int(self.schedule_steps or self.env_steps)
 
   @property
   def decisions(self) -> int:

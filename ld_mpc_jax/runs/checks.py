@@ -2,7 +2,7 @@
 config alone), `checked_plans` (that, and what the run needs of this machine and of the run it
 fine-tunes, then each training seed's plan)."""
 
-from typing import Optional, Tuple
+from typing import Tuple
 
 import ml_collections
 
@@ -44,16 +44,13 @@ def validate_config(config: ml_collections.ConfigDict) -> None:
     OnlineSettings.from_config(config).check(model, plan)
 
 
-def checked_plans(config: ml_collections.ConfigDict, workdir: str,
-                  continue_with_changes: Optional[bool] = None) -> Tuple[SeedPlan, ...]:
+def checked_plans(config: ml_collections.ConfigDict, workdir: str) -> Tuple[SeedPlan, ...]:
   """Each training seed's plan (runs.seed_plan.seed_plans) once every check a run makes before
   any long work has passed, each a one-line ValueError: the config (`validate_config`), its task
   names, the devices its seeds ask for (`train.seed_devices`), offscreen rendering for a model of
   images, and with `online.init_from` the offline run (or runs) it fine-tunes
   (runs.online.check_init_from), whose data the plans then train on (`config` is left as it is).
-
-  With `continue_with_changes` given, each seed's workdir is checked against its config too
-  (`checkpointing.check_workdir`: a WorkdirError before anything is written); None: not.
+  The workdirs are not read: `seed_plan.check_workdirs` checks them against the plans.
   """
   validate_config(config)
   Tasks.from_config(config).check()  # config.task, or every name of config.tasks.
@@ -67,7 +64,7 @@ def checked_plans(config: ml_collections.ConfigDict, workdir: str,
     source = online.check_init_from(seed_plans(config, workdir))
     config = with_overrides(config, {})  # A copy, its data the source's.
     config.data.update(source.data.to_dict())
-  return seed_plans(config, workdir, continue_with_changes)
+  return seed_plans(config, workdir)
 
 
 def check_seeds(num_seeds: int, seed_devices: int, data_parallel: bool) -> None:

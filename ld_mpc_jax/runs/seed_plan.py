@@ -1,6 +1,7 @@
 """What one training seed's run reads of the config, read once: `SeedPlan`, frozen.
 
-  plans = seed_plans(config, workdir, continue_with_changes)  # One per training seed.
+  plans = seed_plans(config, workdir)  # One per training seed.
+  check_workdirs(plans, continue_with_changes)  # A WorkdirError before anything is written.
   runs.Run(plans[0]); train_seeds.train_seeds(plans, ...); online.train_online(plans, workdir)
 
 `runs.train.train_and_evaluate(config, workdir)`, the training entry, is the one place in runs/
@@ -14,7 +15,7 @@ saves in <workdir>/seed<seed> what a run of that seed alone saves.
 import dataclasses
 import json
 import os
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 import ml_collections
 
@@ -105,19 +106,19 @@ class SeedPlan:
     return json.loads(self.config_json)
 
 
-def seed_plans(config: ml_collections.ConfigDict, workdir: str,
-               continue_with_changes: Optional[bool] = None) -> Tuple[SeedPlan, ...]:
+def seed_plans(config: ml_collections.ConfigDict, workdir: str) -> Tuple[SeedPlan, ...]:
   """Each training seed's plan (online or offline): the run itself with one seed; with
   `train.num_seeds` = N > 1, seeds config.seed + i in <workdir>/seed<seed>, each config as a
   separate run of that seed would save it (num_seeds = 1; `online.init_from`: `seed_source`).
-
-  With `continue_with_changes` given, each seed's workdir is checked against its config first
-  (`checkpointing.check_workdir`: a WorkdirError before anything is written).
   """
-  seeds = seed_configs(config, workdir)
-  if continue_with_changes is not None:
-    for c, w in seeds:
-      checkpointing.check_workdir(c, w, continue_with_changes)
+  seeds = [(config, workdir)]
+  if config.train.num_seeds > 1:
+    seeds = []
+    for i in range(config.train.num_seeds):
+      c = with_overrides(config, {'seed': config.seed + i, 'train.num_seeds': 1})
+      if 'online' in c and c.online.init_from:  # Each seed fine-tunes from its own offline seed.
+        c.online.init_from = seed_source(c.online.init_from, c.seed)
+      seeds.append((c, os.path.join(workdir, f'seed{c.seed}')))
   return tuple(SeedPlan(
       workdir=w, config_json=c.to_json_best_effort(indent=2), learn=LearnSettings.from_config(c),
       eval=EvalSpec.from_config(c), data=DataSpec.from_config(c), tasks=Tasks.from_config(c),
@@ -126,20 +127,11 @@ def seed_plans(config: ml_collections.ConfigDict, workdir: str,
       online=OnlineSettings.from_config(c) if online_enabled(c) else None) for c, w in seeds)
 
 
-def seed_configs(config: ml_collections.ConfigDict,
-                 workdir: str) -> List[Tuple[ml_collections.ConfigDict, str]]:
-  """(config, workdir) of each training seed: the run itself with one seed; with
-  `train.num_seeds` = N > 1, seed config.seed + i in <workdir>/seed<seed>, its config as a run of
-  that seed alone records it (num_seeds 1; `online.init_from`: its own, `seed_source`)."""
-  if config.train.num_seeds == 1:
-    return [(config, workdir)]
-  seeds = []
-  for i in range(config.train.num_seeds):
-    c = with_overrides(config, {'seed': config.seed + i, 'train.num_seeds': 1})
-    if 'online' in c and c.online.init_from:  # Each seed fine-tunes from its own offline seed.
-      c.online.init_from = seed_source(c.online.init_from, c.seed)
-    seeds.append((c, os.path.join(workdir, f'seed{c.seed}')))
-  return seeds
+def check_workdirs(plans: Tuple[SeedPlan, ...], continue_with_changes: bool = False) -> None:
+  """Each seed's workdir against the config its plan records (`checkpointing.check_workdir`: a
+  WorkdirError, before anything is written, when it holds a run of another config)."""
+  for p in plans:
+    checkpointing.check_workdir(p.fields(), p.learn, p.workdir, continue_with_changes)
 
 
 def seed_source(path: str, seed: int) -> str:

@@ -23,10 +23,9 @@ from ld_mpc_jax.eval import multitask_eval, run_files
 from ld_mpc_jax.runs import loop as runs
 from ld_mpc_jax.runs.lock import workdir_lock
 from ld_mpc_jax.runs.progress import progress_bar, rate_text, stage
-from ld_mpc_jax.runs.seed_plan import SeedPlan, seed_configs
+from ld_mpc_jax.runs.seed_plan import SeedPlan, check_workdirs
 from ld_mpc_jax.ops import sharding
 from ld_mpc_jax.runs.checks import checked_plans
-from ld_mpc_jax.configs import online_enabled
 from ld_mpc_jax.model.models import count_params
 from ld_mpc_jax.learn.train_state import create_train_state, make_update
 
@@ -63,12 +62,13 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   a WorkdirError) naming the checkpoint the same command resumes from once space is freed.
   """
   with workdir_lock(workdir), checkpointing.stop_when_disk_full(workdir):
-    finished = finished_report(workdir, config)
+    plans = checked_plans(config, workdir)
+    finished = finished_report(workdir, plans)
     if finished is not None:  # Rerun of a finished run: nothing is appended or replaced.
       print(f'{workdir} holds this run, finished: nothing to do, nothing changed (to train it '
             'further, raise its step count and pass --continue_with_changes)', file=sys.stderr)
       return finished
-    plans = checked_plans(config, workdir, continue_with_changes)  # Each seed's workdir too.
+    check_workdirs(plans, continue_with_changes)  # Before anything is written.
     os.makedirs(workdir, exist_ok=True)
     if plans[0].online is not None:
       from ld_mpc_jax.runs import online  # pylint: disable=g-import-not-at-top (environments)
@@ -76,24 +76,22 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
     return _train_offline(plans, workdir)
 
 
-def finished_report(workdir: str,
-                    config: ml_collections.ConfigDict) -> Optional[Dict[str, Any]]:
-  """The report of the run in `workdir` when it has finished under this very config (each
-  training seed's config.json is its config, `seed_plan.seed_configs`, and it has the checkpoint
-  of its last step; report.json, or pooled.json for several seeds, is written last), else
-  None."""
-  seeds = seed_configs(config, workdir)
-  num_seeds = len(seeds)
+def finished_report(workdir: str, plans: Sequence[SeedPlan]) -> Optional[Dict[str, Any]]:
+  """The report of the run in `workdir` when it has finished as its training seeds' `plans` say
+  (runs.checks.checked_plans): each seed's config.json is the one its plan records and it has the
+  checkpoint of its last step, and the report (report.json, or pooled.json for several seeds) is
+  written, last; else None."""
+  num_seeds = len(plans)
   path = os.path.join(workdir, 'report.json' if num_seeds == 1 else 'pooled.json')
   if not os.path.exists(path):
     return None
-  for c, w in seeds:
-    end = c.online.env_steps if online_enabled(c) else c.train.num_steps
-    steps = checkpointing.complete_steps(w)
-    if not os.path.exists(os.path.join(w, checkpointing.CONFIG_FILE)) or not (
+  for p in plans:
+    end = p.online.env_steps if p.online is not None else p.loop.num_steps
+    steps = checkpointing.complete_steps(p.workdir)
+    if not os.path.exists(os.path.join(p.workdir, checkpointing.CONFIG_FILE)) or not (
         steps and steps[-1] >= end):
       return None
-    if checkpointing.config_changes(checkpointing.load_config(w).to_dict(), c.to_dict()):
+    if checkpointing.config_changes(checkpointing.load_config(p.workdir).to_dict(), p.fields()):
       return None  # Another config (refused later) or one continued with changes.
   try:
     with open(path) as f:
