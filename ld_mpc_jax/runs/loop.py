@@ -117,7 +117,7 @@ class Run:
     workdir = plan.workdir
     self.commit = run_files.git_commit()  # The code this process runs: HEAD may move later.
     os.makedirs(workdir, exist_ok=True)
-    # Checked first: checkpointing.check_workdir (runs.seed_plan.seed_plans).
+    # Checked first: checkpointing.check_workdir (runs.seed_plan.check_workdirs).
     checkpointing.record_config(plan.config_json, workdir)
     run_files.write_provenance(workdir)  # Commit, dirty flag and command of this start.
     self.manager = checkpointing.checkpoint_manager(workdir, plan.loop.max_checkpoints)
