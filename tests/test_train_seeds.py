@@ -138,3 +138,7 @@ def test_rerunning_a_finished_run_of_several_seeds_changes_nothing(runs, tmp_pat
   assert report['seeds'] == [0, 1]
   assert 'finished: nothing to do, nothing changed' in capsys.readouterr().err
   assert {p: p.read_bytes() for p in work.rglob('*') if p.is_file()} == before
+  for seed in (0, 1):  # Checkpoints deleted after the run: still finished, not trained again.
+    shutil.rmtree(work / f'seed{seed}' / 'checkpoints')
+  train_and_evaluate(_config(0, 2), str(work))
+  assert 'finished: nothing to do, nothing changed' in capsys.readouterr().err

@@ -41,8 +41,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
   per-episode records under 'records'.
 
   The one place in runs/ that reads the config: it checks it and builds each training seed's plan
-  with its workdir checked (`runs.checks.checked_plans`: the config, the task names, the devices,
-  rendering, `online.init_from`); the jobs read the plans.
+  (`runs.checks.checked_plans`: the config, the task names, the devices, rendering,
+  `online.init_from`), then each seed's workdir against its plan (`seed_plan.check_workdirs`);
+  the jobs read the plans.
 
   A workdir that holds a run of another config is refused (`checkpointing.WorkdirError`, before
   anything is written to it) unless `continue_with_changes`; its earlier config.json is then kept
@@ -78,9 +79,10 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str,
 
 def finished_report(workdir: str, plans: Sequence[SeedPlan]) -> Optional[Dict[str, Any]]:
   """The report of the run in `workdir` when it has finished as its training seeds' `plans` say
-  (runs.checks.checked_plans): each seed's config.json is the one its plan records and it has the
-  checkpoint of its last step, and the report (report.json, or pooled.json for several seeds) is
-  written, last; else None."""
+  (runs.checks.checked_plans): each seed's config.json is the one its plan records, no seed's
+  checkpoints stop short of its last step (none left at all: deleted after the run, still
+  finished), and the report (report.json, or pooled.json for several seeds) is written, last;
+  else None."""
   num_seeds = len(plans)
   path = os.path.join(workdir, 'report.json' if num_seeds == 1 else 'pooled.json')
   if not os.path.exists(path):
@@ -88,8 +90,8 @@ def finished_report(workdir: str, plans: Sequence[SeedPlan]) -> Optional[Dict[st
   for p in plans:
     end = p.online.env_steps if p.online is not None else p.loop.num_steps
     steps = checkpointing.complete_steps(p.workdir)
-    if not os.path.exists(os.path.join(p.workdir, checkpointing.CONFIG_FILE)) or not (
-        steps and steps[-1] >= end):
+    if not os.path.exists(os.path.join(p.workdir, checkpointing.CONFIG_FILE)) or (
+        steps and steps[-1] < end):
       return None
     if checkpointing.config_changes(checkpointing.load_config(p.workdir).to_dict(), p.fields()):
       return None  # Another config (refused later) or one continued with changes.
