@@ -17,7 +17,7 @@ from ld_mpc_jax.model.settings import PlanSettings
 from ld_mpc_jax.online import schedule
 from ld_mpc_jax.online.settings import OnlineSettings
 from ld_mpc_jax.model import models, objective
-from ld_mpc_jax.plan import planner
+from ld_mpc_jax.plan import planner, search
 
 
 def acting_plan(config):
@@ -176,6 +176,31 @@ def test_plan_with_an_intrinsic_term_and_agreeing_members_scores_as_without(
   plain, bonus = split(smoke_params, z, key), split(smoke_params, z, key, None, 0.0, None,
                                                     _intrinsic(-1.0, 0.0))
   np.testing.assert_allclose(bonus.scores - plain.scores, np.sqrt(2.0) * 0.5, rtol=1e-5)
+
+
+def test_while_acting_the_plan_reports_the_proposals_share_of_the_elites_refinement_starts_from(
+    smoke_config, smoke_params):
+  """The first round mixes the proposal's, the Gaussians' and the actor prior's candidates; one
+  refinement round starts from its `plan.num_elites` best, whose share of the proposal's is
+  reported while acting (by hand from the first round's scores, which the output keeps first)."""
+  c = smoke_config
+  c.plan.num_candidates, c.plan.num_gaussian, c.plan.num_prior_candidates = 6, 3, 2
+  c.plan.first_round, c.plan.num_elites = ('proposal', 'gaussian'), 4
+  c.plan.iterations, c.plan.num_refine = 1, 4
+  p = PlanSettings.from_config(c)
+  z = models.encode(smoke_params, np.ones(c.obs_dim, np.float32))
+  plan = planner.make_plan(c, _members(0.0))
+  assert float(plan(smoke_params, z, jax.random.key(0)).proposal_elites) == -1.0  # Not acting.
+  kinds = np.asarray([search.CANDIDATES.index(k) for k, n in search.first_round_counts(p)
+                      for _ in range(n)] + [search.CANDIDATES.index('actor_prior')] * 2)
+  shares = []
+  for seed in range(4):
+    out = plan(smoke_params, z, jax.random.key(seed), None, 0.0, None, _intrinsic(0.0, 0.0))
+    first = np.asarray(out.scores)[:len(kinds)]  # Then the refined round's elites.
+    best = np.argsort(-first, kind='stable')[:4]
+    shares.append(np.mean(kinds[best] == search.CANDIDATES.index('proposal')))
+    assert float(out.proposal_elites) == pytest.approx(shares[-1])
+  assert len(set(shares)) > 1 or 0.0 < shares[0] < 1.0  # Not a constant by construction.
 
 
 @pytest.mark.parametrize('dynamics_type', ['mlp', 'diffusion_ar'])

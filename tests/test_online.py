@@ -193,7 +193,7 @@ def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, mon
   o = config.online
   o.act_proposal, o.act_schedule = False, 'linear'
   o.act_pessimism, o.act_pessimism_end, o.act_disagreement = -1.0, 0.0, 2.0
-  o.act_dynamics_draws = 2
+  o.act_dynamics_draws, o.act_iterations, config.plan.num_elites = 2, 1, 3
   config.loss.w_novelty, o.act_novelty, o.act_novelty_end = 1.0, 3.0, 0.0  # The exploration value.
   acting = OnlineSettings.from_config(config).acting_plan(PlanSettings.from_config(config))  # Evaluation keeps the proposal's K - P candidates.
   assert (acting.num_candidates, config.plan.num_candidates) == (2, 4)
@@ -201,9 +201,10 @@ def test_acting_records_who_won_and_how_spread_the_candidates_were(tmp_path, mon
   wave = _rows(tmp_path / 'run' / 'online.csv')[1]
   assert wave['acting'] == 'planner' and int(wave['planned']) == 20  # 2 envs x 10 decisions.
   won = {k: float(wave[f'won_{k}']) for k in CANDIDATE_KINDS}
-  assert won['proposal'] == 0.0 and won['refined'] == 0.0  # None drawn; no refinement.
-  assert won['actor_prior'] + won['gaussian'] == pytest.approx(1.0)
+  assert won['proposal'] == 0.0  # None drawn.
+  assert won['actor_prior'] + won['gaussian'] + won['refined'] == pytest.approx(1.0)
   assert math.isnan(float(wave['spread_proposal']))  # No proposal candidate to spread.
+  assert float(wave['elites_proposal']) == 0.0  # Nor among the elites the refinement starts from.
   assert 0.05 < float(wave['spread_first']) <= 1.0  # Actions in [-1, 1]; the Gaussians spread.
   # The first planner wave acts with the schedule's start values (seed steps: 40).
   assert (float(wave['act_pessimism']), float(wave['act_disagreement']),

@@ -144,7 +144,7 @@ def test_acting_policy_has_no_noise_unless_set(smoke_config, smoke_params):
   eps = [goals.Episode('x', i, 0, i, '', None) for i in range(2)]
   policy.start(eps)
   quiet = policy(obs, 0, np.ones(2, bool))
-  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 6)
+  assert policy.action_noise == 0.0 and policy.last_info.shape == (2, 7)
   policy.start(eps)
   policy.action_noise = 0.5
   noisy = policy(obs, 0, np.ones(2, bool))

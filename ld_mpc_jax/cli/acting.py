@@ -5,7 +5,8 @@
 
 Reads each run's online.csv (or its gzipped record under results/) and prints, per file, what a
 run's report.md shows: the shares of its planned decisions won by each kind of candidate, that
-departed from the actor prior, and the candidates' spreads, per `--every` simulator steps and over
+departed from the actor prior, the candidates' spreads and the proposal's share of the elites the
+refinement rounds start from (where recorded), per `--every` simulator steps and over
 the whole run, each wave weighted by its planned decisions (runs.online_report.acting_summary).
 """
 

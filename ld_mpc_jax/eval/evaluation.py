@@ -213,7 +213,7 @@ def _run_wave(policy: BatchPolicy, wave: Sequence[goals_lib.Episode], slots: Lis
     if frames is not None and active[0]:
       frames.append(np.asarray(slots[0].render(), np.uint8))
     actions = np.asarray(policy(obs, t, active))
-    infos = getattr(policy, 'last_info', None)  # Planners: [N, 6] (agent.NO_PLAN_INFO).
+    infos = getattr(policy, 'last_info', None)  # Planners: [N, 7] (agent.NO_PLAN_INFO).
     for i in np.flatnonzero(active):
       if infos is not None:
         _record_info(rec[i], t, infos[i])

@@ -38,12 +38,13 @@ class WaveRecord:
   """One seed's wave once it ended: its episodes (dicts of obs [L+1, obs_dim], action [L, A],
   reward [L], success [L]), which kind of candidate won each planned decision (counts per
   CANDIDATES kind, the last entry counting departures from the actor prior), the first-action
-  spreads [D, 2] of the planned decisions (agent.NO_PLAN_INFO), and the largest dense step
-  reward."""
+  spreads [D, 2] and the proposal's share of the first round's elites [D] of the planned
+  decisions (agent.NO_PLAN_INFO), and the largest dense step reward."""
   episodes: List[dict]
   winners: np.ndarray
   spreads: np.ndarray
   dense_max: float
+  elites: np.ndarray
 
 
 class Seat:
@@ -188,7 +189,8 @@ class SeatWave:
     self.noise = np.zeros((n, action_dim))
     self.noise_rng = np.random.default_rng([seed, first, 29])
     self.winners = np.zeros(len(CANDIDATES) + 1, np.int64)
-    self.spreads, self.dense_max = [], 0.0  # Each planned decision's first-action spreads [2].
+    # Each planned decision's first-action spreads [2] and its proposal's share of the elites.
+    self.spreads, self.elites, self.dense_max = [], [], 0.0
 
   def upcoming(self) -> int:
     """Environment steps the next `step` will take, summed over the active environments (0 when
@@ -230,13 +232,14 @@ class SeatWave:
 
   def _count_winners(self, infos) -> None:
     """Which kind of candidate won each acting decision (the last entry counts departures), and
-    the spreads of its candidates' first actions."""
+    the spreads of its candidates' first actions and the proposal's share of its elites."""
     if infos is None:
       return
     for info_i in infos[self.active]:
       if info_i[0] >= 0:
         self.winners[int(info_i[0])] += 1
         self.spreads.append(info_i[4:6])
+        self.elites.append(info_i[6])
       self.winners[-1] += int(info_i[2])
 
   def finish(self) -> WaveRecord:
@@ -248,4 +251,5 @@ class SeatWave:
       if plans:  # Every decision of a planner wave was planned.
         episode['plan'] = np.stack(plans)
     return WaveRecord(episodes, self.winners.copy(),
-                      np.asarray(self.spreads, np.float64).reshape(-1, 2), self.dense_max)
+                      np.asarray(self.spreads, np.float64).reshape(-1, 2), self.dense_max,
+                      np.asarray(self.elites, np.float64))

@@ -25,7 +25,7 @@ from ld_mpc_jax.plan.modes import (  # noqa: F401 (the modes' names, re-exported
 
 def make_act(settings: ActSettings, mode: str = 'plan') -> Callable:
   """Returns jitted act(params, obs [obs_dim], key, t [], prev, noise=0.0, intrinsic=None) ->
-  (action [A], carry, info [6] float32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
+  (action [A], carry, info [7] float32: NO_PLAN_INFO's fields). `noise` and `intrinsic`
   (objective.Intrinsic; acting only) are traced: annealing them never recompiles.
 
   The decision's key is fold_in(key, t). `prev` is the previous decision's carry (or None at
@@ -160,7 +160,7 @@ class BatchAgentPolicy:
     self.keys = self.prev = self._sliced = None
     # The executed action's noise std and the planner's objective.Intrinsic (acting only).
     self.action_noise, self.intrinsic = action_noise, intrinsic
-    self.last_info = None  # [N, 6] float32 of the last decision (NO_PLAN_INFO's fields).
+    self.last_info = None  # [N, 7] float32 of the last decision (NO_PLAN_INFO's fields).
 
   def set_params(self, params) -> None:
     """The parameters to act with from now on (replicated over the mesh, if any; copied to

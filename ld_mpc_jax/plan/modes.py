@@ -42,16 +42,16 @@ class ActSettings:
     return cls(model, plan, tuple(sorted(config.mppi.items())))
 
 
-# What a decision reports beside its action: float32 [6] = (kind of the winning candidate, an
+# What a decision reports beside its action: float32 [7] = (kind of the winning candidate, an
 # index into search.CANDIDATES.names() or -1 for policies that do not plan; the refinement round it
 # came from; 1 if the planner departed from the actor prior's own sequence, else 0; the fallback
 # (`plan.fallback_drop`, with safe selection): 1 once it has handed the episode to the actor
-# prior, 0 before, -1 for policies without it; then planner.PlanOutput.spread [2] while acting
-# (`intrinsic` given), else -1).
-NO_PLAN_INFO = (-1, 0, 0, -1, -1, -1)
+# prior, 0 before, -1 for policies without it; then planner.PlanOutput.spread [2] and
+# proposal_elites while acting (`intrinsic` given), else -1).
+NO_PLAN_INFO = (-1, 0, 0, -1, -1, -1, -1)
 
 # Policy modes: name -> PolicyMode. A mode's act(params, z [latent_dim], key, prev, noise [],
-# intrinsic) -> (action [A], carry, info [6]) is built by make_act(settings, nets) (ActSettings),
+# intrinsic) -> (action [A], carry, info [7]) is built by make_act(settings, nets) (ActSettings),
 # not jitted;
 # `intrinsic` (acting only, objective.Intrinsic or None) is the planner's; `carry` is what
 # the next decision of the episode gets as `prev` (the sequence [H, A]: the planner's plan or
@@ -89,7 +89,7 @@ def _plan_act(s: ActSettings, nets):
     out = plan(params, z, key, sequence, noise, guard, intrinsic)
     fallen = out.guard.fallen if guarded else -1
     info = jnp.concatenate([jnp.stack([out.kind, out.iteration, out.departed, fallen]).astype(
-        jnp.float32), out.spread])
+        jnp.float32), out.spread, out.proposal_elites[None]])
     return out.action, (out.sequence, out.guard) if guarded else out.sequence, info
   return act
 
@@ -144,7 +144,7 @@ MODES = POLICY_MODES.names()  # ('plan', 'actor', 'proposal', 'mppi'); the regis
 
 def make_act_fn(s: ActSettings, mode: str) -> Callable:
   """act(params, obs [obs_dim], key, prev, noise [], intrinsic=None) -> (action [A], carry,
-  info [6]), not jitted: the encoder's latent (filtered with `plan.latent_filter`), then the
+  info [7]), not jitted: the encoder's latent (filtered with `plan.latent_filter`), then the
   mode's act. `noise`: std of Gaussian noise on the executed action of the planner or the actor
   prior (acting only); `intrinsic`: the planner's (acting only)."""
   entry, nets = POLICY_MODES.get(mode), build_networks(s.model)

@@ -79,6 +79,19 @@ class PlanOutput:
   # and of the proposal's alone (-1 without any): how diverse what the planner tries is.
   # Measured while acting (an `intrinsic` given), else -1: evaluation's program stays as it was.
   spread: jnp.ndarray
+  # [] the share of the elites the refinement rounds start from (the first round's
+  # `plan.num_elites` best, search.refine) that are the proposal's samples: a refined winner can
+  # owe its start to the proposal. Measured while acting with refinement rounds; else -1.
+  proposal_elites: jnp.ndarray
+
+
+def _acting_spread(actions, kinds, intrinsic) -> jnp.ndarray:
+  """PlanOutput.spread [2] of a first round's candidates [K, H, A] of kinds [K], measured while
+  acting (`intrinsic` given); -1 otherwise, so that the evaluation's program stays as it was."""
+  if intrinsic is None:
+    return jnp.full(2, -1.0)
+  return jnp.stack([first_action_spread(actions),
+                    first_action_spread(actions, kinds == CANDIDATES.index('proposal'))])
 
 
 def make_guide(m: ModelSettings, p: PlanSettings, nets: Networks) -> Optional[Callable]:
@@ -215,20 +228,20 @@ def _make_refine(p: PlanSettings, score_draws: Callable, plain_rollout: Callable
                  ) -> Optional[Callable]:
   """`plan.iterations` refinement rounds (ld_mpc_jax.plan.search.refine), or None without:
   refine(params, z, key, first: Pool, intrinsic) -> the first round's pool with the rounds'
-  elites appended, and `unique` [K'] bool (elites kept from the first round appear twice: once
-  only in the softmax over elites)."""
+  elites appended, `unique` [K'] bool (elites kept from the first round appear twice: once
+  only in the softmax over elites) and the kinds [E] of the elites the rounds started from."""
   if not p.iterations:
     return None
   def refine_pool(params, z, key, first, intrinsic):
     def score_samples(samples, k):  # (scores [N], members): as the first round's.
       return score_draws(params, z, samples, k, plain_rollout, intrinsic)[1:]
-    pool = refine(score_samples, first, jax.random.fold_in(key, 10_000), p.iterations,
+    pool, start = refine(score_samples, first, jax.random.fold_in(key, 10_000), p.iterations,
                   p.num_refine, p.num_elites, p.temperature, p.min_std, p.gaussian_std)
     merged = Pool(*(jnp.concatenate([x, y], axis=1 if name == 'members' else 0)
                     for name, x, y in zip(Pool._fields, first, pool)))
     n = first.scores.shape[0]
     unique = jnp.concatenate([jnp.ones(n, bool), pool.iteration > 0])
-    return merged, unique
+    return merged, unique, start
 
   return refine_pool
 
@@ -350,12 +363,12 @@ def _build_plan(m: ModelSettings, p: PlanSettings, score_fn: Optional[ScoreFn]) 
     actions, scores, members = score_draws(params, z, proposals_, dyn_key, rollout, intrinsic)
     pool = Pool(actions, scores, members, kinds,
                 jnp.zeros(actions.shape[0], jnp.int32))
-    spread = jnp.full(2, -1.0) if intrinsic is None else jnp.stack([  # Measured while acting.
-        first_action_spread(actions),
-        first_action_spread(actions, kinds == CANDIDATES.index('proposal'))])
+    spread, proposal_elites = _acting_spread(actions, kinds, intrinsic), jnp.asarray(-1.0)
     unique = None
     if refine_pool is not None:
-      pool, unique = refine_pool(params, z, dyn_key, pool, intrinsic)
+      pool, unique, start = refine_pool(params, z, dyn_key, pool, intrinsic)
+      if intrinsic is not None:  # Measured while acting.
+        proposal_elites = jnp.mean(start == CANDIDATES.index('proposal'))
     sequence, index, departed, _ = select(pool.actions, pool.scores, pool.members, anchor,
                                           p.safe_selection, margin, p.selection,
                                           p.num_elites, p.temperature, unique)
@@ -373,6 +386,7 @@ def _build_plan(m: ModelSettings, p: PlanSettings, score_fn: Optional[ScoreFn]) 
     return PlanOutput(action=action, sequence=sequence, scores=pool.scores,
                       candidates=pool.actions, index=index, kind=pool.kind[index],
                       iteration=pool.iteration[index], departed=departed,
-                      prior_score=prior_score, guard=guard, spread=spread)
+                      prior_score=prior_score, guard=guard, spread=spread,
+                      proposal_elites=proposal_elites)
 
   return jax.jit(plan)

@@ -160,8 +160,10 @@ def top_pool(pool: Pool, num: int) -> Pool:
 
 
 def refine(score_fn: Callable, first: Pool, key: jax.Array, iterations: int, num_samples: int,
-           num_elites: int, temperature: float, min_std: float, max_std: float) -> Pool:
-  """MPPI-style refinement: returns the final elites (E = num_elites) with their provenance.
+           num_elites: int, temperature: float, min_std: float, max_std: float
+           ) -> Tuple[Pool, jnp.ndarray]:
+  """MPPI-style refinement: returns the final elites (E = num_elites) with their provenance,
+  and the kinds [E] of the first round's elites it started from.
 
   score_fn(actions [N, H, A], key) -> (scores [N], member scores [M, N]), scored as the first
   round's candidates were (the same draws and pessimism). `first` is the first round's scored
@@ -184,8 +186,9 @@ def refine(score_fn: Callable, first: Pool, key: jax.Array, iterations: int, num
                     for name, x, y in zip(Pool._fields, pool, new)))
     return top_pool(merged, num_elites), None
 
+  start = pool.kind
   pool, _ = jax.lax.scan(step, pool, jnp.arange(1, iterations + 1))
-  return pool
+  return pool, start
 
 
 def select(actions: jnp.ndarray, scores: jnp.ndarray, members: jnp.ndarray, anchor: int,

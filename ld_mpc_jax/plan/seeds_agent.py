@@ -83,7 +83,7 @@ class SeedsAgentPolicy:
 
   def decide(self, params, obs: np.ndarray, t: int, active: np.ndarray, prev):
     """One decision of the wave `start` began, writing nothing on the policy: (actions
-    [S, N, A], infos [S, N, 6], the planner's chosen sequences [S, N, H, A] or None, the
+    [S, N, A], infos [S, N, 7], the planner's chosen sequences [S, N, H, A] or None, the
     warm-start carry for the next decision). `params` as `prepare` gives them; `prev`: None
     at a wave's first decision."""
     s, n = obs.shape[:2]

@@ -76,8 +76,8 @@ def log_wave(job, seat, before: int, wave, mode: str, seconds: float) -> None:
 
 def _acting_columns(job, seat, before: int, wave, mode: str) -> dict:
   """The wave's planned decisions, the mean spread of their candidates' first actions (of the
-  first round's, and of the proposal's alone) and the intrinsic term's scheduled weights; NaN
-  where nothing was planned. (Last in the row: a run resumed from code without them keeps its
+  first round's, and of the proposal's alone), the intrinsic term's scheduled weights and the
+  proposal's mean share of the first round's elites; NaN where nothing was planned. (Last in the row: a run resumed from code without them keeps its
   earlier columns in place.)"""
   spreads = np.asarray(wave.spreads, np.float64).reshape(-1, 2)
   mean = lambda x: float(np.mean(x[x >= 0])) if (x >= 0).any() else float('nan')
@@ -88,6 +88,7 @@ def _acting_columns(job, seat, before: int, wave, mode: str) -> dict:
              act_disagreement=disagreement)
   if seat.novelty:  # Only runs with the exploration value have the column.
     out['act_novelty'] = job.acting_schedule.novelty(before) if mode == 'plan' else float('nan')
+  out['elites_proposal'] = mean(np.asarray(wave.elites, np.float64).reshape(-1))
   return out
 
 
@@ -175,13 +176,15 @@ def acting_summary(workdir: str, every: int) -> Dict[str, Any]:
 
 def acting_rows_summary(rows: List[Dict[str, str]], every: int) -> Dict[str, Any]:
   """How the planner acted, from online.csv's `rows`: the share of planned decisions won by each
-  kind of candidate (`won_<kind>`) and that departed from the actor prior, and the mean spread of
-  the candidates' first actions (of the first round's, and of the proposal's), over the whole run
+  kind of candidate (`won_<kind>`) and that departed from the actor prior, the mean spread of
+  the candidates' first actions (of the first round's, and of the proposal's) and the proposal's
+  share of the first round's elites (`elites_proposal`, where recorded), over the whole run
   and per `every` environment steps (the held-out evaluations' spacing), weighted by each wave's
   planned decisions. Waves logged before online.csv had a `planned` column are left out."""
   rows = [r for r in rows if r.get('planned') not in (None, '')]
   columns = [k for k in (rows[0] if rows else {})
-             if k.startswith('won_') or k in ('departed', 'spread_first', 'spread_proposal')]
+             if k.startswith('won_') or k in ('departed', 'spread_first', 'spread_proposal',
+                                                'elites_proposal')]
   def summary(part, env_steps):
     return dict(env_steps=env_steps, planned=sum(int(r['planned']) for r in part),
                 **{k: _weighted(part, k) for k in columns})
@@ -195,8 +198,10 @@ def acting_rows_summary(rows: List[Dict[str, str]], every: int) -> Dict[str, Any
 
 ACTING_INTRO = ("While acting (training waves, with exploration): the share of planned decisions "
                 "won by each kind of candidate, that departed from the actor prior's own sequence, "
-                "and the spread of the candidates' first actions (std over candidates, mean over "
-                "action dimensions; the first round's, the proposal's).")
+                "the spread of the candidates' first actions (std over candidates, mean over "
+                "action dimensions; the first round's, the proposal's), and the proposal's share "
+                "of the first round's best `plan.num_elites`, which the refinement rounds start "
+                "from (`elites_proposal`).")
 
 
 def acting_table(rows: List[tuple], first: str) -> List[str]:
