@@ -2,8 +2,10 @@
 
 import ctypes.util
 import os
+import warnings
 
 import gymnasium as gym
+import jax
 import numpy as np
 import pytest
 
@@ -207,12 +209,19 @@ def test_scripted_policy_on_real_env_is_deterministic():
     reason='offscreen MuJoCo rendering needs MUJOCO_GL=osmesa set before the '
     'tests start and libosmesa6 (apt-get install -y libosmesa6)')
 def test_real_video(tmp_path):
-  res = evaluation.evaluate(
-      lambda o: np.zeros(4, np.float32), 'door-open-v3', num_episodes=1,
-      max_episode_steps=6, video_path=str(tmp_path / 'v.mp4'), image_size=64,
-      progress=False)
+  """An mp4 through imageio-ffmpeg, with JAX's threads running and without a fork warning
+  (ffmpeg starts without a Python preexec_fn in the forked child)."""
+  jax.block_until_ready(jax.numpy.ones(3) * 2)  # JAX started: its at-fork warning is armed.
+  with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter('always')
+    res = evaluation.evaluate(
+        lambda o: np.zeros(4, np.float32), 'door-open-v3', num_episodes=1,
+        max_episode_steps=6, video_path=str(tmp_path / 'v.mp4'), image_size=64,
+        progress=False)
+  assert not [w for w in caught if 'fork' in str(w.message)], [str(w.message) for w in caught]
   assert res['video_path'] == str(tmp_path / 'v.mp4')  # imageio-ffmpeg: mp4, not a gif.
   assert os.path.getsize(res['video_path']) > 0
+  assert 'IMAGEIO_FFMPEG_NO_PREVENT_SIGINT' not in os.environ  # Restored.
 
 
 def test_env_pool_keeps_the_latest_settings_and_closes_the_rest(monkeypatch):

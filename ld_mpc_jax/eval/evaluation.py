@@ -66,11 +66,19 @@ class CallablePolicy:
     return out
 
 
+_NO_PREEXEC = 'IMAGEIO_FFMPEG_NO_PREVENT_SIGINT'
+
+
 def _write_video(frames: List[np.ndarray], path: str, fps: int) -> str:
   """Writes uint8 frames [H, W, 3] to mp4 (needs imageio-ffmpeg) or gif."""
   import imageio.v2 as imageio  # pylint: disable=g-import-not-at-top
   os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
   if path.endswith('.mp4'):
+    # imageio-ffmpeg starts ffmpeg with a Python preexec_fn (its own process group), which runs
+    # Python in the forked child of this multithreaded (JAX) process: JAX warns that this can
+    # deadlock. Its switch below starts ffmpeg without it (a Ctrl-C then reaches ffmpeg too).
+    no_preexec = os.environ.get(_NO_PREEXEC)
+    os.environ[_NO_PREEXEC] = '1'
     try:
       imageio.mimsave(path, frames, fps=fps)
       return path
@@ -79,6 +87,11 @@ def _write_video(frames: List[np.ndarray], path: str, fps: int) -> str:
       warnings.warn(f'Cannot write mp4 ({err}); install imageio-ffmpeg for '
                     f'mp4. Writing {gif} instead.')
       path = gif
+    finally:
+      if no_preexec is None:
+        del os.environ[_NO_PREEXEC]
+      else:
+        os.environ[_NO_PREEXEC] = no_preexec
   imageio.mimsave(path, frames, duration=1000.0 / fps, loop=0)
   return path
 
