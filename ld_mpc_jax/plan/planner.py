@@ -236,7 +236,7 @@ def _make_refine(p: PlanSettings, score_draws: Callable, plain_rollout: Callable
     def score_samples(samples, k):  # (scores [N], members): as the first round's.
       return score_draws(params, z, samples, k, plain_rollout, intrinsic)[1:]
     pool, start = refine(score_samples, first, jax.random.fold_in(key, 10_000), p.iterations,
-                  p.num_refine, p.num_elites, p.temperature, p.min_std, p.gaussian_std)
+                         p.num_refine, p.num_elites, p.temperature, p.min_std, p.gaussian_std)
     merged = Pool(*(jnp.concatenate([x, y], axis=1 if name == 'members' else 0)
                     for name, x, y in zip(Pool._fields, first, pool)))
     n = first.scores.shape[0]
