@@ -88,7 +88,7 @@ def _acting_columns(job, seat, before: int, wave, mode: str) -> dict:
              act_disagreement=disagreement)
   if seat.novelty:  # Only runs with the exploration value have the column.
     out['act_novelty'] = job.acting_schedule.novelty(before) if mode == 'plan' else float('nan')
-  out['elites_proposal'] = mean(np.asarray(wave.elites, np.float64).reshape(-1))
+  out['elites_proposal'] = mean(wave.elites)  # float64 [D], WaveRecord's.
   return out
 
 
