@@ -21,7 +21,7 @@ from ld_mpc_jax.learn import checkpointing
 from ld_mpc_jax.learn.train_state import create_train_state
 from ld_mpc_jax.online.learner import COUNTERS, Learner
 from ld_mpc_jax.online.schedule import ActingSchedule
-from ld_mpc_jax.online.seats import Seat, SeatRuns, WaveSchedule, run_wave
+from ld_mpc_jax.online.seats import Seat, WaveSchedule, run_wave
 
 
 class OnlineJob:
@@ -73,7 +73,6 @@ class OnlineJob:
     act = first.eval.act
     self.acting = dataclasses.replace(act, plan=self.online.acting_plan(act.plan))
     self.last = None  # (mode, seconds, WaveRecords) of the last wave.
-    self.runs = SeatRuns(self.seats)
     self.bar = bar(self.steps['env_steps'])
 
   @property
@@ -163,7 +162,7 @@ class OnlineJob:
           os.remove(os.path.join(workdir, BUFFER_DIR, name))
 
   def eval_params(self):
-    """Each seed's EMA parameters (`SeatRuns.periodic_eval`)."""
+    """Each seed's EMA parameters, in the seats' order."""
     return self.learner.views()
 
   def log(self, before: int) -> None:

@@ -70,20 +70,6 @@ class Seat:
                  for _ in range(online.num_envs)]
     self.update_key = jax.random.key(online.seed + 1)
 
-  def ema_params(self, job):
-    return job.learner.views()[self.index]
-
-
-class SeatRuns:
-  """What `runs.loop` evaluates with: each seed's periodic evaluation on its own parameters."""
-
-  def __init__(self, seats):
-    self.seats = seats
-
-  def periodic_eval(self, params, step: int, missing_since=None) -> None:
-    for seat, p in zip(self.seats, params):
-      seat.run.periodic_eval(p, step, missing_since)
-
 
 def run_wave(seats: Sequence[Seat], schedule: WaveSchedule, acting, online: OnlineSettings,
              action_dim: int, counters: dict, learner, bar,

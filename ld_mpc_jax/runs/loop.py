@@ -263,6 +263,18 @@ class Run:
     return dict(report, records=records)
 
 
+class SeedRuns:
+  """What `loop` evaluates with when a job trains several seeds: each seed's periodic evaluation
+  of its own parameters (`Job.eval_params`, one entry per seed) in its own run directory."""
+
+  def __init__(self, seed_runs: Sequence[Run]):
+    self.seed_runs = list(seed_runs)
+
+  def periodic_eval(self, params, step: int, missing_since=None) -> None:
+    for run, p in zip(self.seed_runs, params):
+      run.periodic_eval(p, step, missing_since)
+
+
 class Job(Protocol):
   """What `loop` drives: a counter that `advance` moves (update steps or environment steps)."""
 
@@ -286,8 +298,9 @@ def crossed(before: int, after: int, every: int) -> bool:
   return after // every > before // every
 
 
-def loop(run: Run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:
-  """Advances `job` until its progress reaches `total`.
+def loop(run, job: Job, total: int, checkpoint_every: int, eval_every: int) -> None:
+  """Advances `job` until its progress reaches `total`; `run` makes the periodic evaluations
+  (a `Run` of the job's one seed, or the `SeedRuns` of its seeds).
 
   After each advance: `job.log`; a checkpoint when a multiple of `checkpoint_every` is crossed
   and at the end; a periodic evaluation when a multiple of `eval_every` is crossed, except at the

@@ -118,16 +118,16 @@ def train_online(plans: Sequence[SeedPlan], workdir: str) -> Dict[str, Any]:
     print('warning: config.online.update_ratio=0: no updates; the agent is evaluated as it '
           f"starts ({'the offline run' if fine_tune else 'untrained'})", file=sys.stderr)
   job = online_job(plans, offline)
-  o = first.online
+  o, seed_runs = first.online, runs.SeedRuns([seat.run for seat in job.seats])
   if fine_tune and job.progress == 0:  # Held-out success before fine-tuning.
-    job.runs.periodic_eval(job.eval_params(), 0)
+    seed_runs.periodic_eval(job.eval_params(), 0)
   try:
-    runs.loop(job.runs, job, o.env_steps, o.checkpoint_every, o.eval_every)
+    runs.loop(seed_runs, job, o.env_steps, o.checkpoint_every, o.eval_every)
   finally:
     job.bar.close()  # Its line ends: an error line (a full disk) starts a line of its own.
   reports, records = [], []
-  for seat in job.seats:
-    final, _, summary, recs = seat.run.final_evaluation(seat.ema_params(job), job.progress)
+  for seat, params in zip(job.seats, job.eval_params()):
+    final, _, summary, recs = seat.run.final_evaluation(params, job.progress)
     report = online_report.report(job, seat, final, summary)
     reports.append(seat.run.write_report(report, online_report.summary_md(report), recs))
     records.append(recs)

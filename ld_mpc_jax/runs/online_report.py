@@ -32,7 +32,7 @@ def report(job, seat, final, summary) -> Dict[str, Any]:
       'success_rate': final['success_rate'], 'success_ci95': final['success_ci95'],
       'mean_return': final['mean_return'], 'eval_episodes': plan.evals.episodes,
       'eval_seeds': list(plan.evals.seeds), 'evaluation': summary, 'curve': curve,
-      'num_params': count_params(seat.ema_params(job)),
+      'num_params': count_params(job.eval_params()[seat.index]),
       'demos': len(buffer.demos), 'reward': plan.online.reward,
       'first_training_success': _first_success(workdir),
       'acting': acting_summary(workdir, plan.online.eval_every),

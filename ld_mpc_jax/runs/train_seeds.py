@@ -15,7 +15,7 @@ import json
 import os
 import time
 import types
-from typing import Any, Dict, List, Sequence
+from typing import Any, Dict, Sequence
 
 import jax
 import numpy as np
@@ -30,17 +30,6 @@ from ld_mpc_jax.runs.progress import progress_bar, rate_text
 from ld_mpc_jax.runs.seed_plan import SeedPlan
 
 
-class _SeedRuns:
-  """What `runs.loop` evaluates with: each seed's periodic evaluation on its own parameters."""
-
-  def __init__(self, seed_runs: List[runs.Run]):
-    self.seed_runs = seed_runs
-
-  def periodic_eval(self, params, step: int, missing_since=None) -> None:
-    for run, p in zip(self.seed_runs, params):
-      run.periodic_eval(p, step, missing_since)
-
-
 class OfflineSeedsJob:
   """Offline training of N seeds as one `runs.Job`: each advance is one vmapped update."""
 
@@ -49,7 +38,6 @@ class OfflineSeedsJob:
     self.plans, self.loop = plans, plans[0].loop
     t = self.loop
     self.seed_runs = [runs.Run(p) for p in plans]
-    self.runs = _SeedRuns(self.seed_runs)
     states = self._restore()
     self.progress = self.start = 0 if states is None else self.seed_runs[0].step
     learn = plans[0].learn  # The seeds' plans differ in their seeds only.
@@ -144,7 +132,7 @@ def train_seeds(plans: Sequence[SeedPlan], workdir: str, dataset: data.Dataset,
   job = OfflineSeedsJob(plans, dataset)
   t = job.loop
   try:
-    runs.loop(job.runs, job, t.num_steps, t.checkpoint_every, t.eval_every)
+    runs.loop(runs.SeedRuns(job.seed_runs), job, t.num_steps, t.checkpoint_every, t.eval_every)
   finally:
     job.bar.close()  # Its line ends: an error line (an interrupt, a full disk) starts its own.
   reports, records = [], []
